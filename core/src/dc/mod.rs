@@ -1,0 +1,1 @@
+//! Distributed Clocks maths and state machine.

@@ -1,0 +1,1 @@
+//! Time types and wrap-safe arithmetic.

@@ -1,0 +1,1 @@
+//! EtherCAT wire codec (see issue: foundation).

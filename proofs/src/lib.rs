@@ -1,0 +1,2 @@
+//! `ecdc-proofs`: property bodies shared by Kani harnesses (`#[cfg(kani)]`), property tests,
+//! exhaustive/SMT checks and fuzz targets. One body per property (see `docs/verification.md`).
