@@ -1,2 +1,12 @@
 //! `ecdc-harness`: everything with I/O or `std` around the core: the ESC emulator, the
 //! deterministic simulation driver, pcap capture, the Linux raw-socket runtime and the CLI.
+//!
+//! - [`emu`]: the ESC emulator (slave chain with drifting clocks, DC registers, SYNC, faults).
+//! - [`capture`]: classic pcap writing and reading.
+//! - [`runtime`]: the Linux AF_PACKET transport and cyclic loop.
+//! - [`cli`]: one module per `ecdc` subcommand.
+
+pub mod capture;
+pub mod cli;
+pub mod emu;
+pub mod runtime;

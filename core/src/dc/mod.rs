@@ -1,1 +1,5 @@
-//! Distributed Clocks maths and state machine.
+//! Distributed Clocks: the pure maths (topology, propagation delays, offsets, SYNC start) and
+//! the sans-IO bring-up and cyclic state machine.
+//!
+//! Pipeline: discover → latch receive times → delays → offsets → static drift compensation →
+//! SYNC0/SYNC1 start → cyclic drift compensation and monitoring.

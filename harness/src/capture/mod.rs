@@ -1,0 +1,1 @@
+//! Frame capture files (classic pcap, linktype Ethernet).

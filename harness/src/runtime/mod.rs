@@ -1,0 +1,1 @@
+//! The Linux raw-socket runtime.
