@@ -39,6 +39,7 @@
 extern crate std;
 
 pub mod dc;
+pub mod num;
 pub mod servo;
 pub mod time;
 pub mod wire;

@@ -10,3 +10,4 @@ pub mod capture;
 pub mod cli;
 pub mod emu;
 pub mod runtime;
+pub mod sim;

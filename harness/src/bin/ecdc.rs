@@ -15,12 +15,24 @@ struct Cli {
 enum Command {
     /// Decode EtherCAT frames from a pcap file or a hex string.
     Decode(cli::decode::Args),
+    /// Bring up DC on emulated slaves and report precision (the main job).
+    Simulate(cli::simulate::Args),
+    /// Serve emulated slaves on a network interface in real time.
+    Emulate(cli::emulate::Args),
+    /// List slaves, DC capability, topology and delays on a network interface.
+    Scan(cli::scan::Args),
+    /// Bring up DC and run the cyclic loop on a network interface.
+    Run(cli::run::Args),
 }
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Decode(args) => cli::decode::run(args),
+        Command::Simulate(args) => cli::simulate::run(args),
+        Command::Emulate(args) => cli::emulate::run(args),
+        Command::Scan(args) => cli::scan::run(args),
+        Command::Run(args) => cli::run::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,3 +1,7 @@
 //! One module per `ecdc` subcommand; `src/bin/ecdc.rs` only parses arguments and dispatches.
 
 pub mod decode;
+pub mod emulate;
+pub mod run;
+pub mod scan;
+pub mod simulate;

@@ -1,0 +1,1 @@
+//! Deterministic simulation driver: a DC state machine and the emulated chain under simulated time.

@@ -1,0 +1,1 @@
+//! Property bodies for the dc_math area (see docs/verification.md).

@@ -1,0 +1,1 @@
+//! Property bodies for the machine area (see docs/verification.md).

@@ -1,0 +1,1 @@
+//! Property bodies for the servo area (see docs/verification.md).

@@ -1,0 +1,1 @@
+//! Property bodies for the wire area (see docs/verification.md).
