@@ -1,1 +1,494 @@
-//! Width-generic arithmetic kernels (wrapping difference, folding, clamping, sign-magnitude), written once against the [`Word`] trait so the SMT proofs check this very code.
+//! Width-generic arithmetic kernels (wrapping difference, folding, clamping, sign-magnitude),
+//! written once against the [`Word`] trait so the SMT proofs check this very code.
+//!
+//! Why a trait: the same kernel body runs on `u32`/`u64` in the protocol code, on `u8`/`u16` in
+//! the exhaustive checks, and on a symbolic bit-vector in `ecdc-proofs` (z3), where every
+//! `if` must become a symbolic choice. So kernels never branch on a comparison: they compute a
+//! [`Word::Bool`] and pick with [`Word::select`]. For machine words `Bool` is `bool` and
+//! `select` is an ordinary `if`, which the optimiser turns back into the obvious code.
+//!
+//! A [`Word`] is an N-bit unsigned bit pattern. "Signed" below means the same bits read as two's
+//! complement; [`Word::Signed`] is that reading as a separate type (`i32` for `u32`) so public
+//! APIs cannot confuse the two. All operations wrap modulo 2^N, so no kernel can overflow or
+//! panic for any input (REQ-CONV-008); every precondition below is about the *meaning* of the
+//! result, never about safety.
+//!
+//! Requirement ids: REQ-TIME-0xx in `spec/req/time.md`.
+
+/// Symbolic-or-concrete truth value returned by [`Word`] comparisons.
+pub trait Logic: Copy {
+    /// Logical and.
+    fn and(self, rhs: Self) -> Self;
+    /// Logical or.
+    fn or(self, rhs: Self) -> Self;
+    /// Logical not.
+    fn not(self) -> Self;
+}
+
+impl Logic for bool {
+    #[inline]
+    fn and(self, rhs: Self) -> Self {
+        self && rhs
+    }
+    #[inline]
+    fn or(self, rhs: Self) -> Self {
+        self || rhs
+    }
+    #[inline]
+    fn not(self) -> Self {
+        !self
+    }
+}
+
+/// An N-bit unsigned machine word with modular arithmetic: the only operations the kernels use.
+///
+/// Kept deliberately small so the z3 bit-vector implementation in `ecdc-proofs` is a few lines
+/// per method and obviously faithful (each method is one SMT-LIB `bv*` operator).
+pub trait Word: Copy {
+    /// Result of comparisons: `bool` for machine words, a symbolic Boolean for SMT.
+    type Bool: Logic;
+    /// The same N bits read as two's complement (`i32` for `u32`, the word itself for SMT).
+    type Signed: Copy;
+    /// Width N in bits.
+    const BITS: u32;
+
+    /// The word with value `v` (`v` < 2^N for every width used; u8 fits all of them).
+    fn lit(v: u8) -> Self;
+    /// `self + rhs mod 2^N` (`bvadd`).
+    fn wrapping_add(self, rhs: Self) -> Self;
+    /// `self − rhs mod 2^N` (`bvsub`).
+    fn wrapping_sub(self, rhs: Self) -> Self;
+    /// Bitwise and (`bvand`).
+    fn bit_and(self, rhs: Self) -> Self;
+    /// Bitwise or (`bvor`).
+    fn bit_or(self, rhs: Self) -> Self;
+    /// Logical shift left by `n` < N (`bvshl`).
+    fn shl(self, n: u32) -> Self;
+    /// Logical shift right by `n` < N (`bvlshr`).
+    fn shr(self, n: u32) -> Self;
+    /// Unsigned remainder; `rhs` must be non-zero (`bvurem`; machine words return 0 for 0).
+    fn urem(self, rhs: Self) -> Self;
+    /// Equality.
+    fn eq(self, rhs: Self) -> Self::Bool;
+    /// Unsigned less-than (`bvult`).
+    fn ult(self, rhs: Self) -> Self::Bool;
+    /// Signed (two's complement) less-than (`bvslt`).
+    fn slt(self, rhs: Self) -> Self::Bool;
+    /// `if c { a } else { b }` (`ite`).
+    fn select(c: Self::Bool, a: Self, b: Self) -> Self;
+    /// Reinterpret as two's complement.
+    fn to_signed(self) -> Self::Signed;
+    /// Reinterpret two's complement bits as the word.
+    fn from_signed(s: Self::Signed) -> Self;
+}
+
+macro_rules! machine_word {
+    ($u:ty, $s:ty) => {
+        impl Word for $u {
+            type Bool = bool;
+            type Signed = $s;
+            const BITS: u32 = <$u>::BITS;
+            #[inline]
+            fn lit(v: u8) -> Self {
+                <$u>::from(v)
+            }
+            #[inline]
+            fn wrapping_add(self, rhs: Self) -> Self {
+                <$u>::wrapping_add(self, rhs)
+            }
+            #[inline]
+            fn wrapping_sub(self, rhs: Self) -> Self {
+                <$u>::wrapping_sub(self, rhs)
+            }
+            #[inline]
+            fn bit_and(self, rhs: Self) -> Self {
+                self & rhs
+            }
+            #[inline]
+            fn bit_or(self, rhs: Self) -> Self {
+                self | rhs
+            }
+            #[inline]
+            fn shl(self, n: u32) -> Self {
+                <$u>::wrapping_shl(self, n)
+            }
+            #[inline]
+            fn shr(self, n: u32) -> Self {
+                <$u>::wrapping_shr(self, n)
+            }
+            #[inline]
+            fn urem(self, rhs: Self) -> Self {
+                <$u>::checked_rem(self, rhs).unwrap_or(0)
+            }
+            #[inline]
+            fn eq(self, rhs: Self) -> bool {
+                self == rhs
+            }
+            #[inline]
+            fn ult(self, rhs: Self) -> bool {
+                self < rhs
+            }
+            #[inline]
+            fn slt(self, rhs: Self) -> bool {
+                <$s>::from_ne_bytes(self.to_ne_bytes()) < <$s>::from_ne_bytes(rhs.to_ne_bytes())
+            }
+            #[inline]
+            fn select(c: bool, a: Self, b: Self) -> Self {
+                if c {
+                    a
+                } else {
+                    b
+                }
+            }
+            #[inline]
+            fn to_signed(self) -> $s {
+                <$s>::from_ne_bytes(self.to_ne_bytes())
+            }
+            #[inline]
+            fn from_signed(s: $s) -> Self {
+                <$u>::from_ne_bytes(s.to_ne_bytes())
+            }
+        }
+    };
+}
+
+// u8/u16 exist for exhaustive checks of the same kernels at reduced width (docs/verification.md).
+machine_word!(u8, i8);
+machine_word!(u16, i16);
+machine_word!(u32, i32);
+machine_word!(u64, i64);
+
+// ------------------------------------------------------------------ constants
+
+/// 2^(N−1): the sign bit, also the bit pattern of the most negative signed value.
+#[inline]
+pub fn sign_bit<W: Word>() -> W {
+    W::lit(1).shl(W::BITS.wrapping_sub(1))
+}
+
+/// 2^(N−1) − 1: the largest signed value, also the largest sign-magnitude magnitude.
+#[inline]
+pub fn signed_max<W: Word>() -> W {
+    sign_bit::<W>().wrapping_sub(W::lit(1))
+}
+
+/// Signed "x < 0".
+#[inline]
+pub fn is_negative<W: Word>(x: W) -> W::Bool {
+    x.slt(W::lit(0))
+}
+
+/// Two's complement negation `0 − x` (wraps for the most negative value).
+#[inline]
+pub fn wrapping_neg<W: Word>(x: W) -> W {
+    W::lit(0).wrapping_sub(x)
+}
+
+/// |x| of a signed bit pattern, as an unsigned word in [0, 2^(N−1)]. Exact for every input,
+/// including the most negative value (whose magnitude 2^(N−1) is representable unsigned).
+#[inline]
+pub fn unsigned_abs<W: Word>(x: W) -> W {
+    W::select(is_negative(x), wrapping_neg(x), x)
+}
+
+// ------------------------------------------------------------------ wrap-safe time arithmetic
+
+/// REQ-TIME-003: `a − b mod 2^N`, read as signed. Equals the true signed difference of the
+/// unwrapped times whenever |a − b| < 2^(N−1), whatever wraps lie between them.
+#[inline]
+pub fn wrapping_diff<W: Word>(a: W, b: W) -> W::Signed {
+    a.wrapping_sub(b).to_signed()
+}
+
+/// REQ-TIME-004: `a` is strictly after `b` on the wrapping circle (`wrapping_diff(a, b) > 0`).
+#[inline]
+pub fn is_after<W: Word>(a: W, b: W) -> W::Bool {
+    W::lit(0).slt(a.wrapping_sub(b))
+}
+
+/// REQ-TIME-004: |a − b| on the wrapping circle: the shorter way round, in [0, 2^(N−1)].
+#[inline]
+pub fn wrapping_distance<W: Word>(a: W, b: W) -> W {
+    unsigned_abs(a.wrapping_sub(b))
+}
+
+/// REQ-TIME-005: index (as a word) of the earliest *active* time, i.e. the active time that
+/// every other active time is at-or-after by wrapping difference; the first such on ties.
+/// Returns `(found, index)`; `index` is 0 when nothing is active.
+///
+/// Correct (the true minimum of the unwrapped times) whenever all active times lie within a
+/// window shorter than 2^(N−1): then "is after" is a total order agreeing with the true one, so
+/// the linear scan finds the true minimum. A plain `<` on wrapped values fails as soon as a
+/// wrap falls inside the window (SOEM #979, ethercrab #374).
+/// `times` and `active` are paired by position; extra entries of the longer slice are ignored.
+pub fn earliest<W: Word>(times: &[W], active: &[W::Bool]) -> (W::Bool, W) {
+    let mut found = false_of::<W>();
+    let mut best_t = W::lit(0);
+    let mut best_i = W::lit(0);
+    let mut i = W::lit(0);
+    for (&t, &a) in times.iter().zip(active) {
+        // Take t if active and (nothing found yet, or t strictly before the best so far).
+        let take = a.and(found.not().or(is_after(best_t, t)));
+        best_t = W::select(take, t, best_t);
+        best_i = W::select(take, i, best_i);
+        found = found.or(a);
+        i = i.wrapping_add(W::lit(1));
+    }
+    (found, best_i)
+}
+
+/// A `false` of `W::Bool`, built from the trait alone.
+#[inline]
+fn false_of<W: Word>() -> W::Bool {
+    W::lit(0).ult(W::lit(0))
+}
+
+/// REQ-TIME-006: the full-width time nearest to `reference` whose low `k` bits equal those of
+/// `low`, for 0 < k < N. The result `r` satisfies `r ≡ low (mod 2^k)` and
+/// `wrapping_diff(r, reference) ∈ [−2^(k−1), 2^(k−1))`. Used to widen a 32-bit port/system
+/// time read from a 32-bit DC slave back to 64 bits near a known 64-bit time.
+#[inline]
+pub fn extend_near<W: Word>(low: W, reference: W, k: u32) -> W {
+    let full = W::lit(1).shl(k);
+    let half = W::lit(1).shl(k.wrapping_sub(1));
+    let mask = full.wrapping_sub(W::lit(1));
+    // Forward distance from reference to low, modulo 2^k, in [0, 2^k).
+    let d = low.wrapping_sub(reference).bit_and(mask);
+    // Read it as a k-bit signed value: [half, full) means "behind the reference".
+    let back = d.ult(half).not();
+    reference.wrapping_add(W::select(back, d.wrapping_sub(full), d))
+}
+
+// ------------------------------------------------------------------ phase folding
+
+/// REQ-TIME-007: `x mod p` in [0, p) for an unsigned `x`; `p` must be non-zero (0 yields 0 on
+/// machine words). Phase of a system time within a cycle.
+#[inline]
+pub fn phase<W: Word>(x: W, p: W) -> W {
+    x.urem(p)
+}
+
+/// REQ-TIME-008: fold a signed `x` into (−p/2, p/2] with the result ≡ x (mod p), for any
+/// unsigned period p > 0 (p = 0 yields a meaningless value, never a panic). Phase error of a
+/// SYNC edge relative to the nearest cycle boundary. |result| ≤ p/2 < 2^(N−1), so it is
+/// always representable.
+pub fn fold<W: Word>(x: W::Signed, p: W) -> W::Signed {
+    let x = W::from_signed(x);
+    let neg = is_negative(x);
+    // Euclidean remainder r = x mod p in [0, p) using only unsigned operations.
+    let m = unsigned_abs(x).urem(p);
+    let r_neg = W::select(m.eq(W::lit(0)), W::lit(0), p.wrapping_sub(m));
+    let r = W::select(neg, r_neg, m);
+    // (p/2, p) maps to (−p/2, 0) by subtracting one period.
+    let upper = p.shr(1).ult(r);
+    W::select(upper, r.wrapping_sub(p), r).to_signed()
+}
+
+// ------------------------------------------------------------------ clamping and saturation
+
+/// REQ-TIME-009: signed `min(max(x, lo), hi)`. With `lo ≤ hi` the result is in [lo, hi] and
+/// equals `x` when `x` already is; with `lo > hi` it is `hi` (the upper bound wins).
+#[inline]
+pub fn clamp<W: Word>(x: W::Signed, lo: W::Signed, hi: W::Signed) -> W::Signed {
+    let (x, lo, hi) = (W::from_signed(x), W::from_signed(lo), W::from_signed(hi));
+    let up = W::select(x.slt(lo), lo, x);
+    W::select(hi.slt(up), hi, up).to_signed()
+}
+
+/// REQ-TIME-009: clamp a signed `x` to [−limit, limit] for an unsigned magnitude `limit`;
+/// limits ≥ 2^(N−1) − 1 act as 2^(N−1) − 1, so the result always has a representable negation.
+#[inline]
+pub fn clamp_magnitude<W: Word>(x: W::Signed, limit: W) -> W::Signed {
+    let smax = signed_max::<W>();
+    let lim = W::select(smax.ult(limit), smax, limit);
+    clamp::<W>(x, wrapping_neg(lim).to_signed(), lim.to_signed())
+}
+
+/// REQ-TIME-010: signed `a + b`, saturating at the signed range instead of wrapping.
+#[inline]
+pub fn saturating_add<W: Word>(a: W::Signed, b: W::Signed) -> W::Signed {
+    let (a, b) = (W::from_signed(a), W::from_signed(b));
+    let s = a.wrapping_add(b);
+    let (na, nb, ns) = (is_negative(a), is_negative(b), is_negative(s));
+    // Overflow iff the operands share a sign and the sum's sign differs.
+    let same = na.and(nb).or(na.not().and(nb.not()));
+    let overflow = same.and(ns.and(na.not()).or(ns.not().and(na)));
+    let limit = W::select(na, sign_bit::<W>(), signed_max::<W>());
+    W::select(overflow, limit, s).to_signed()
+}
+
+/// REQ-TIME-010: signed `a − b`, saturating at the signed range instead of wrapping.
+#[inline]
+pub fn saturating_sub<W: Word>(a: W::Signed, b: W::Signed) -> W::Signed {
+    let (a, b) = (W::from_signed(a), W::from_signed(b));
+    let d = a.wrapping_sub(b);
+    let (na, nb, nd) = (is_negative(a), is_negative(b), is_negative(d));
+    // Overflow iff the operands differ in sign and the result's sign differs from a's.
+    let differ = na.and(nb.not()).or(na.not().and(nb));
+    let overflow = differ.and(nd.and(na.not()).or(nd.not().and(na)));
+    let limit = W::select(na, sign_bit::<W>(), signed_max::<W>());
+    W::select(overflow, limit, d).to_signed()
+}
+
+/// REQ-TIME-011: signed `x / 2` rounded toward zero, exact for every input (no overflow even
+/// for the most negative value). Used for "half a round trip" in delay computation.
+#[inline]
+pub fn half_toward_zero<W: Word>(x: W::Signed) -> W::Signed {
+    let x = W::from_signed(x);
+    let h = unsigned_abs(x).shr(1);
+    W::select(is_negative(x), wrapping_neg(h), h).to_signed()
+}
+
+// ------------------------------------------------------------------ sign-magnitude (0x092C)
+
+/// REQ-TIME-012: encode a signed value as saturating sign-magnitude: bits N−2..0 hold
+/// min(|x|, 2^(N−1) − 1) and bit N−1 is set iff x < 0 (REQ-CONV-006: for 0x092C, set means
+/// the local copy is behind). Never produces "negative zero".
+#[inline]
+pub fn sign_magnitude_encode<W: Word>(x: W::Signed) -> W {
+    let x = W::from_signed(x);
+    let smax = signed_max::<W>();
+    let mag = unsigned_abs(x);
+    let mag = W::select(smax.ult(mag), smax, mag);
+    W::select(is_negative(x), mag.bit_or(sign_bit::<W>()), mag)
+}
+
+/// REQ-TIME-012: decode sign-magnitude to a signed value; "negative zero" (only the sign bit)
+/// decodes to 0. Every result lies in [−(2^(N−1) − 1), 2^(N−1) − 1].
+#[inline]
+pub fn sign_magnitude_decode<W: Word>(v: W) -> W::Signed {
+    let mag = v.bit_and(signed_max::<W>());
+    let neg = v.bit_and(sign_bit::<W>()).eq(W::lit(0)).not();
+    W::select(neg, wrapping_neg(mag), mag).to_signed()
+}
+
+// ------------------------------------------------------------------ width conversion
+
+/// REQ-TIME-013: the low 32 bits of a 64-bit word (what a 32-bit DC slave keeps).
+#[inline]
+pub fn low32(x: u64) -> u32 {
+    // Truncation is the point; the mask makes it explicit and the conversion infallible.
+    u32::try_from(x & u64::from(u32::MAX)).unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrapping_diff_boundaries() {
+        assert_eq!(wrapping_diff(0u32, u32::MAX), 1);
+        assert_eq!(wrapping_diff(u32::MAX, 0u32), -1);
+        assert_eq!(wrapping_diff(0x8000_0000u32, 0), i32::MIN);
+        assert_eq!(wrapping_diff(0x7FFF_FFFFu32, 0), i32::MAX);
+        assert_eq!(wrapping_diff(5u64, u64::MAX - 4), 10);
+        assert!(is_after(0u32, u32::MAX));
+        assert!(!is_after(7u32, 7));
+        assert_eq!(wrapping_distance(0u32, 0x8000_0000), 0x8000_0000);
+        assert_eq!(wrapping_distance(u32::MAX, 1u32), 2);
+    }
+
+    #[test]
+    fn earliest_across_wrap() {
+        // Port 1 latched just before the 32-bit wrap, the others after: port 1 is earliest.
+        let t = [0x0000_0100u32, 0xFFFF_FF00, 0x0000_0050, 0];
+        let (found, i) = earliest(&t, &[true, true, true, false]);
+        assert!(found);
+        assert_eq!(i, 1);
+        // A plain minimum would have chosen port 2 (0x50) or the inactive port 3.
+        let (found, i) = earliest(&t, &[true, false, true, false]);
+        assert!(found && i == 2);
+        let (found, _) = earliest(&t, &[false; 4]);
+        assert!(!found);
+        // Ties: first wins.
+        let (_, i) = earliest(&[9u32, 9, 9], &[true, true, true]);
+        assert_eq!(i, 0);
+    }
+
+    #[test]
+    fn extend_near_boundaries() {
+        let r = 0x0000_0001_0000_0010u64;
+        assert_eq!(extend_near(0x0000_0020u64, r, 32), 0x0000_0001_0000_0020);
+        assert_eq!(extend_near(0xFFFF_FFF0u64, r, 32), 0x0000_0000_FFFF_FFF0);
+        // Exactly half a wrap ahead reads as behind (window is [−2^31, 2^31)).
+        assert_eq!(extend_near(0x8000_0010u64, r, 32), 0x0000_0000_8000_0010);
+        assert_eq!(extend_near(0x8000_000Fu64, r, 32), 0x0000_0001_8000_000F);
+        // Near zero: wraps below zero modulo 2^64.
+        assert_eq!(extend_near(0xFFFF_FFFFu64, 0, 32), u64::MAX);
+    }
+
+    #[test]
+    fn fold_boundaries() {
+        assert_eq!(fold::<u32>(0, 1000), 0);
+        assert_eq!(fold::<u32>(500, 1000), 500);
+        assert_eq!(fold::<u32>(501, 1000), -499);
+        assert_eq!(fold::<u32>(-500, 1000), 500);
+        assert_eq!(fold::<u32>(-499, 1000), -499);
+        assert_eq!(
+            i128::from(fold::<u32>(i32::MIN, 1000)),
+            fold_ref(i32::MIN.into(), 1000)
+        );
+        assert_eq!(
+            i128::from(fold::<u32>(i32::MAX, 3)),
+            fold_ref(i32::MAX.into(), 3)
+        );
+        assert_eq!(
+            i128::from(fold::<u32>(-1, u32::MAX)),
+            fold_ref(-1, u32::MAX.into())
+        );
+        assert_eq!(
+            i128::from(fold::<u32>(i32::MIN, u32::MAX)),
+            fold_ref(i32::MIN.into(), u32::MAX.into())
+        );
+        assert_eq!(
+            i128::from(fold::<u64>(i64::MIN, i64::MAX as u64)),
+            fold_ref(i64::MIN.into(), i64::MAX.into())
+        );
+        assert_eq!(
+            i128::from(fold::<u64>(-3, u64::MAX)),
+            fold_ref(-3, u64::MAX.into())
+        );
+        assert_eq!(fold::<u32>(7, 1), 0);
+        assert_eq!(phase(1_000_000_123u64, 1_000_000), 123);
+    }
+
+    /// Plain wide-integer definition: Euclidean remainder, upper half moved down one period.
+    fn fold_ref(x: i128, p: i128) -> i128 {
+        let r = x.rem_euclid(p);
+        if 2 * r > p {
+            r - p
+        } else {
+            r
+        }
+    }
+
+    #[test]
+    fn clamp_and_saturate() {
+        assert_eq!(clamp::<u32>(5, -3, 3), 3);
+        assert_eq!(clamp::<u32>(-5, -3, 3), -3);
+        assert_eq!(clamp::<u32>(1, 3, -3), -3);
+        assert_eq!(clamp_magnitude::<u32>(i32::MIN, u32::MAX), -i32::MAX);
+        assert_eq!(clamp_magnitude::<u32>(i32::MIN, 10), -10);
+        assert_eq!(saturating_add::<u32>(i32::MAX, 1), i32::MAX);
+        assert_eq!(saturating_add::<u32>(i32::MIN, -1), i32::MIN);
+        assert_eq!(saturating_sub::<u32>(i32::MIN, 1), i32::MIN);
+        assert_eq!(saturating_sub::<u32>(0, i32::MIN), i32::MAX);
+        assert_eq!(saturating_sub::<u64>(-1, i64::MIN), i64::MAX);
+        assert_eq!(half_toward_zero::<u32>(-3), -1);
+        assert_eq!(half_toward_zero::<u32>(i32::MIN), i32::MIN / 2);
+        assert_eq!(half_toward_zero::<u32>(i32::MAX), i32::MAX / 2);
+    }
+
+    #[test]
+    fn sign_magnitude_boundaries() {
+        assert_eq!(sign_magnitude_encode::<u32>(0), 0);
+        assert_eq!(sign_magnitude_encode::<u32>(-1), 0x8000_0001);
+        assert_eq!(sign_magnitude_encode::<u32>(i32::MAX), 0x7FFF_FFFF);
+        assert_eq!(sign_magnitude_encode::<u32>(i32::MIN), 0xFFFF_FFFF);
+        assert_eq!(sign_magnitude_decode::<u32>(0x8000_0000), 0);
+        assert_eq!(sign_magnitude_decode::<u32>(0x8000_0001), -1);
+        assert_eq!(sign_magnitude_decode::<u32>(0xFFFF_FFFF), -i32::MAX);
+        assert_eq!(sign_magnitude_decode::<u32>(0x7FFF_FFFF), i32::MAX);
+        assert_eq!(low32(0x1234_5678_9ABC_DEF0), 0x9ABC_DEF0);
+    }
+}

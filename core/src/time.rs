@@ -1,1 +1,252 @@
 //! Time types and wrap-safe arithmetic.
+//!
+//! Two DC time domains get separate newtypes that never convert into each other implicitly:
+//! - [`SystemTime`]: 64-bit system time, ns since 2000-01-01 00:00:00, wrapping mod 2^64
+//!   (REQ-CONV-002). 32-bit DC slaves keep only [`SystemTime::low32`].
+//! - [`PortTime`]: a 32-bit receive-time latch (0x0900..0x090F) in a slave's *local* time
+//!   (REQ-CONV-003). Only differences between port times of the same slave are meaningful.
+//!
+//! Neither type implements `Ord`: on a wrapping clock "less than" is only meaningful through a
+//! wrapping difference, so comparisons are explicit ([`PortTime::is_after`], [`PortTime::earliest`]).
+//! Every operation delegates to the width-generic kernels in [`crate::num`], which are checked
+//! exhaustively at 8/16 bits and proved by SMT at full width in `ecdc-proofs`.
+//! Requirements: REQ-TIME-001.. in `spec/req/time.md`.
+
+use crate::num;
+
+/// Nanoseconds from the Unix epoch (1970-01-01) to the EtherCAT epoch (2000-01-01):
+/// 10 957 days × 86 400 s (REQ-TIME-002).
+pub const UNIX_TO_ETHERCAT_EPOCH_NS: u64 = 946_684_800_000_000_000;
+
+/// REQ-TIME-001: system time, ns since 2000-01-01 00:00:00, wrapping modulo 2^64.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct SystemTime(pub u64);
+
+impl SystemTime {
+    /// The EtherCAT epoch itself.
+    pub const EPOCH: SystemTime = SystemTime(0);
+
+    /// From raw nanoseconds since 2000-01-01.
+    #[inline]
+    pub const fn from_nanos(ns: u64) -> Self {
+        SystemTime(ns)
+    }
+
+    /// Raw nanoseconds since 2000-01-01.
+    #[inline]
+    pub const fn as_nanos(self) -> u64 {
+        self.0
+    }
+
+    /// REQ-TIME-002: from ns since the Unix epoch; `None` before 2000-01-01.
+    #[inline]
+    pub fn from_unix_nanos(unix_ns: u64) -> Option<Self> {
+        unix_ns
+            .checked_sub(UNIX_TO_ETHERCAT_EPOCH_NS)
+            .map(SystemTime)
+    }
+
+    /// REQ-TIME-002: to ns since the Unix epoch; `None` if that overflows u64 (year 2554+).
+    #[inline]
+    pub fn to_unix_nanos(self) -> Option<u64> {
+        self.0.checked_add(UNIX_TO_ETHERCAT_EPOCH_NS)
+    }
+
+    /// `self + ns` modulo 2^64.
+    #[inline]
+    #[must_use]
+    pub fn wrapping_add(self, ns: u64) -> Self {
+        SystemTime(num::Word::wrapping_add(self.0, ns))
+    }
+
+    /// `self + ns` for a signed step (e.g. an offset correction), modulo 2^64.
+    #[inline]
+    #[must_use]
+    pub fn wrapping_add_signed(self, ns: i64) -> Self {
+        SystemTime(num::Word::wrapping_add(
+            self.0,
+            <u64 as num::Word>::from_signed(ns),
+        ))
+    }
+
+    /// `self − ns` modulo 2^64.
+    #[inline]
+    #[must_use]
+    pub fn wrapping_sub(self, ns: u64) -> Self {
+        SystemTime(num::Word::wrapping_sub(self.0, ns))
+    }
+
+    /// REQ-TIME-003: signed ns from `earlier` to `self`; exact when the true gap is < 2^63 ns.
+    #[inline]
+    pub fn wrapping_since(self, earlier: SystemTime) -> i64 {
+        num::wrapping_diff(self.0, earlier.0)
+    }
+
+    /// REQ-TIME-004: `self` is strictly after `other` on the wrapping 64-bit circle.
+    #[inline]
+    pub fn is_after(self, other: SystemTime) -> bool {
+        num::is_after(self.0, other.0)
+    }
+
+    /// REQ-TIME-013: the low 32 bits, which is all a 32-bit DC slave keeps (REQ-CONV-003).
+    #[inline]
+    pub fn low32(self) -> u32 {
+        num::low32(self.0)
+    }
+
+    /// REQ-TIME-006: the system time nearest to `reference` whose low 32 bits are `low`
+    /// (within [−2^31, 2^31) ns of it). Widens a value read from a 32-bit DC slave.
+    #[inline]
+    pub fn extend_low32(low: u32, reference: SystemTime) -> Self {
+        SystemTime(num::extend_near(u64::from(low), reference.0, 32))
+    }
+
+    /// REQ-TIME-007: position of `self` within a cycle of `cycle_ns`, in [0, cycle_ns);
+    /// `None` for a zero cycle.
+    #[inline]
+    pub fn phase_in(self, cycle_ns: u64) -> Option<u64> {
+        (cycle_ns != 0).then(|| num::phase(self.0, cycle_ns))
+    }
+
+    /// REQ-TIME-007: the first multiple of `cycle_ns` at or after `self` (modulo 2^64); `None`
+    /// for a zero cycle. Aligns a SYNC0 start time to the cycle grid.
+    #[inline]
+    pub fn next_multiple_of(self, cycle_ns: u64) -> Option<Self> {
+        let ph = self.phase_in(cycle_ns)?;
+        let up = num::phase(cycle_ns.wrapping_sub(ph), cycle_ns);
+        Some(self.wrapping_add(up))
+    }
+}
+
+/// REQ-TIME-001: a 32-bit receive-time latch in a slave's local time (0x0900..0x090F).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct PortTime(pub u32);
+
+impl PortTime {
+    /// Raw latch value.
+    #[inline]
+    pub const fn raw(self) -> u32 {
+        self.0
+    }
+
+    /// REQ-TIME-003: signed ns from `earlier` to `self`; exact when the true gap is < 2^31 ns
+    /// (≈ 2.1 s), whatever wraps of the 32-bit counter lie between them.
+    #[inline]
+    pub fn wrapping_since(self, earlier: PortTime) -> i32 {
+        num::wrapping_diff(self.0, earlier.0)
+    }
+
+    /// REQ-TIME-004: `self` is strictly after `other` on the wrapping 32-bit circle.
+    #[inline]
+    pub fn is_after(self, other: PortTime) -> bool {
+        num::is_after(self.0, other.0)
+    }
+
+    /// REQ-TIME-005: index of the earliest latched port among `ports` (`None` = port closed or
+    /// not reached), compared by wrapping difference; the first on ties; `None` if no port is
+    /// present. Pass ports in processing order (0, 3, 1, 2) if ties must follow it.
+    /// Correct whenever the present times span less than 2^31 ns, even across a wrap.
+    /// Only the first 8 entries are considered (an ESC has at most 4 ports).
+    pub fn earliest(ports: &[Option<PortTime>]) -> Option<usize> {
+        const MAX: usize = 8;
+        let mut times = [0u32; MAX];
+        let mut active = [false; MAX];
+        for ((t, a), p) in times.iter_mut().zip(active.iter_mut()).zip(ports) {
+            if let Some(p) = p {
+                *t = p.0;
+                *a = true;
+            }
+        }
+        let n = ports.len().min(MAX);
+        let (found, idx) = num::earliest(times.get(..n)?, active.get(..n)?);
+        if !found {
+            return None;
+        }
+        // idx < n ≤ 8, so the conversion cannot fail.
+        usize::try_from(idx).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn epoch_conversion() {
+        // 2000-01-01T00:00:00Z is Unix 946684800 s.
+        assert_eq!(
+            SystemTime::from_unix_nanos(946_684_800_000_000_000),
+            Some(SystemTime(0))
+        );
+        assert_eq!(SystemTime::from_unix_nanos(946_684_799_999_999_999), None);
+        assert_eq!(SystemTime(5).to_unix_nanos(), Some(946_684_800_000_000_005));
+        assert_eq!(SystemTime(u64::MAX).to_unix_nanos(), None);
+    }
+
+    #[test]
+    fn system_time_wrap() {
+        let t = SystemTime(u64::MAX - 1);
+        assert_eq!(t.wrapping_add(3), SystemTime(1));
+        assert_eq!(SystemTime(1).wrapping_since(t), 3);
+        assert_eq!(t.wrapping_since(SystemTime(1)), -3);
+        assert!(SystemTime(1).is_after(t));
+        assert_eq!(SystemTime(0).wrapping_add_signed(-1), SystemTime(u64::MAX));
+        assert_eq!(SystemTime(0).wrapping_sub(1), SystemTime(u64::MAX));
+        assert_eq!(SystemTime(0x1_2345_6789).low32(), 0x2345_6789);
+    }
+
+    #[test]
+    fn extend_low32_near_reference() {
+        let r = SystemTime(0x0000_0005_FFFF_FF00);
+        // Low half wrapped after the reference: next 2^32 block.
+        assert_eq!(
+            SystemTime::extend_low32(0x0000_0100, r),
+            SystemTime(0x0000_0006_0000_0100)
+        );
+        assert_eq!(
+            SystemTime::extend_low32(0xFFFF_FE00, r),
+            SystemTime(0x0000_0005_FFFF_FE00)
+        );
+        for low in [0u32, 1, 0x7FFF_FFFF, 0x8000_0000, u32::MAX] {
+            let e = SystemTime::extend_low32(low, r);
+            assert_eq!(e.low32(), low);
+            let d = e.wrapping_since(r);
+            assert!(
+                (-(1i64 << 31)..(1i64 << 31)).contains(&d),
+                "{low:#x} -> {d}"
+            );
+        }
+    }
+
+    #[test]
+    fn phase_and_alignment() {
+        assert_eq!(SystemTime(1_000_123).phase_in(1_000_000), Some(123));
+        assert_eq!(SystemTime(1).phase_in(0), None);
+        assert_eq!(
+            SystemTime(1_000_123).next_multiple_of(1_000_000),
+            Some(SystemTime(2_000_000))
+        );
+        assert_eq!(
+            SystemTime(2_000_000).next_multiple_of(1_000_000),
+            Some(SystemTime(2_000_000))
+        );
+        assert_eq!(SystemTime(0).next_multiple_of(0), None);
+    }
+
+    #[test]
+    fn port_time_wrap_and_entry_port() {
+        assert_eq!(PortTime(10).wrapping_since(PortTime(u32::MAX - 9)), 20);
+        assert!(PortTime(10).is_after(PortTime(u32::MAX)));
+        // Entry port latched before the wrap, return ports after: wrap-safe choice is port 0.
+        let ports = [
+            Some(PortTime(0xFFFF_FFF0)),
+            None,
+            Some(PortTime(0x0000_0200)),
+            Some(PortTime(0x100)),
+        ];
+        assert_eq!(PortTime::earliest(&ports), Some(0));
+        assert_eq!(PortTime::earliest(&[None, None]), None);
+        assert_eq!(PortTime::earliest(&[]), None);
+        assert_eq!(PortTime::earliest(&[None, Some(PortTime(7))]), Some(1));
+    }
+}
