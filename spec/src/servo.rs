@@ -1,0 +1,1 @@
+//! Servo specification: seed formulas and bounds for the clock servos (owned by the servo area).
