@@ -6,6 +6,8 @@
 //! - [`runtime`]: the Linux AF_PACKET transport and cyclic loop.
 //! - [`cli`]: one module per `ecdc` subcommand.
 
+#![deny(unsafe_code)] // the only exception is runtime/sys.rs (raw socket and scheduling syscalls)
+
 pub mod capture;
 pub mod cli;
 pub mod emu;
