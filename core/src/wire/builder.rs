@@ -1,0 +1,393 @@
+//! Building a frame datagram by datagram in the caller's buffer (REQ-WIRE-040..042).
+//!
+//! The builder keeps the frame valid after every successful push: the previous datagram's M
+//! bit is set, the EtherCAT header length covers exactly the datagrams, the new datagram has
+//! M clear, IRQ 0 and WKC 0. A push that does not fit returns [`Error::BufferFull`] and changes
+//! nothing, so a state machine handed `&mut FrameBuilder` can try to append its datagrams to a
+//! frame the embedding master is also filling, and leave the rest for the next frame.
+
+use super::datagram::field as dfield;
+use super::frame::{field as ffield, EcatFrame};
+use super::{
+    Address, Command, Datagram, DatagramRepr, Error, Result, BROADCAST_MAC, ETHERTYPE_ETHERCAT,
+    MASTER_MAC, MAX_DATAGRAM_DATA, MAX_ECAT_PAYLOAD, MIN_FRAME_LEN,
+};
+use crate::wire::ethernet::{EthernetFrame, HEADER_LEN as ETH_HEADER_LEN};
+
+/// A handle to a datagram pushed into a [`FrameBuilder`], used to fill its data later and to
+/// match its reply (by index, or by offset in the frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct DatagramSlot {
+    offset: usize,
+    len: u16,
+    index: u8,
+}
+
+impl DatagramSlot {
+    /// Offset of the datagram's first byte in the builder's buffer (Ethernet frame or UDP
+    /// payload, as the builder was created).
+    pub const fn offset(&self) -> usize {
+        self.offset
+    }
+    /// Offset of the first data byte in the builder's buffer.
+    pub const fn data_offset(&self) -> usize {
+        self.offset.wrapping_add(dfield::DATA)
+    }
+    /// Data length.
+    pub const fn len(&self) -> u16 {
+        self.len
+    }
+    /// True if the datagram carries no data.
+    pub const fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// The index written into the datagram.
+    pub const fn index(&self) -> u8 {
+        self.index
+    }
+}
+
+/// Writes an Ethernet header (or nothing, for a UDP payload), the EtherCAT header and datagrams
+/// into `&'a mut [u8]`.
+#[derive(Debug)]
+pub struct FrameBuilder<'a> {
+    buf: &'a mut [u8],
+    /// Offset of the EtherCAT header in `buf` (14, or 0 for a UDP payload).
+    ecat_start: usize,
+    /// End of the last datagram in `buf`.
+    end: usize,
+    /// Offset of the last datagram, whose M bit the next push sets.
+    last: Option<usize>,
+    count: usize,
+    next_index: u8,
+    /// Ethernet frames are padded to 60 bytes by `finish`.
+    pad: bool,
+}
+
+impl<'a> FrameBuilder<'a> {
+    /// Starts an Ethernet frame: dst ff:ff:ff:ff:ff:ff, src [`MASTER_MAC`], EtherType 0x88A4,
+    /// EtherCAT header with length 0 and type 1. Needs at least 60 bytes (the padded minimum),
+    /// else [`Error::BufferFull`]. REQ-WIRE-041, REQ-WIRE-060
+    pub fn new(buf: &'a mut [u8]) -> Result<FrameBuilder<'a>> {
+        if buf.len() < MIN_FRAME_LEN {
+            return Err(Error::BufferFull);
+        }
+        let mut eth = EthernetFrame::new_unchecked(&mut *buf);
+        eth.set_dst(BROADCAST_MAC);
+        eth.set_src(MASTER_MAC);
+        eth.set_outer_ethertype(ETHERTYPE_ETHERCAT);
+        Ok(FrameBuilder::start(buf, ETH_HEADER_LEN, true))
+    }
+
+    /// Starts an EtherCAT-over-UDP payload (EtherCAT header + datagrams, no padding).
+    /// Needs at least the 2 header bytes, else [`Error::BufferFull`]. REQ-WIRE-003
+    pub fn new_udp_payload(buf: &'a mut [u8]) -> Result<FrameBuilder<'a>> {
+        if buf.len() < ffield::HEADER_LEN {
+            return Err(Error::BufferFull);
+        }
+        Ok(FrameBuilder::start(buf, 0, false))
+    }
+
+    fn start(buf: &'a mut [u8], ecat_start: usize, pad: bool) -> FrameBuilder<'a> {
+        let mut b = FrameBuilder {
+            buf,
+            ecat_start,
+            end: ecat_start.wrapping_add(ffield::HEADER_LEN),
+            last: None,
+            count: 0,
+            next_index: 0,
+            pad,
+        };
+        b.write_header_len();
+        b
+    }
+
+    /// Re-opens a valid untagged Ethernet EtherCAT frame already in `buf` (e.g. built earlier
+    /// and kept) to append further datagrams. Padding after the datagrams is overwritten.
+    pub fn resume(buf: &'a mut [u8]) -> Result<FrameBuilder<'a>> {
+        if buf.len() < MIN_FRAME_LEN {
+            return Err(Error::BufferFull);
+        }
+        let (end, last, count) = {
+            let eth = EthernetFrame::new_checked(&*buf)?;
+            if eth.is_tagged() {
+                return Err(Error::NotEtherCat {
+                    ethertype: eth.outer_ethertype(),
+                });
+            }
+            let frame = eth.ecat_frame()?;
+            let mut last = None;
+            let mut count = 0usize;
+            for off in frame.datagram_offsets() {
+                let (s, _) = off?;
+                last = Some(s.wrapping_add(ETH_HEADER_LEN));
+                count = count.wrapping_add(1);
+            }
+            (frame.ecat_len().wrapping_add(ETH_HEADER_LEN), last, count)
+        };
+        Ok(FrameBuilder {
+            buf,
+            ecat_start: ETH_HEADER_LEN,
+            end,
+            last,
+            count,
+            next_index: 0,
+            pad: true,
+        })
+    }
+
+    /// Sets the source MAC (default [`MASTER_MAC`]; keep bit 0x02 of the first octet clear so
+    /// processed frames stay recognisable). No effect on a UDP payload.
+    pub fn set_source(&mut self, mac: [u8; 6]) {
+        if self.pad {
+            EthernetFrame::new_unchecked(&mut *self.buf).set_src(mac);
+        }
+    }
+
+    /// Sets the destination MAC. No effect on a UDP payload.
+    pub fn set_destination(&mut self, mac: [u8; 6]) {
+        if self.pad {
+            EthernetFrame::new_unchecked(&mut *self.buf).set_dst(mac);
+        }
+    }
+
+    /// The index [`FrameBuilder::push_auto`] uses next.
+    pub fn next_index(&self) -> u8 {
+        self.next_index
+    }
+
+    /// Sets the index [`FrameBuilder::push_auto`] uses next (it then counts up, wrapping).
+    pub fn set_next_index(&mut self, idx: u8) {
+        self.next_index = idx;
+    }
+
+    /// Datagrams pushed so far.
+    pub fn datagram_count(&self) -> usize {
+        self.count
+    }
+
+    /// Current frame length without padding.
+    pub fn len(&self) -> usize {
+        self.end
+    }
+
+    /// True if no datagram was pushed.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Largest data length one more datagram can carry: limited by the buffer, the 1498-byte
+    /// EtherCAT payload and 1486 bytes per datagram; 0 also when not even an empty datagram
+    /// fits (check with [`FrameBuilder::fits`]).
+    pub fn remaining_data_capacity(&self) -> usize {
+        self.room()
+            .saturating_sub(dfield::MIN_LEN)
+            .min(MAX_DATAGRAM_DATA)
+    }
+
+    /// True if a datagram with `len` data bytes fits.
+    pub fn fits(&self, len: usize) -> bool {
+        len <= MAX_DATAGRAM_DATA && len.saturating_add(dfield::MIN_LEN) <= self.room()
+    }
+
+    /// Bytes left for datagrams.
+    fn room(&self) -> usize {
+        let limit = self
+            .buf
+            .len()
+            .min(self.ecat_start.saturating_add(MAX_ECAT_PAYLOAD));
+        limit.saturating_sub(self.end)
+    }
+
+    /// Appends a datagram with `data`, M clear, IRQ 0, WKC 0, and sets the previous datagram's
+    /// M bit. Errors (nothing written): [`Error::AddressMismatch`], [`Error::DatagramTooLong`],
+    /// [`Error::BufferFull`]. REQ-WIRE-040
+    pub fn push(
+        &mut self,
+        command: Command,
+        index: u8,
+        address: Address,
+        data: &[u8],
+    ) -> Result<DatagramSlot> {
+        let len = u16::try_from(data.len())
+            .ok()
+            .filter(|l| usize::from(*l) <= MAX_DATAGRAM_DATA)
+            .ok_or(Error::DatagramTooLong {
+                len: u16::try_from(data.len()).unwrap_or(u16::MAX),
+            })?;
+        let slot = self.reserve(command, index, address, len)?;
+        let dst = self.data_mut(slot)?;
+        if dst.len() == data.len() {
+            dst.copy_from_slice(data);
+        }
+        Ok(slot)
+    }
+
+    /// Like [`FrameBuilder::push`] with `len` zero bytes of data (fill them later through
+    /// [`FrameBuilder::data_mut`]).
+    pub fn push_zeroed(
+        &mut self,
+        command: Command,
+        index: u8,
+        address: Address,
+        len: u16,
+    ) -> Result<DatagramSlot> {
+        self.reserve(command, index, address, len)
+    }
+
+    /// Like [`FrameBuilder::push`] with the next automatic index (see
+    /// [`FrameBuilder::set_next_index`]); the counter advances only on success.
+    pub fn push_auto(
+        &mut self,
+        command: Command,
+        address: Address,
+        data: &[u8],
+    ) -> Result<DatagramSlot> {
+        let slot = self.push(command, self.next_index, address, data)?;
+        self.next_index = self.next_index.wrapping_add(1);
+        Ok(slot)
+    }
+
+    /// Appends a datagram described by `repr` (its C bit, IRQ and WKC included, so an emulator
+    /// or a test can build replies) with `data`; `data.len()` must equal `repr.len`, else
+    /// [`Error::Truncated`].
+    pub fn push_repr(&mut self, repr: &DatagramRepr, data: &[u8]) -> Result<DatagramSlot> {
+        if data.len() != usize::from(repr.len) {
+            return Err(Error::Truncated);
+        }
+        let slot = self.push(repr.command, repr.index, repr.address, data)?;
+        let mut d = self.datagram_mut(slot)?;
+        d.set_circulating(repr.circulating);
+        d.set_irq(repr.irq);
+        d.set_wkc(repr.wkc);
+        Ok(slot)
+    }
+
+    fn reserve(
+        &mut self,
+        command: Command,
+        index: u8,
+        address: Address,
+        len: u16,
+    ) -> Result<DatagramSlot> {
+        address.check_for(command)?;
+        if usize::from(len) > MAX_DATAGRAM_DATA {
+            return Err(Error::DatagramTooLong { len });
+        }
+        if !self.fits(usize::from(len)) {
+            return Err(Error::BufferFull);
+        }
+        let total = usize::from(len).wrapping_add(dfield::MIN_LEN);
+        let start = self.end;
+        let end = start.checked_add(total).ok_or(Error::BufferFull)?;
+        let region = self.buf.get_mut(start..end).ok_or(Error::BufferFull)?;
+        region.fill(0);
+        let repr = DatagramRepr {
+            command,
+            index,
+            address,
+            len,
+            circulating: false,
+            irq: 0,
+            wkc: 0,
+        };
+        repr.emit(&mut Datagram::new_unchecked(region), false)?;
+        // Only now that the new datagram is written does the previous one get its M bit.
+        if let Some(prev) = self.last {
+            if let Some(p) = self.buf.get_mut(prev..start) {
+                Datagram::new_unchecked(p).set_more(true);
+            }
+        }
+        self.last = Some(start);
+        self.end = end;
+        self.count = self.count.wrapping_add(1);
+        self.write_header_len();
+        Ok(DatagramSlot {
+            offset: start,
+            len,
+            index,
+        })
+    }
+
+    fn write_header_len(&mut self) {
+        let len = self
+            .end
+            .saturating_sub(self.ecat_start.wrapping_add(ffield::HEADER_LEN));
+        // len ≤ 1496 by the capacity check in `fits`.
+        let len = u16::try_from(len).unwrap_or(0);
+        if let Some(h) = self.buf.get_mut(self.ecat_start..) {
+            EcatFrame::new_unchecked(h).set_header(len, 1);
+        }
+    }
+
+    fn check_slot(&self, slot: DatagramSlot) -> Result<core::ops::Range<usize>> {
+        let first = self.ecat_start.wrapping_add(ffield::HEADER_LEN);
+        let data = slot.data_offset()..slot.data_offset().wrapping_add(usize::from(slot.len));
+        let dg_end = data.end.wrapping_add(dfield::WKC_LEN);
+        let ok = slot.offset >= first
+            && dg_end <= self.end
+            && data.start <= data.end
+            && self
+                .buf
+                .get(slot.offset..dg_end)
+                .is_some_and(|b| Datagram::new_unchecked(b).data_len() == slot.len);
+        if ok {
+            Ok(slot.offset..dg_end)
+        } else {
+            Err(Error::InvalidSlot)
+        }
+    }
+
+    /// The data bytes of a pushed datagram. [`Error::InvalidSlot`] if the slot is not from this
+    /// frame.
+    pub fn data_mut(&mut self, slot: DatagramSlot) -> Result<&mut [u8]> {
+        let r = self.check_slot(slot)?;
+        let dg = self.buf.get_mut(r).ok_or(Error::InvalidSlot)?;
+        Ok(Datagram::new_unchecked(dg).data_mut_owned())
+    }
+
+    /// A mutable view of a pushed datagram (to set IRQ, WKC, C bit, address after the fact).
+    pub fn datagram_mut(&mut self, slot: DatagramSlot) -> Result<Datagram<&mut [u8]>> {
+        let r = self.check_slot(slot)?;
+        self.buf
+            .get_mut(r)
+            .map(Datagram::new_unchecked)
+            .ok_or(Error::InvalidSlot)
+    }
+
+    /// Ends the frame: Ethernet frames are zero-padded to 60 bytes. Returns the frame length
+    /// (the bytes to send are `buf[..len]`). [`Error::NoDatagram`] if nothing was pushed.
+    /// REQ-WIRE-041
+    pub fn finish(self) -> Result<usize> {
+        if self.count == 0 {
+            return Err(Error::NoDatagram);
+        }
+        if !self.pad {
+            return Ok(self.end);
+        }
+        let len = self.end.max(MIN_FRAME_LEN);
+        if let Some(p) = self.buf.get_mut(self.end..len) {
+            p.fill(0);
+        }
+        Ok(len)
+    }
+}
+
+impl<'a> Datagram<&'a mut [u8]> {
+    /// The data bytes, borrowing the underlying buffer rather than the view.
+    pub fn data_mut_owned(self) -> &'a mut [u8] {
+        let end = usize::from(self.data_len()).wrapping_add(dfield::DATA);
+        self.into_inner()
+            .get_mut(dfield::DATA..end)
+            .unwrap_or(&mut [])
+    }
+}
+
+impl<'a> Datagram<&'a [u8]> {
+    /// The data bytes, borrowing the underlying buffer rather than the view.
+    pub fn data_ref(&self) -> &'a [u8] {
+        let end = usize::from(self.data_len()).wrapping_add(dfield::DATA);
+        let buf: &'a [u8] = self.into_inner();
+        buf.get(dfield::DATA..end).unwrap_or(&[])
+    }
+}

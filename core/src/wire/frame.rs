@@ -1,0 +1,450 @@
+//! The EtherCAT header and the datagram walk. Works on the Ethernet payload or on the payload of
+//! a UDP datagram to port 0x88A4 alike (REQ-WIRE-003).
+//!
+//! ```text
+//! off size field
+//!  0   2   LE u16: length (bits 0..10) | reserved (bit 11) | type (bits 12..15)
+//!  2  len  datagrams, walked by their M bits
+//! 2+len .. padding (ignored)
+//! ```
+//!
+//! Wireshark finds the end of the datagram list by M bits only and merely displays the header
+//! length. We walk the M bits *and* require the walk to end exactly at the header length
+//! (REQ-WIRE-015), so a frame whose two descriptions disagree is rejected with a typed error.
+
+use super::datagram::field as dfield;
+use super::{get_u16_le, put, Datagram, Error, Result, MAX_DATAGRAM_DATA, MAX_ECAT_PAYLOAD};
+
+/// Byte layout of the EtherCAT header.
+pub(crate) mod field {
+    use core::ops::Range;
+    /// The length/reserved/type word.
+    pub const HEADER: Range<usize> = 0..2;
+    /// First datagram byte.
+    pub const DATAGRAMS: usize = HEADER.end;
+    /// Header length (2).
+    pub const HEADER_LEN: usize = DATAGRAMS;
+    /// Length bits.
+    pub const LEN_MASK: u16 = 0x07FF;
+    /// Reserved bit 11.
+    pub const RESERVED: u16 = 0x0800;
+    /// Type shift (bits 12..15).
+    pub const TYPE_SHIFT: u32 = 12;
+}
+
+/// EtherCAT header length.
+pub const ECAT_HEADER_LEN: usize = field::HEADER_LEN;
+
+/// The 4-bit EtherCAT frame type (Wireshark `EthercatFrameTypes`). Only [`FrameType::Dlpdu`]
+/// is processed by ESCs and by this codec; the others are reported by
+/// [`Error::NotDlpdu`]. REQ-WIRE-014
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FrameType {
+    /// 1: EtherCAT commands (datagrams).
+    Dlpdu,
+    /// 2: ADS.
+    Ads,
+    /// 3: RAW-IO.
+    RawIo,
+    /// 4: network variables.
+    Nv,
+    /// 5: mailbox gateway.
+    Mailbox,
+    /// Any other value (0, 6..15).
+    Other(u8),
+}
+
+impl FrameType {
+    /// Decodes the 4-bit type.
+    pub const fn from_u8(t: u8) -> FrameType {
+        match t {
+            1 => FrameType::Dlpdu,
+            2 => FrameType::Ads,
+            3 => FrameType::RawIo,
+            4 => FrameType::Nv,
+            5 => FrameType::Mailbox,
+            other => FrameType::Other(other),
+        }
+    }
+    /// The 4-bit value.
+    pub const fn to_u8(self) -> u8 {
+        match self {
+            FrameType::Dlpdu => 1,
+            FrameType::Ads => 2,
+            FrameType::RawIo => 3,
+            FrameType::Nv => 4,
+            FrameType::Mailbox => 5,
+            FrameType::Other(t) => t,
+        }
+    }
+}
+
+/// A zero-copy view of an EtherCAT header followed by its datagrams (and possibly padding).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EcatFrame<T: AsRef<[u8]>> {
+    buffer: T,
+}
+
+impl<T: AsRef<[u8]>> EcatFrame<T> {
+    /// Wraps `buffer` without checks. Accessors and iterators stay panic-free, and the
+    /// iterators still report every error `new_checked` would.
+    pub const fn new_unchecked(buffer: T) -> EcatFrame<T> {
+        EcatFrame { buffer }
+    }
+
+    /// Wraps `buffer` after [`EcatFrame::check_len`]: header checks plus a full datagram walk.
+    /// After `Ok`, [`EcatFrame::iter`] yields only `Ok` items.
+    pub fn new_checked(buffer: T) -> Result<EcatFrame<T>> {
+        let f = EcatFrame::new_unchecked(buffer);
+        f.check_len()?;
+        Ok(f)
+    }
+
+    /// Validates the frame. In this order (first failure wins), REQ-WIRE-010..017:
+    /// 1. 2 header bytes present, else [`Error::Truncated`];
+    /// 2. type is 1, else [`Error::NotDlpdu`];
+    /// 3. reserved bit 11 clear, else [`Error::HeaderReservedBit`];
+    /// 4. 2 + length ≤ 1498, else [`Error::FrameTooLong`];
+    /// 5. the buffer holds 2 + length bytes, else [`Error::Truncated`];
+    /// 6. length > 0, else [`Error::NoDatagram`];
+    /// 7. per datagram, in walk order: its 10-byte header lies inside the header length
+    ///    ([`Error::LengthMismatch`]); data length ≤ 1486 ([`Error::DatagramTooLong`]); the whole
+    ///    datagram lies inside the header length ([`Error::LengthMismatch`]); command ≤ 14
+    ///    ([`Error::UnknownCommand`]); reserved bits clear ([`Error::DatagramReservedBits`]);
+    /// 8. after a datagram with M set the header length must leave room for more
+    ///    ([`Error::MoreBitOnLast`]); after one with M clear it must be used up
+    ///    ([`Error::TrailingData`]).
+    ///
+    /// Invalidated by [`EcatFrame::set_header`] and by any datagram length/flag setter.
+    pub fn check_len(&self) -> Result<()> {
+        for d in self.iter() {
+            d?;
+        }
+        Ok(())
+    }
+
+    /// Unwraps the buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
+    }
+
+    /// The raw header word.
+    #[inline]
+    pub fn header(&self) -> u16 {
+        get_u16_le(self.buffer.as_ref(), field::HEADER.start)
+    }
+
+    /// Length of all datagrams in bytes (11 bits; header and padding excluded).
+    #[inline]
+    pub fn length(&self) -> u16 {
+        self.header() & field::LEN_MASK
+    }
+
+    /// Reserved bit 11.
+    #[inline]
+    pub fn reserved(&self) -> bool {
+        self.header() & field::RESERVED != 0
+    }
+
+    /// The 4-bit type (1 = DLPDU).
+    #[inline]
+    pub fn frame_type(&self) -> u8 {
+        let [_, hi] = self.header().to_le_bytes();
+        hi >> 4
+    }
+
+    /// The type as an enum.
+    #[inline]
+    pub fn frame_type_kind(&self) -> FrameType {
+        FrameType::from_u8(self.frame_type())
+    }
+
+    /// 2 + length: the EtherCAT bytes without padding.
+    #[inline]
+    pub fn ecat_len(&self) -> usize {
+        usize::from(self.length()).wrapping_add(field::HEADER_LEN)
+    }
+
+    /// The datagram bytes as the header length delimits them (empty if the buffer is shorter).
+    #[inline]
+    pub fn datagrams_bytes(&self) -> &[u8] {
+        self.buffer
+            .as_ref()
+            .get(field::DATAGRAMS..self.ecat_len())
+            .unwrap_or(&[])
+    }
+
+    /// Bytes after the header length (Ethernet padding), empty if none.
+    #[inline]
+    pub fn padding(&self) -> &[u8] {
+        self.buffer.as_ref().get(self.ecat_len()..).unwrap_or(&[])
+    }
+
+    /// Iterates over the datagrams, validating as [`EcatFrame::check_len`] describes. After
+    /// the first `Err` the iterator ends. Every yielded view spans exactly one datagram inside
+    /// the buffer.
+    pub fn iter(&self) -> Datagrams<'_> {
+        let buf = self.buffer.as_ref();
+        match Walk::start(buf) {
+            Ok(walk) => Datagrams {
+                region: buf.get(field::DATAGRAMS..self.ecat_len()).unwrap_or(&[]),
+                walk,
+                first_error: None,
+            },
+            Err(e) => Datagrams {
+                region: &[],
+                walk: Walk::finished(),
+                first_error: Some(e),
+            },
+        }
+    }
+
+    /// Like [`EcatFrame::iter`] but yields `(start, len)` of each datagram, `start` counted
+    /// from the first byte of this view's buffer (the EtherCAT header). With these a caller can
+    /// build `Datagram<&mut [u8]>` over `buf[start..start + len]` itself.
+    pub fn datagram_offsets(&self) -> DatagramOffsets<'_> {
+        DatagramOffsets { inner: self.iter() }
+    }
+
+    /// Number of datagrams, or the first error.
+    pub fn datagram_count(&self) -> Result<usize> {
+        let mut n = 0usize;
+        for d in self.iter() {
+            d?;
+            n = n.wrapping_add(1);
+        }
+        Ok(n)
+    }
+}
+
+impl<T: AsRef<[u8]> + AsMut<[u8]>> EcatFrame<T> {
+    /// Writes the header word: `length` (11 bits), reserved 0, `frame_type` (4 bits).
+    pub fn set_header(&mut self, length: u16, frame_type: u8) {
+        let v = (length & field::LEN_MASK) | (u16::from(frame_type & 0x0F) << field::TYPE_SHIFT);
+        put(self.buffer.as_mut(), field::HEADER.start, &v.to_le_bytes());
+    }
+
+    /// Writes the raw header word (reserved bit included).
+    pub fn set_header_raw(&mut self, v: u16) {
+        put(self.buffer.as_mut(), field::HEADER.start, &v.to_le_bytes());
+    }
+
+    /// Mutable walk: yields `Datagram<&mut [u8]>` views, one per datagram, each spanning exactly
+    /// that datagram, so a caller (an emulated ESC) can update ADP, WKC, data, IRQ and the C bit
+    /// in place while walking. Validation is the same as [`EcatFrame::iter`]; the walk reads
+    /// each datagram's length and M bit *before* yielding it, so changing them through the view
+    /// does not derail the walk (but does invalidate the frame for later parses).
+    pub fn iter_mut(&mut self) -> DatagramsMut<'_> {
+        let buf = self.buffer.as_mut();
+        let end = usize::from(get_u16_le(buf, 0) & field::LEN_MASK).wrapping_add(field::HEADER_LEN);
+        match Walk::start(buf) {
+            Ok(walk) => DatagramsMut {
+                rest: buf.get_mut(field::DATAGRAMS..end).unwrap_or(&mut []),
+                walk,
+                first_error: None,
+            },
+            Err(e) => DatagramsMut {
+                rest: &mut [],
+                walk: Walk::finished(),
+                first_error: Some(e),
+            },
+        }
+    }
+}
+
+/// The state of an M-bit walk over a datagram region of exactly `length` bytes.
+#[derive(Debug, Clone, Copy)]
+struct Walk {
+    length: u16,
+    walked: u16,
+    more: bool,
+    done: bool,
+}
+
+impl Walk {
+    /// Header checks 1..6 of [`EcatFrame::check_len`].
+    fn start(buf: &[u8]) -> Result<Walk> {
+        let Some(&[a, b]) = buf.get(field::HEADER) else {
+            return Err(Error::Truncated);
+        };
+        let h = u16::from_le_bytes([a, b]);
+        let frame_type = b >> 4;
+        // REQ-WIRE-014: only DLPDU frames carry datagrams; others are reported as they are.
+        if frame_type != FrameType::Dlpdu.to_u8() {
+            return Err(Error::NotDlpdu { frame_type });
+        }
+        // REQ-WIRE-013: reserved bit set is an error (SOEM masks 0x0FFF and would misread it).
+        if h & field::RESERVED != 0 {
+            return Err(Error::HeaderReservedBit);
+        }
+        let length = h & field::LEN_MASK;
+        let total = usize::from(length).wrapping_add(field::HEADER_LEN);
+        // REQ-WIRE-012
+        if total > MAX_ECAT_PAYLOAD {
+            return Err(Error::FrameTooLong { len: total });
+        }
+        // REQ-WIRE-010: a cut capture.
+        if buf.len() < total {
+            return Err(Error::Truncated);
+        }
+        if length == 0 {
+            return Err(Error::NoDatagram);
+        }
+        Ok(Walk {
+            length,
+            walked: 0,
+            more: true,
+            done: false,
+        })
+    }
+
+    const fn finished() -> Walk {
+        Walk {
+            length: 0,
+            walked: 0,
+            more: false,
+            done: true,
+        }
+    }
+
+    /// One step over `rest` (the region from offset `walked`). Returns the datagram's offset in
+    /// the region and its length; fuses after `None` or `Err`.
+    fn step(&mut self, rest: &[u8]) -> Option<Result<(usize, usize)>> {
+        if self.done {
+            return None;
+        }
+        let r = self.step_inner(rest);
+        if !matches!(r, Ok(Some(_))) {
+            self.done = true;
+        }
+        r.transpose()
+    }
+
+    fn step_inner(&mut self, rest: &[u8]) -> Result<Option<(usize, usize)>> {
+        // REQ-WIRE-015: the walk must end exactly at the header length.
+        if !self.more {
+            return if self.walked < self.length {
+                Err(Error::TrailingData)
+            } else {
+                Ok(None)
+            };
+        }
+        if rest.is_empty() {
+            return Err(if self.walked == 0 {
+                Error::NoDatagram
+            } else {
+                Error::MoreBitOnLast
+            });
+        }
+        let mismatch = |need: usize| Error::LengthMismatch {
+            header: self.length,
+            walked: u16::try_from(usize::from(self.walked).saturating_add(need))
+                .unwrap_or(u16::MAX),
+        };
+        if rest.len() < dfield::HEADER_LEN {
+            return Err(mismatch(dfield::MIN_LEN));
+        }
+        let d = Datagram::new_unchecked(rest);
+        let len = d.data_len();
+        // REQ-WIRE-011
+        if usize::from(len) > MAX_DATAGRAM_DATA {
+            return Err(Error::DatagramTooLong { len });
+        }
+        let total = d.total_len();
+        if rest.len() < total {
+            return Err(mismatch(total));
+        }
+        // REQ-WIRE-013, REQ-WIRE-017
+        d.check_fields()?;
+        let start = usize::from(self.walked);
+        // total ≤ rest.len() ≤ length − walked, so this cannot exceed `length`.
+        let total16 = u16::try_from(total).map_err(|_| mismatch(total))?;
+        self.walked = self.walked.checked_add(total16).ok_or(mismatch(total))?;
+        self.more = d.more();
+        Ok(Some((start, total)))
+    }
+}
+
+/// Iterator over a frame's datagrams; see [`EcatFrame::iter`].
+#[derive(Debug, Clone)]
+pub struct Datagrams<'a> {
+    region: &'a [u8],
+    walk: Walk,
+    first_error: Option<Error>,
+}
+
+impl<'a> Datagrams<'a> {
+    fn next_span(&mut self) -> Option<Result<(usize, usize)>> {
+        if let Some(e) = self.first_error.take() {
+            return Some(Err(e));
+        }
+        let rest = self
+            .region
+            .get(usize::from(self.walk.walked)..)
+            .unwrap_or(&[]);
+        self.walk.step(rest)
+    }
+}
+
+impl<'a> Iterator for Datagrams<'a> {
+    type Item = Result<Datagram<&'a [u8]>>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let region = self.region;
+        Some(self.next_span()?.and_then(|(start, len)| {
+            region
+                .get(start..start.wrapping_add(len))
+                .map(Datagram::new_unchecked)
+                .ok_or(Error::Truncated)
+        }))
+    }
+}
+
+impl core::iter::FusedIterator for Datagrams<'_> {}
+
+/// Iterator over `(start, len)` of each datagram; see [`EcatFrame::datagram_offsets`].
+#[derive(Debug, Clone)]
+pub struct DatagramOffsets<'a> {
+    inner: Datagrams<'a>,
+}
+
+impl Iterator for DatagramOffsets<'_> {
+    type Item = Result<(usize, usize)>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        Some(
+            self.inner
+                .next_span()?
+                .map(|(s, l)| (s.wrapping_add(field::DATAGRAMS), l)),
+        )
+    }
+}
+
+impl core::iter::FusedIterator for DatagramOffsets<'_> {}
+
+/// Mutable iterator over a frame's datagrams; see [`EcatFrame::iter_mut`].
+#[derive(Debug)]
+pub struct DatagramsMut<'a> {
+    rest: &'a mut [u8],
+    walk: Walk,
+    first_error: Option<Error>,
+}
+
+impl<'a> Iterator for DatagramsMut<'a> {
+    type Item = Result<Datagram<&'a mut [u8]>>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if let Some(e) = self.first_error.take() {
+            return Some(Err(e));
+        }
+        let step = self.walk.step(self.rest)?;
+        Some(step.and_then(|(_, len)| {
+            let rest = core::mem::take(&mut self.rest);
+            let (head, tail) = rest.split_at_mut_checked(len).ok_or(Error::Truncated)?;
+            self.rest = tail;
+            Ok(Datagram::new_unchecked(head))
+        }))
+    }
+}
+
+impl core::iter::FusedIterator for DatagramsMut<'_> {}
