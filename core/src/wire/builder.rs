@@ -176,8 +176,8 @@ impl<'a> FrameBuilder<'a> {
         self.count == 0
     }
 
-    /// Largest data length one more datagram can carry: limited by the buffer, the 1498-byte
-    /// EtherCAT payload and 1486 bytes per datagram; 0 also when not even an empty datagram
+    /// Largest data length one more datagram can carry: limited by the buffer, the 1498
+    /// datagram bytes of one frame and 1486 bytes per datagram; 0 also when not even an empty datagram
     /// fits (check with [`FrameBuilder::fits`]).
     pub fn remaining_data_capacity(&self) -> usize {
         self.room()
@@ -192,10 +192,11 @@ impl<'a> FrameBuilder<'a> {
 
     /// Bytes left for datagrams.
     fn room(&self) -> usize {
-        let limit = self
-            .buf
-            .len()
-            .min(self.ecat_start.saturating_add(MAX_ECAT_PAYLOAD));
+        let limit = self.buf.len().min(
+            self.ecat_start
+                .saturating_add(ffield::HEADER_LEN)
+                .saturating_add(MAX_ECAT_PAYLOAD),
+        );
         limit.saturating_sub(self.end)
     }
 
@@ -313,7 +314,7 @@ impl<'a> FrameBuilder<'a> {
         let len = self
             .end
             .saturating_sub(self.ecat_start.wrapping_add(ffield::HEADER_LEN));
-        // len ≤ 1496 by the capacity check in `fits`.
+        // len ≤ 1498 by the capacity check in `fits`.
         let len = u16::try_from(len).unwrap_or(0);
         if let Some(h) = self.buf.get_mut(self.ecat_start..) {
             EcatFrame::new_unchecked(h).set_header(len, 1);
@@ -389,5 +390,160 @@ impl<'a> Datagram<&'a [u8]> {
         let end = usize::from(self.data_len()).wrapping_add(dfield::DATA);
         let buf: &'a [u8] = self.into_inner();
         buf.get(dfield::DATA..end).unwrap_or(&[])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::{EcatFrame, MAX_FRAME_LEN};
+
+    /// REQ-WIRE-040/041/060: the builder reproduces the hand-written base frame of
+    /// wire-and-runtime.md §2.3 byte for byte (into a 0xa5-filled buffer).
+    #[test]
+    fn builds_base_frame() {
+        let mut buf = [0xa5u8; 100];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        b.push(Command::Brd, 1, Address::broadcast(0), &[0, 0])
+            .unwrap();
+        let s = b
+            .push_zeroed(Command::Frmw, 2, Address::configured(0x1001, 0x0910), 8)
+            .unwrap();
+        assert_eq!(s.offset(), 30);
+        assert_eq!(b.datagram_count(), 2);
+        let n = b.finish().unwrap();
+        assert_eq!(n, 60);
+        let expected: [u8; 60] = [
+            0xff, 0xff, 0xff, 0xff, 0xff, 0xff, // dst
+            0x10, 0x10, 0x10, 0x10, 0x10, 0x10, // src
+            0x88, 0xa4, // EtherType
+            0x22, 0x10, // len 34, type 1
+            0x07, 0x01, 0x00, 0x00, 0x00, 0x00, 0x02, 0x80, 0x00, 0x00, // BRD, M=1
+            0x00, 0x00, 0x00, 0x00, // data, WKC
+            0x0e, 0x02, 0x01, 0x10, 0x10, 0x09, 0x08, 0x00, 0x00, 0x00, // FRMW
+            0, 0, 0, 0, 0, 0, 0, 0, 0x00, 0x00, // data, WKC
+            0, 0, 0, 0, 0, 0, 0, 0, 0, 0, // padding
+        ];
+        assert_eq!(buf[..60], expected);
+        assert_eq!(buf[60], 0xa5, "nothing written past the frame");
+    }
+
+    /// REQ-WIRE-040: a push that does not fit changes nothing; capacity is the buffer and
+    /// 1498 EtherCAT bytes.
+    #[test]
+    fn capacity() {
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        // 64 - 14 - 2 = 48 bytes of room -> 36 data bytes
+        assert_eq!(b.remaining_data_capacity(), 36);
+        assert_eq!(
+            b.push_zeroed(Command::Lrw, 0, Address::logical(0), 37),
+            Err(Error::BufferFull)
+        );
+        assert!(b.is_empty());
+        b.push_zeroed(Command::Lrw, 0, Address::logical(0), 36)
+            .unwrap();
+        assert_eq!(b.remaining_data_capacity(), 0);
+        assert!(!b.fits(0));
+        assert_eq!(
+            b.push(Command::Nop, 0, Address::Raw(0), &[]),
+            Err(Error::BufferFull)
+        );
+        assert_eq!(b.finish(), Ok(64));
+
+        let mut big = [0u8; 2000];
+        let mut b = FrameBuilder::new(&mut big).unwrap();
+        assert_eq!(b.remaining_data_capacity(), 1486);
+        b.push_zeroed(Command::Lrw, 0, Address::logical(0), 1486)
+            .unwrap();
+        assert_eq!(b.finish(), Ok(MAX_FRAME_LEN));
+
+        let mut big = [0u8; 2000];
+        let mut b = FrameBuilder::new(&mut big).unwrap();
+        b.push_zeroed(Command::Lrw, 0, Address::logical(0), 1000)
+            .unwrap();
+        // 1498 - 1012 = 486 left -> 474 data
+        assert_eq!(b.remaining_data_capacity(), 474);
+        assert_eq!(
+            b.push_zeroed(Command::Lrw, 0, Address::logical(0), 475),
+            Err(Error::BufferFull)
+        );
+        let mut small = [0u8; 59];
+        assert_eq!(FrameBuilder::new(&mut small).err(), Some(Error::BufferFull));
+    }
+
+    #[test]
+    fn rejects_bad_input() {
+        let mut buf = [0u8; 1600];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        assert_eq!(
+            b.push(Command::Fprd, 0, Address::position(0, 0), &[0; 2]),
+            Err(Error::AddressMismatch)
+        );
+        assert_eq!(
+            b.push(Command::Lwr, 0, Address::logical(0), &[0; 1487]),
+            Err(Error::DatagramTooLong { len: 1487 })
+        );
+        assert!(b.is_empty());
+        assert_eq!(b.finish(), Err(Error::NoDatagram));
+    }
+
+    /// Slots, auto index, push_repr, resume, UDP payload.
+    #[test]
+    fn slots_and_resume() {
+        let mut buf = [0u8; 200];
+        {
+            let mut b = FrameBuilder::new(&mut buf).unwrap();
+            b.set_next_index(250);
+            let s1 = b
+                .push_auto(Command::Fprd, Address::configured(0x1001, 0x0900), &[0; 4])
+                .unwrap();
+            let s2 = b
+                .push_auto(Command::Brd, Address::broadcast(0x0130), &[0; 2])
+                .unwrap();
+            assert_eq!((s1.index(), s2.index(), b.next_index()), (250, 251, 252));
+            b.data_mut(s1).unwrap().copy_from_slice(&[1, 2, 3, 4]);
+            b.datagram_mut(s2).unwrap().set_wkc(7);
+            let foreign = DatagramSlot {
+                offset: 17,
+                len: 4,
+                index: 0,
+            };
+            assert_eq!(b.data_mut(foreign).err(), Some(Error::InvalidSlot));
+            assert_eq!(b.finish(), Ok(60));
+        }
+        {
+            let mut b = FrameBuilder::resume(&mut buf[..]).unwrap();
+            assert_eq!(b.datagram_count(), 2);
+            let repr = DatagramRepr {
+                command: Command::Lrw,
+                index: 9,
+                address: Address::logical(0x0001_0000),
+                len: 3,
+                circulating: true,
+                irq: 0x55,
+                wkc: 3,
+            };
+            b.push_repr(&repr, &[9, 8, 7]).unwrap();
+            b.finish().unwrap();
+        }
+        let eth = EthernetFrame::new_checked(&buf[..]).unwrap();
+        let f = eth.ecat_frame().unwrap();
+        let ds: std::vec::Vec<_> = f.iter().map(|d| d.unwrap()).collect();
+        assert_eq!(ds.len(), 3);
+        assert_eq!(ds[0].data(), &[1, 2, 3, 4]);
+        assert_eq!(ds[1].wkc(), 7);
+        assert!(ds[0].more() && ds[1].more() && !ds[2].more());
+        let r = DatagramRepr::parse(&ds[2]).unwrap();
+        assert_eq!((r.index, r.circulating, r.irq, r.wkc), (9, true, 0x55, 3));
+
+        let mut udp = [0u8; 40];
+        let mut b = FrameBuilder::new_udp_payload(&mut udp).unwrap();
+        b.push(Command::Aprd, 0, Address::position(1, 0x10), &[0; 2])
+            .unwrap();
+        let n = b.finish().unwrap();
+        assert_eq!(n, 16);
+        let f = EcatFrame::new_checked(&udp[..n]).unwrap();
+        assert_eq!(f.datagram_count(), Ok(1));
     }
 }

@@ -27,9 +27,10 @@ pub enum Error {
         /// The 11-bit length found.
         len: u16,
     },
-    /// EtherCAT header + datagrams would exceed 1498 bytes. REQ-WIRE-012
+    /// The datagrams would exceed 1498 bytes (EtherCAT header + datagrams > 1500, the Ethernet
+    /// payload limit). REQ-WIRE-012
     FrameTooLong {
-        /// The EtherCAT payload length (header included) that was declared or needed.
+        /// The datagram byte count declared by the EtherCAT header length.
         len: usize,
     },
     /// A datagram has its M bit set, but the EtherCAT header length ends right after it.
@@ -57,7 +58,7 @@ pub enum Error {
     DatagramReservedBits,
     /// The EtherCAT header length is 0: a DLPDU frame carries at least one datagram. REQ-WIRE-015
     NoDatagram,
-    /// The builder's buffer (or the 1498-byte EtherCAT payload limit) has no room for the
+    /// The builder's buffer (or the 1498-byte datagram limit of one frame) has no room for the
     /// datagram, or the buffer cannot hold a padded 60-byte frame. REQ-WIRE-040
     BufferFull,
     /// The [`crate::wire::Address`] kind does not match the command's addressing kind (e.g. a
@@ -85,7 +86,7 @@ impl fmt::Display for Error {
                 write!(f, "datagram data length {len} exceeds 1486")
             }
             Error::FrameTooLong { len } => {
-                write!(f, "EtherCAT payload length {len} exceeds 1498")
+                write!(f, "EtherCAT datagram length {len} exceeds 1498")
             }
             Error::MoreBitOnLast => {
                 f.write_str("M bit set on the datagram that ends the header length")

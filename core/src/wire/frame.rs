@@ -104,7 +104,7 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
     /// 1. 2 header bytes present, else [`Error::Truncated`];
     /// 2. type is 1, else [`Error::NotDlpdu`];
     /// 3. reserved bit 11 clear, else [`Error::HeaderReservedBit`];
-    /// 4. 2 + length ≤ 1498, else [`Error::FrameTooLong`];
+    /// 4. length ≤ 1498 (so header + datagrams ≤ 1500), else [`Error::FrameTooLong`];
     /// 5. the buffer holds 2 + length bytes, else [`Error::Truncated`];
     /// 6. length > 0, else [`Error::NoDatagram`];
     /// 7. per datagram, in walk order: its 10-byte header lies inside the header length
@@ -280,8 +280,10 @@ impl Walk {
         let length = h & field::LEN_MASK;
         let total = usize::from(length).wrapping_add(field::HEADER_LEN);
         // REQ-WIRE-012
-        if total > MAX_ECAT_PAYLOAD {
-            return Err(Error::FrameTooLong { len: total });
+        if usize::from(length) > MAX_ECAT_PAYLOAD {
+            return Err(Error::FrameTooLong {
+                len: usize::from(length),
+            });
         }
         // REQ-WIRE-010: a cut capture.
         if buf.len() < total {
@@ -448,3 +450,185 @@ impl<'a> Iterator for DatagramsMut<'a> {
 }
 
 impl core::iter::FusedIterator for DatagramsMut<'_> {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::Command;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// The base frame of wire-and-runtime.md §2.3 (EtherCAT part), written by hand:
+    /// header len 34 type 1; BRD idx 1 ADP 0 ADO 0 len 2 M=1; FRMW idx 2 ADP 0x1001 ADO 0x0910
+    /// len 8 M=0; 10 bytes of padding.
+    fn base() -> Vec<u8> {
+        let mut f = Vec::new();
+        f.extend_from_slice(&[0x22, 0x10]); // length 34, type 1
+        f.extend_from_slice(&[0x07, 0x01, 0x00, 0x00, 0x00, 0x00, 0x02, 0x80, 0x00, 0x00]);
+        f.extend_from_slice(&[0x00, 0x00]); // data
+        f.extend_from_slice(&[0x00, 0x00]); // WKC
+        f.extend_from_slice(&[0x0e, 0x02, 0x01, 0x10, 0x10, 0x09, 0x08, 0x00, 0x00, 0x00]);
+        f.extend_from_slice(&[0; 8]); // data
+        f.extend_from_slice(&[0x00, 0x00]); // WKC
+        f.extend_from_slice(&[0; 10]); // padding
+        f
+    }
+
+    /// REQ-WIRE-015: the base frame walks to exactly the header length.
+    #[test]
+    fn deconstruct() {
+        let b = base();
+        let f = EcatFrame::new_checked(&b[..]).unwrap();
+        assert_eq!(f.length(), 34);
+        assert_eq!(f.frame_type(), 1);
+        assert!(!f.reserved());
+        assert_eq!(f.padding().len(), 10);
+        let ds: Vec<_> = f.iter().map(|d| d.unwrap()).collect();
+        assert_eq!(ds.len(), 2);
+        assert_eq!(ds[0].command(), Ok(Command::Brd));
+        assert!(ds[0].more());
+        assert_eq!(ds[1].command(), Ok(Command::Frmw));
+        assert_eq!(ds[1].adp(), 0x1001);
+        assert_eq!(ds[1].ado(), 0x0910);
+        let offs: Vec<_> = f.datagram_offsets().map(|o| o.unwrap()).collect();
+        assert_eq!(offs, [(2, 14), (16, 20)]);
+        assert_eq!(f.datagram_count(), Ok(2));
+    }
+
+    fn err(b: &[u8]) -> Error {
+        let e = EcatFrame::new_checked(b).unwrap_err();
+        // iter on the unchecked view reports the same first error
+        let it = EcatFrame::new_unchecked(b).iter().find_map(|d| d.err());
+        assert_eq!(it, Some(e));
+        e
+    }
+
+    /// REQ-WIRE-010..017: one hand-made corruption per error.
+    #[test]
+    fn negative() {
+        assert_eq!(err(&[]), Error::Truncated);
+        assert_eq!(err(&[0x22]), Error::Truncated);
+        let b = base();
+        // cut inside the header length
+        assert_eq!(err(&b[..35]), Error::Truncated);
+        // type 5 (mailbox gateway)
+        let mut x = b.clone();
+        x[1] = 0x50;
+        assert_eq!(err(&x), Error::NotDlpdu { frame_type: 5 });
+        // reserved bit 11
+        let mut x = b.clone();
+        x[1] = 0x18;
+        assert_eq!(err(&x), Error::HeaderReservedBit);
+        // length 1499
+        let mut x = vec![0u8; 1600];
+        x[0] = 0xDB;
+        x[1] = 0x15;
+        assert_eq!(err(&x), Error::FrameTooLong { len: 1499 });
+        // length 0
+        assert_eq!(err(&[0x00, 0x10, 0, 0]), Error::NoDatagram);
+        // header length 36 (2 more than the walk): M clear on FRMW -> trailing data
+        let mut x = b.clone();
+        x[0] = 36;
+        assert_eq!(err(&x), Error::TrailingData);
+        // header length 32: FRMW ends past it
+        let mut x = b.clone();
+        x[0] = 32;
+        assert_eq!(
+            err(&x),
+            Error::LengthMismatch {
+                header: 32,
+                walked: 34
+            }
+        );
+        // header length 14: BRD has M set but the length ends after it
+        let mut x = b.clone();
+        x[0] = 14;
+        assert_eq!(err(&x), Error::MoreBitOnLast);
+        // header length 20: second datagram header incomplete
+        let mut x = b.clone();
+        x[0] = 20;
+        assert_eq!(
+            err(&x),
+            Error::LengthMismatch {
+                header: 20,
+                walked: 26
+            }
+        );
+        // M clear on BRD while the header covers FRMW too
+        let mut x = b.clone();
+        x[9] = 0x00;
+        assert_eq!(err(&x), Error::TrailingData);
+        // M set on FRMW (last) -> region exhausted
+        let mut x = b.clone();
+        x[23] = 0x80;
+        assert_eq!(err(&x), Error::MoreBitOnLast);
+        // command 15 in the second datagram
+        let mut x = b.clone();
+        x[16] = 15;
+        assert_eq!(err(&x), Error::UnknownCommand { code: 15 });
+        // reserved bit 13 of the second datagram
+        let mut x = b.clone();
+        x[23] = 0x20;
+        assert_eq!(err(&x), Error::DatagramReservedBits);
+        // data length 1487 in a 1500-byte payload
+        let mut x = vec![0u8; 1500];
+        x[0] = 0xDA;
+        x[1] = 0x15; // length 1498
+        x[2] = 0x07;
+        x[8] = 0xCF;
+        x[9] = 0x05; // len 1487
+        assert_eq!(err(&x), Error::DatagramTooLong { len: 1487 });
+        // ...and 1486 + 12 = 1498 exactly fits
+        x[8] = 0xCE;
+        assert!(EcatFrame::new_checked(&x[..]).is_ok());
+    }
+
+    /// The iterator fuses after an error.
+    #[test]
+    fn fuses() {
+        let mut x = base();
+        x[16] = 15;
+        let f = EcatFrame::new_unchecked(&x[..]);
+        let mut it = f.iter();
+        assert!(it.next().unwrap().is_ok());
+        assert!(it.next().unwrap().is_err());
+        assert!(it.next().is_none());
+        assert!(it.next().is_none());
+    }
+
+    /// iter_mut: an emulated ESC increments ADP and WKC of each datagram in place.
+    #[test]
+    fn iter_mut_in_place() {
+        let mut x = base();
+        let mut f = EcatFrame::new_checked(&mut x[..]).unwrap();
+        for d in f.iter_mut() {
+            let mut d = d.unwrap();
+            d.set_adp(d.adp().wrapping_add(1));
+            d.add_wkc(1);
+            d.data_mut().fill(0xAB);
+            // changing the M bit through the view does not derail the walk
+            d.set_more(false);
+        }
+        assert_eq!(&x[4..6], &[0x01, 0x00]); // BRD ADP 1
+        assert_eq!(&x[12..16], &[0xAB, 0xAB, 0x01, 0x00]); // data, WKC 1
+        assert_eq!(&x[34..36], &[0x01, 0x00]); // FRMW WKC 1
+        assert_eq!(&x[18..20], &[0x02, 0x10]); // FRMW ADP 0x1002
+    }
+
+    /// REQ-WIRE-003: the same view works on a UDP payload (no Ethernet header in front).
+    #[test]
+    fn udp_payload() {
+        let b = base();
+        let f = EcatFrame::new_checked(&b[..36]).unwrap();
+        assert_eq!(f.datagram_count(), Ok(2));
+        assert!(f.padding().is_empty());
+    }
+
+    #[test]
+    fn frame_type_enum() {
+        for t in 0..16u8 {
+            assert_eq!(FrameType::from_u8(t).to_u8(), t);
+        }
+        assert_eq!(FrameType::from_u8(1), FrameType::Dlpdu);
+    }
+}

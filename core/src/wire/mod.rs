@@ -67,9 +67,12 @@ pub const ETHERTYPE_VLAN: u16 = 0x8100;
 pub const UDP_PORT_ETHERCAT: u16 = 0x88A4;
 /// Largest data length of one datagram: 1500 − 2 (EtherCAT header) − 10 − 2. REQ-WIRE-011
 pub const MAX_DATAGRAM_DATA: usize = 1486;
-/// Largest EtherCAT payload (header + datagrams) in one Ethernet frame (the 1500-byte MTU minus
-/// nothing: the EtherCAT header is part of it). REQ-WIRE-012
+/// Largest datagram byte count in one frame, i.e. the largest valid EtherCAT header length:
+/// the 1500-byte Ethernet payload minus the 2-byte EtherCAT header (ESC datasheet: "44-1498
+/// Byte" of datagrams; SOEM: 1518 = 14 + 2 + 10 + 1486 + 2 + 4). REQ-WIRE-012
 pub const MAX_ECAT_PAYLOAD: usize = 1498;
+/// Largest Ethernet payload: EtherCAT header + datagrams.
+pub const MAX_ETHERNET_PAYLOAD: usize = 1500;
 /// Smallest Ethernet frame without FCS; the builder pads to it. REQ-WIRE-041
 pub const MIN_FRAME_LEN: usize = 60;
 /// Largest untagged Ethernet frame without FCS (14 + 1500).
