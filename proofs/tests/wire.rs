@@ -1,0 +1,161 @@
+//! Property tests and exhaustive checks for the wire bodies in `ecdc_proofs::wire`
+//! (REQ-PROP P1; spec/req/wire.md). These run the same bodies the Kani harnesses and the fuzz
+//! targets call.
+
+use ecdc_core::wire::{DatagramRepr, FrameBuilder};
+use ecdc_proofs::wire;
+use proptest::prelude::*;
+
+/// One datagram description: fields drawn over their full ranges, data up to 96 bytes (with
+/// occasional large ones so capacity limits are exercised).
+fn datagram() -> impl Strategy<Value = (DatagramRepr, Vec<u8>)> {
+    (
+        any::<u8>(),
+        any::<u8>(),
+        any::<u32>(),
+        any::<bool>(),
+        any::<u16>(),
+        any::<u16>(),
+        prop_oneof![
+            8 => proptest::collection::vec(any::<u8>(), 0..=96),
+            1 => proptest::collection::vec(any::<u8>(), 400..=1486),
+        ],
+    )
+        .prop_map(|(cmd, idx, addr, c, irq, wkc, data)| {
+            (
+                wire::normalise(cmd, idx, addr, c, irq, wkc, data.len()),
+                data,
+            )
+        })
+}
+
+/// A valid frame as bytes (built by our builder) or a corrupted copy of one.
+fn frame_bytes() -> impl Strategy<Value = Vec<u8>> {
+    (
+        proptest::collection::vec(datagram(), 1..6),
+        proptest::collection::vec((any::<usize>(), any::<u8>()), 0..4),
+        any::<usize>(),
+    )
+        .prop_map(|(dgs, flips, cut)| {
+            let mut buf = vec![0u8; 1514];
+            let n = {
+                let mut b = FrameBuilder::new(&mut buf).unwrap();
+                for (r, d) in &dgs {
+                    if b.push_repr(r, d).is_err() {
+                        break;
+                    }
+                }
+                b.finish().unwrap_or(60)
+            };
+            buf.truncate(n);
+            for (at, x) in flips {
+                let i = at % n;
+                buf[i] ^= x;
+            }
+            if cut % 4 == 0 {
+                buf.truncate(cut % (n + 1));
+            }
+            buf
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// P1 / REQ-WIRE-030, REQ-WIRE-040: any valid datagram list survives emit→parse unchanged.
+    #[test]
+    fn emit_parse_roundtrip(dgs in proptest::collection::vec(datagram(), 0..12), cap in 0usize..1600) {
+        let list: Vec<(DatagramRepr, &[u8])> = dgs.iter().map(|(r, d)| (*r, &d[..])).collect();
+        let mut buf = vec![0xA5u8; cap];
+        wire::roundtrip(&list, &mut buf);
+    }
+
+    /// P1 / REQ-WIRE-020..022: arbitrary bytes never panic; spans stay inside the input.
+    #[test]
+    fn arbitrary_bytes_parse_safely(bytes in proptest::collection::vec(any::<u8>(), 0..1600)) {
+        wire::parse_any(&bytes);
+        // and the same bytes behind an EtherCAT Ethernet header
+        let mut f = vec![0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x88, 0xa4];
+        f.extend_from_slice(&bytes);
+        wire::parse_any(&f);
+    }
+
+    /// P1: near-valid frames (built, then bit-flipped and/or cut) never panic, and the walk
+    /// either succeeds with spans inside the input or reports a typed error.
+    #[test]
+    fn mutated_frames_parse_safely(bytes in frame_bytes()) {
+        wire::parse_any(&bytes);
+        if bytes.len() > 14 {
+            wire::parse_any(&bytes[14..]);
+        }
+    }
+
+    /// REQ-WIRE-073 over random i64 as well as boundary values.
+    #[test]
+    fn system_time_difference(raw in any::<u32>(), ns in any::<i64>()) {
+        wire::system_time_difference(raw, ns);
+    }
+}
+
+/// REQ-WIRE-004/013: exhaustive over all 2^16 datagram length/flags words.
+#[test]
+fn exhaustive_len_flags_words() {
+    for w in 0..=u16::MAX {
+        wire::len_flags_word(w);
+    }
+}
+
+/// REQ-WIRE-072: exhaustive over all 2^16 DL status words.
+#[test]
+fn exhaustive_dl_status_words() {
+    for w in 0..=u16::MAX {
+        wire::dl_status_word(w);
+    }
+}
+
+/// REQ-WIRE-073: boundary words and values of the sign-magnitude codec.
+#[test]
+fn system_time_difference_boundaries() {
+    for raw in [
+        0,
+        1,
+        0x7FFF_FFFE,
+        0x7FFF_FFFF,
+        0x8000_0000,
+        0x8000_0001,
+        0xFFFF_FFFF,
+    ] {
+        for ns in [
+            i64::MIN,
+            i64::MIN + 1,
+            -(1 << 31),
+            -(1 << 31) + 1,
+            -1,
+            0,
+            1,
+            (1 << 31) - 1,
+            1 << 31,
+            i64::MAX,
+        ] {
+            wire::system_time_difference(raw, ns);
+        }
+    }
+}
+
+/// REQ-WIRE-010..015: every prefix of a valid multi-datagram frame is handled (no panic, typed
+/// error for cut ones).
+#[test]
+fn every_prefix_of_a_frame() {
+    let mut buf = vec![0u8; 200];
+    let n = {
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        for (i, c) in ecdc_core::wire::Command::ALL.iter().enumerate().take(6) {
+            let r = wire::normalise(c.code(), i as u8, 0x0910_1001, false, 0, 0, i);
+            b.push_repr(&r, &vec![i as u8; i]).unwrap();
+        }
+        b.finish().unwrap()
+    };
+    for cut in 0..=n {
+        wire::parse_any(&buf[..cut]);
+    }
+}
