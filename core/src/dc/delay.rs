@@ -1,0 +1,419 @@
+//! Propagation delays from latched receive times (REQ-DC-014..019).
+//!
+//! The delay of slave `c` is the time the latch frame needs from the reference clock to `c`:
+//! the value for System Time Delay 0x0928 (REQ-CONV-005). It is built hop by hop along the tree
+//! from the nearest upstream slave `a` that has latches:
+//!
+//! ```text
+//!   a: entry e ... q ──(port p)── [non-DC n₁ … nₖ] ── c: entry e_c … last
+//!      t_a(q) − t_a(e): time already spent inside a before it sends towards c
+//!      X = t_a(p) − t_a(q): excursion through everything behind p (out and back)
+//!      rtt_c = t_c(last) − t_c(e_c): c's own subtree, seen from c
+//!   2·(arrival at c − stamp at q) = X − rtt_c + t_Diff(a)·[q→p is a processing hop]
+//!                                   − t_Diff(c)·[last→e_c is a processing hop]
+//!                                   ± t_Diff(nᵢ) (+ if nᵢ's downstream hop is processing)
+//! ```
+//!
+//! Why it is exact: the excursion is `hop_a(q→p) + 2·Σcables + Σ(hops through nᵢ) +
+//! rtt_c + hop_c(last→e_c)`, while the arrival at `c` is `hop_a(q→p) + Σcables + Σ(downstream
+//! hops through nᵢ)` after the stamp at `q`; with one common `t_F` and per-ESC `t_P = t_F +
+//! t_Diff` everything except the listed `t_Diff` terms cancels. Seed 000 eq. 5/13/23 and the
+//! datasheet's `t_AB`, `t_BC`, `t_CD` are special cases (a line: `q = e`, every hop from port 0
+//! is processing, the line end's `last→e` hop too, so each hop gets `+t_Diff` except the last).
+//!
+//! All port-time differences are wrapping 32-bit differences taken relative to one slave's own
+//! stamps (REQ-DC-016), so a wrap of any slave's clock during the latch is harmless. Twice the
+//! delay is accumulated exactly in `i64` and halved once at the end (round half up), so rounding
+//! never accumulates along a path (REQ-DC-014). Several latch rounds can be averaged by adding
+//! their sums ([`Delays::accumulate`]) before the single division, which reduces the 10 ns
+//! stamp quantisation of real ESCs.
+//!
+//! Non-DC slaves (no latches) between DC slaves act as wire (REQ-DC-017): they must have exactly
+//! two open ports, because the excursion seen by `a` would otherwise include branches no DC
+//! slave timed. The datasheet requires receive times on every ESC with more than two ports.
+
+use super::port::Port;
+use super::topology::{Latches, SlaveSample, Topology};
+
+/// Why delays could not be computed. Every variant names the offending slave (auto-increment
+/// position) so the caller can report it; no delay is produced from such input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum DelayError {
+    /// `samples` and the topology disagree in length, or an index is out of range.
+    Mismatch,
+    /// The chosen reference clock has no latches (or is out of range).
+    BadReference {
+        /// The requested reference.
+        slave: u16,
+    },
+    /// A slave with latches has no upstream slave with latches, so nothing times its path
+    /// (e.g. it sits in a second branch of a non-DC junction above the first DC slave).
+    NoUpstreamDc {
+        /// The slave without a timed path.
+        slave: u16,
+    },
+    /// A non-DC slave with more than two open ports lies between two DC slaves (REQ-DC-017).
+    NonDcJunction {
+        /// The non-DC junction.
+        slave: u16,
+    },
+    /// The excursion measured upstream is shorter than the slave's own round trip: latches are
+    /// stale or do not belong to one frame.
+    Inconsistent {
+        /// The slave whose hop was negative.
+        slave: u16,
+    },
+    /// The hop became negative only through the `t_Diff` corrections: the configured `t_Diff`
+    /// values cannot be right.
+    NegativeHop {
+        /// The slave whose hop was negative.
+        slave: u16,
+    },
+    /// A delay does not fit the target (i64 accumulation, or the u32 register).
+    Overflow {
+        /// The slave concerned.
+        slave: u16,
+    },
+    /// The slave comes before the reference clock in processing order: its delay is negative
+    /// and 0x0928 cannot hold it (REQ-DC-018).
+    BeforeReference {
+        /// The slave concerned.
+        slave: u16,
+    },
+    /// [`Delays::accumulate`] got rounds with different slaves, reference or DC sets.
+    RoundMismatch,
+}
+
+/// Propagation delays relative to a reference clock, for up to `N` slaves (REQ-DC-018).
+///
+/// Internally an exact fraction per slave (`sum / weight`, weight = 2 × rounds) so averaging
+/// several latch rounds rounds only once.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Delays<const N: usize> {
+    sum: [Option<i64>; N],
+    weight: i64,
+    len: u16,
+    reference: u16,
+}
+
+impl<const N: usize> Delays<N> {
+    /// Number of slaves covered (latched or not).
+    pub fn len(&self) -> usize {
+        usize::from(self.len)
+    }
+
+    /// Whether no slave is covered.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The reference clock's position.
+    pub fn reference(&self) -> u16 {
+        self.reference
+    }
+
+    /// Number of latch rounds averaged.
+    pub fn rounds(&self) -> i64 {
+        self.weight.checked_div(2).unwrap_or(0)
+    }
+
+    /// Delay of slave `i` relative to the reference in ns, rounded to nearest (ties up);
+    /// negative for slaves before the reference; `None` for slaves without latches.
+    pub fn ns(&self, i: usize) -> Option<i64> {
+        let sum = (*self.sum.get(..self.len())?.get(i)?)?;
+        // round(sum / weight), ties towards +∞: ⌊(sum + ⌊weight/2⌋) / weight⌋ (weight even).
+        sum.checked_add(self.weight.checked_div(2)?)?
+            .checked_div_euclid(self.weight)
+    }
+
+    /// The exact value as `(numerator, denominator)` ns: twice the delay summed over rounds, and
+    /// twice the number of rounds. For tests and diagnostics.
+    pub fn exact(&self, i: usize) -> Option<(i64, i64)> {
+        let sum = (*self.sum.get(..self.len())?.get(i)?)?;
+        Some((sum, self.weight))
+    }
+
+    /// REQ-DC-018: the value to write to System Time Delay 0x0928 (4 bytes) for slave `i`.
+    pub fn register_value(&self, i: usize) -> Result<u32, DelayError> {
+        let slave = u16::try_from(i).map_err(|_| DelayError::Mismatch)?;
+        let ns = self.ns(i).ok_or(DelayError::Mismatch)?;
+        if ns < 0 {
+            return Err(DelayError::BeforeReference { slave });
+        }
+        u32::try_from(ns).map_err(|_| DelayError::Overflow { slave })
+    }
+
+    /// Adds another latch round (same slaves, reference and DC set) for averaging.
+    pub fn accumulate(&mut self, other: &Delays<N>) -> Result<(), DelayError> {
+        if other.len != self.len || other.reference != self.reference {
+            return Err(DelayError::RoundMismatch);
+        }
+        for (i, (a, b)) in (0u16..).zip(self.sum.iter_mut().zip(other.sum.iter())) {
+            match (a.as_mut(), b) {
+                (Some(a), Some(b)) => {
+                    *a = a.checked_add(*b).ok_or(DelayError::Overflow { slave: i })?;
+                }
+                (None, None) => {}
+                _ => return Err(DelayError::RoundMismatch),
+            }
+        }
+        self.weight = self
+            .weight
+            .checked_add(other.weight)
+            .ok_or(DelayError::Overflow {
+                slave: self.reference,
+            })?;
+        Ok(())
+    }
+}
+
+/// REQ-DC-014..018: computes every latched slave's propagation delay relative to `reference`
+/// (usually the first slave with a system time) from one latch round.
+pub fn compute<const N: usize>(
+    samples: &[SlaveSample],
+    topology: &Topology<N>,
+    reference: usize,
+) -> Result<Delays<N>, DelayError> {
+    if samples.len() != topology.len() {
+        return Err(DelayError::Mismatch);
+    }
+    let len = u16::try_from(samples.len()).map_err(|_| DelayError::Mismatch)?;
+    let ref16 = u16::try_from(reference).unwrap_or(u16::MAX);
+    let bad_ref = DelayError::BadReference { slave: ref16 };
+    if samples.get(reference).ok_or(bad_ref)?.latches.is_none() {
+        return Err(bad_ref);
+    }
+    // Twice the delay from the first latched slave (the root of the timed tree).
+    let mut abs2: [Option<i64>; N] = [None; N];
+    let mut root_seen = false;
+    for (i, sample) in (0u16..).zip(samples) {
+        if sample.latches.is_none() {
+            continue;
+        }
+        let value = if root_seen {
+            twice_delay_from_upstream(samples, topology, &abs2, i)?
+        } else {
+            root_seen = true;
+            0
+        };
+        let slot = abs2.get_mut(usize::from(i)).ok_or(DelayError::Mismatch)?;
+        *slot = Some(value);
+    }
+    let base = abs2.get(reference).copied().flatten().ok_or(bad_ref)?;
+    let mut sum: [Option<i64>; N] = [None; N];
+    for (i, (out, a)) in (0u16..).zip(sum.iter_mut().zip(abs2.iter())) {
+        if let Some(a) = a {
+            *out = Some(
+                a.checked_sub(base)
+                    .ok_or(DelayError::Overflow { slave: i })?,
+            );
+        }
+    }
+    Ok(Delays {
+        sum,
+        weight: 2,
+        len,
+        reference: ref16,
+    })
+}
+
+/// Twice the delay of latched slave `c` from the first latched slave, given those of all
+/// earlier latched slaves.
+fn twice_delay_from_upstream<const N: usize>(
+    samples: &[SlaveSample],
+    topology: &Topology<N>,
+    abs2: &[Option<i64>; N],
+    c: u16,
+) -> Result<i64, DelayError> {
+    let overflow = DelayError::Overflow { slave: c };
+    let node_c = topology.node(usize::from(c)).ok_or(DelayError::Mismatch)?;
+    let lat_c = latches_of(samples, c)?;
+    let diff_c = i64::from(t_diff_of(samples, c)?);
+
+    // Walk up through non-DC slaves to the nearest latched ancestor `a`, summing the non-DC
+    // t_Diff terms (REQ-DC-017).
+    let mut non_dc = 0i64;
+    let mut link = node_c.parent.ok_or(DelayError::NoUpstreamDc { slave: c })?;
+    let mut below = c;
+    let mut steps = 0usize;
+    loop {
+        let up = link.slave;
+        let sample_up = samples.get(usize::from(up)).ok_or(DelayError::Mismatch)?;
+        if sample_up.latches.is_some() {
+            break;
+        }
+        let node_up = topology.node(usize::from(up)).ok_or(DelayError::Mismatch)?;
+        if node_up.ports.len() != 2 {
+            return Err(DelayError::NonDcJunction { slave: up });
+        }
+        let d = i64::from(sample_up.t_diff);
+        // Down: entry → link port towards `below`; up: the reverse. Exactly one passes the EPU.
+        let down = topology
+            .node(usize::from(below))
+            .and_then(|n| n.parent)
+            .ok_or(DelayError::Mismatch)?
+            .port;
+        non_dc = if node_up.entry.hop_is_processing(down) {
+            non_dc.checked_add(d)
+        } else {
+            non_dc.checked_sub(d)
+        }
+        .ok_or(overflow)?;
+        below = up;
+        link = node_up
+            .parent
+            .ok_or(DelayError::NoUpstreamDc { slave: c })?;
+        steps = steps.saturating_add(1);
+        if steps > N {
+            return Err(DelayError::Mismatch);
+        }
+    }
+    let a = link.slave;
+    let node_a = topology.node(usize::from(a)).ok_or(DelayError::Mismatch)?;
+    let lat_a = latches_of(samples, a)?;
+    let diff_a = i64::from(t_diff_of(samples, a)?);
+    let abs_a = abs2
+        .get(usize::from(a))
+        .copied()
+        .flatten()
+        .ok_or(DelayError::NoUpstreamDc { slave: c })?;
+
+    // At a: port p leads towards c; q is the open port visited just before p.
+    let p = link.port;
+    let q = node_a.ports.prev_before(p).unwrap_or(node_a.entry);
+    let before = since(lat_a, q, node_a.entry).ok_or(DelayError::Inconsistent { slave: c })?;
+    let excursion = since(lat_a, p, q).ok_or(DelayError::Inconsistent { slave: c })?;
+    // At c: its own round trip from entry to the last open port.
+    let last = node_c.last_port();
+    let rtt_c = since(lat_c, last, node_c.entry).ok_or(DelayError::Inconsistent { slave: c })?;
+
+    let measured = excursion.checked_sub(rtt_c).ok_or(overflow)?;
+    if measured < 0 {
+        return Err(DelayError::Inconsistent { slave: c });
+    }
+    let corr_a = if q.hop_is_processing(p) { diff_a } else { 0 };
+    let corr_c = if last.hop_is_processing(node_c.entry) {
+        diff_c
+    } else {
+        0
+    };
+    let hop2 = measured
+        .checked_add(corr_a)
+        .and_then(|v| v.checked_sub(corr_c))
+        .and_then(|v| v.checked_add(non_dc))
+        .ok_or(overflow)?;
+    if hop2 < 0 {
+        return Err(DelayError::NegativeHop { slave: c });
+    }
+    abs_a
+        .checked_add(before.checked_mul(2).ok_or(overflow)?)
+        .and_then(|v| v.checked_add(hop2))
+        .ok_or(overflow)
+}
+
+/// Wrapping difference `t(to) − t(from)` of one slave's stamps; `None` if negative (the latch
+/// order check in topology reconstruction makes that impossible for consistent input).
+fn since(latches: &Latches, to: Port, from: Port) -> Option<i64> {
+    let d = latches.at(to).wrapping_since(latches.at(from));
+    (d >= 0).then_some(i64::from(d))
+}
+
+fn latches_of(samples: &[SlaveSample], i: u16) -> Result<&Latches, DelayError> {
+    samples
+        .get(usize::from(i))
+        .and_then(|s| s.latches.as_ref())
+        .ok_or(DelayError::Mismatch)
+}
+
+fn t_diff_of(samples: &[SlaveSample], i: u16) -> Result<i32, DelayError> {
+    samples
+        .get(usize::from(i))
+        .map(|s| s.t_diff)
+        .ok_or(DelayError::Mismatch)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dc::port::PortSet;
+
+    fn line(rtts: &[u32], t_diff: i32, phase: u32) -> [SlaveSample; 4] {
+        let mut out = [SlaveSample::default(); 4];
+        for (i, s) in out.iter_mut().enumerate() {
+            let open = if i + 1 == rtts.len() {
+                PortSet::EMPTY.with(Port::P0)
+            } else {
+                PortSet::EMPTY.with(Port::P0).with(Port::P1)
+            };
+            let t0 = phase.wrapping_add(1000 * i as u32);
+            *s = SlaveSample {
+                ports: open,
+                latches: Some(Latches::from_raw(
+                    [t0, t0.wrapping_add(rtts[i]), 0, 0],
+                    u64::from(t0),
+                )),
+                t_diff,
+            };
+        }
+        out
+    }
+
+    /// Seed 000 eq. 23 on a 4-slave line (derived form; see spec::seed000).
+    #[test]
+    fn line_matches_eq23() {
+        for phase in [0u32, 0xFFFF_F000, 0x7FFF_FFFF] {
+            let rtt = [3000u32, 2000, 900, 0];
+            let s = line(&rtt, 20, phase);
+            let t = Topology::<4>::build(&s).unwrap();
+            let d = compute(&s, &t, 0).unwrap();
+            assert_eq!(d.exact(0), Some((0, 2)));
+            assert_eq!(d.exact(1), Some((3000 - 2000 + 20, 2)));
+            assert_eq!(d.exact(2), Some((3000 - 900 + 40, 2)));
+            assert_eq!(d.exact(3), Some((3000 + 40, 2)));
+            assert_eq!(d.register_value(3), Ok(1520));
+            // Relative to slave 1: slave 0 comes first.
+            let d1 = compute(&s, &t, 1).unwrap();
+            assert_eq!(d1.ns(0), Some(-510));
+            assert_eq!(
+                d1.register_value(0),
+                Err(DelayError::BeforeReference { slave: 0 })
+            );
+            assert_eq!(d1.ns(2), Some(560));
+        }
+    }
+
+    #[test]
+    fn averaging_rounds_once() {
+        let s1 = line(&[3001, 2000, 900, 0], 0, 5);
+        let s2 = line(&[3002, 2000, 900, 0], 0, 9);
+        let t = Topology::<4>::build(&s1).unwrap();
+        let mut d = compute(&s1, &t, 0).unwrap();
+        assert_eq!(d.ns(1), Some(501)); // 1001/2 → 500.5 → 501
+        d.accumulate(&compute(&s2, &t, 0).unwrap()).unwrap();
+        assert_eq!(d.rounds(), 2);
+        assert_eq!(d.exact(1), Some((2003, 4)));
+        assert_eq!(d.ns(1), Some(501)); // 500.75
+    }
+
+    #[test]
+    fn inconsistent_latches_rejected() {
+        let s = line(&[1000, 2000, 900, 0], 0, 0);
+        let t = Topology::<4>::build(&s).unwrap();
+        assert_eq!(
+            compute(&s, &t, 0),
+            Err(DelayError::Inconsistent { slave: 1 })
+        );
+        let s = line(&[3000, 2000, 900, 0], 0, 0);
+        assert_eq!(
+            compute(&s, &t, 4),
+            Err(DelayError::BadReference { slave: 4 })
+        );
+        // A t_Diff larger than the hop itself.
+        let s = line(&[3000, 2000, 1999, 0], -10, 0);
+        assert_eq!(
+            compute(&s, &t, 0),
+            Err(DelayError::NegativeHop { slave: 2 })
+        );
+    }
+}

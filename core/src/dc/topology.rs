@@ -1,0 +1,384 @@
+//! Topology reconstruction: which slave hangs off which port of which slave.
+//!
+//! Input, per slave in auto-increment order (the order a frame first reaches them): the open
+//! ports from DL status (REQ-DC-011) and, for slaves with receive-time latches, the latched port
+//! times. Output: a tree, each slave knowing its entry port, its parent and the parent's port.
+//!
+//! Why this works: the frame walks the tree depth first, visiting each ESC's ports in processing
+//! order 0 → 3 → 1 → 2 starting after the entry port (REQ-DC-010), so the auto-increment order is
+//! the preorder of that walk. Slave i+1 therefore hangs off the most recent slave that still has
+//! an unvisited open port, at the first such port. A stack replays the walk (REQ-DC-012).
+//!
+//! ```text
+//!  master ─ 0[S0]1 ─ 0[S1]3 ─ 0[S2]          S1 is a cross/fork: ports visited 0,3,1,2
+//!                        1 ─ 0[S3]1 ─ 0[S4]   auto-increment order S0 S1 S2 S3 S4 S5
+//!                        2 ─ 0[S5]
+//! ```
+//!
+//! Entry port (REQ-DC-013): for a slave with latches, the open port with the earliest receive
+//! time by wrapping difference ([`PortTime::earliest`]), so a 32-bit wrap during the latch
+//! cannot pick the wrong port (SOEM #979, ethercrab #374). Slaves without latches are assumed to
+//! be wired upstream on their first open port in processing order (port 0 when open), as IgH
+//! does. The latched times must then increase along the processing order from the entry port;
+//! otherwise the latches are stale or the DL status is wrong and the slave is rejected.
+
+use super::port::{Port, PortSet};
+use crate::time::PortTime;
+
+/// Receive-time latches of one slave after the latching write to 0x0900.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct Latches {
+    /// Receive Time Port 0..3 (0x0900..0x090F), indexed by port number, local time. Values of
+    /// closed ports are stale and ignored.
+    pub ports: [PortTime; 4],
+    /// Receive Time ECAT Processing Unit (0x0918), local time (64-bit; on 32-bit ESCs only the
+    /// low 32 bits are meaningful).
+    pub epu: u64,
+}
+
+impl Latches {
+    /// From raw register values (e.g. `wire::ReceiveTimes::port` and `::epu`).
+    pub const fn from_raw(ports: [u32; 4], epu: u64) -> Latches {
+        Latches {
+            ports: [
+                PortTime(ports[0]),
+                PortTime(ports[1]),
+                PortTime(ports[2]),
+                PortTime(ports[3]),
+            ],
+            epu,
+        }
+    }
+
+    /// The latched time of `port`.
+    #[inline]
+    pub fn at(&self, port: Port) -> PortTime {
+        self.ports.get(port.index()).copied().unwrap_or_default()
+    }
+}
+
+/// What the DC maths needs to know about one slave (REQ-DC-001).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct SlaveSample {
+    /// Open ports, from DL status 0x0110 ([`PortSet::from_dl_status`]).
+    pub ports: PortSet,
+    /// Receive-time latches; `None` for slaves without DC (ESC features 0x0008 bit 2 clear).
+    pub latches: Option<Latches>,
+    /// `t_Diff = t_P − t_F` of this ESC in ns (processing minus forwarding delay, from the ESI or
+    /// the ESC datasheet); 0 when unknown (REQ-DC-015).
+    pub t_diff: i32,
+}
+
+/// Where a slave is attached upstream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Link {
+    /// Index (auto-increment position) of the upstream slave.
+    pub slave: u16,
+    /// The upstream slave's port this slave is wired to.
+    pub port: Port,
+}
+
+/// One slave in the reconstructed tree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Node {
+    /// Port wired upstream (towards the master).
+    pub entry: Port,
+    /// Open ports (from DL status).
+    pub ports: PortSet,
+    /// Upstream slave; `None` for the slave wired to the master.
+    pub parent: Option<Link>,
+    /// Downstream slave per port number (`None` for the entry port and closed ports).
+    pub children: [Option<u16>; 4],
+}
+
+impl Node {
+    const EMPTY: Node = Node {
+        entry: Port::P0,
+        ports: PortSet::EMPTY,
+        parent: None,
+        children: [None; 4],
+    };
+
+    /// Number of downstream (non-entry) open ports.
+    pub fn downstream_ports(&self) -> u32 {
+        self.ports.len().saturating_sub(1)
+    }
+
+    /// The last open port the frame visits before leaving through the entry port (the entry
+    /// port itself for a line end).
+    pub fn last_port(&self) -> Port {
+        self.ports.prev_before(self.entry).unwrap_or(self.entry)
+    }
+}
+
+/// Why the topology could not be reconstructed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum TopologyError {
+    /// More slaves than the capacity `N` (or than `u16` positions).
+    Capacity,
+    /// The slave has no open port, so no frame could have reached it.
+    NoOpenPort {
+        /// Auto-increment position.
+        slave: u16,
+    },
+    /// No earlier slave has an unvisited open port for this slave to hang off.
+    NoFreePort {
+        /// Auto-increment position.
+        slave: u16,
+    },
+    /// An open port with no slave behind it after the last slave (a redundancy ring, a
+    /// non-EtherCAT device, or a wrong DL status).
+    DanglingPort {
+        /// Auto-increment position.
+        slave: u16,
+        /// The unused open port.
+        port: Port,
+    },
+    /// The latched receive times do not increase along the processing order from the entry port.
+    LatchOrder {
+        /// Auto-increment position.
+        slave: u16,
+    },
+}
+
+/// The reconstructed tree for up to `N` slaves (REQ-DC-012).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Topology<const N: usize> {
+    nodes: [Node; N],
+    len: u16,
+}
+
+impl<const N: usize> Topology<N> {
+    /// Reconstructs the tree from per-slave samples in auto-increment order.
+    pub fn build(samples: &[SlaveSample]) -> Result<Self, TopologyError> {
+        if samples.len() > N {
+            return Err(TopologyError::Capacity);
+        }
+        let len = u16::try_from(samples.len()).map_err(|_| TopologyError::Capacity)?;
+        let mut topo = Topology {
+            nodes: [Node::EMPTY; N],
+            len,
+        };
+        // Replay of the depth-first walk: (slave, last port handed out).
+        let mut stack: [(u16, Port); N] = [(0, Port::P0); N];
+        let mut depth = 0usize;
+        for (i, sample) in (0u16..).zip(samples) {
+            let entry = entry_port(sample).ok_or(TopologyError::NoOpenPort { slave: i })?;
+            if let Some(latches) = &sample.latches {
+                check_latch_order(sample.ports, entry, latches)
+                    .ok_or(TopologyError::LatchOrder { slave: i })?;
+            }
+            let parent = if i == 0 {
+                None
+            } else {
+                Some(attach(&mut topo.nodes, &mut stack, &mut depth, i)?)
+            };
+            let node = topo
+                .nodes
+                .get_mut(usize::from(i))
+                .ok_or(TopologyError::Capacity)?;
+            *node = Node {
+                entry,
+                ports: sample.ports,
+                parent,
+                children: [None; 4],
+            };
+            let top = stack.get_mut(depth).ok_or(TopologyError::Capacity)?;
+            *top = (i, entry);
+            depth = depth.saturating_add(1);
+        }
+        // Every open port must have been handed out.
+        while let Some(d) = depth.checked_sub(1) {
+            let (slave, cursor) = stack.get(d).copied().ok_or(TopologyError::Capacity)?;
+            let node = topo
+                .node(usize::from(slave))
+                .ok_or(TopologyError::Capacity)?;
+            if let Some(port) = next_downstream(node, cursor) {
+                return Err(TopologyError::DanglingPort { slave, port });
+            }
+            depth = d;
+        }
+        Ok(topo)
+    }
+
+    /// Number of slaves.
+    pub fn len(&self) -> usize {
+        usize::from(self.len)
+    }
+
+    /// Whether there are no slaves.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The node of slave `i` (auto-increment position).
+    pub fn node(&self, i: usize) -> Option<&Node> {
+        self.nodes.get(..self.len())?.get(i)
+    }
+
+    /// All nodes in auto-increment order.
+    pub fn nodes(&self) -> &[Node] {
+        self.nodes.get(..self.len()).unwrap_or(&[])
+    }
+}
+
+/// REQ-DC-013: the entry port of a slave.
+pub fn entry_port(sample: &SlaveSample) -> Option<Port> {
+    match &sample.latches {
+        Some(latches) => {
+            let mut times = [None; 4];
+            for (t, port) in times.iter_mut().zip(Port::PROCESSING_ORDER) {
+                if sample.ports.contains(port) {
+                    *t = Some(latches.at(port));
+                }
+            }
+            let idx = PortTime::earliest(&times)?;
+            Port::PROCESSING_ORDER.get(idx).copied()
+        }
+        None => sample.ports.first_in_processing_order(),
+    }
+}
+
+/// Latched times must be non-decreasing along the processing order from the entry port (each
+/// later port sees the frame come back later); all differences are taken by wrapping.
+fn check_latch_order(ports: PortSet, entry: Port, latches: &Latches) -> Option<()> {
+    let mut prev = entry;
+    loop {
+        let next = ports.next_after(prev)?;
+        if next == entry {
+            return Some(());
+        }
+        if latches.at(next).wrapping_since(latches.at(prev)) < 0
+            || latches.at(next).wrapping_since(latches.at(entry)) < 0
+        {
+            return None;
+        }
+        prev = next;
+    }
+}
+
+/// The open port after `cursor` (exclusive) and before the entry port, in processing order.
+fn next_downstream(node: &Node, cursor: Port) -> Option<Port> {
+    let next = node.ports.next_after(cursor)?;
+    (next != node.entry).then_some(next)
+}
+
+/// Hangs slave `i` off the deepest slave on the stack that still has an unvisited open port.
+fn attach<const N: usize>(
+    nodes: &mut [Node; N],
+    stack: &mut [(u16, Port); N],
+    depth: &mut usize,
+    i: u16,
+) -> Result<Link, TopologyError> {
+    loop {
+        let d = depth
+            .checked_sub(1)
+            .ok_or(TopologyError::NoFreePort { slave: i })?;
+        let (slave, cursor) = stack.get(d).copied().ok_or(TopologyError::Capacity)?;
+        let node = nodes
+            .get_mut(usize::from(slave))
+            .ok_or(TopologyError::Capacity)?;
+        if let Some(port) = next_downstream(node, cursor) {
+            if let Some(child) = node.children.get_mut(port.index()) {
+                *child = Some(i);
+            }
+            if let Some(top) = stack.get_mut(d) {
+                *top = (slave, port);
+            }
+            return Ok(Link { slave, port });
+        }
+        *depth = d;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(ports: &[Port], times: Option<[u32; 4]>) -> SlaveSample {
+        let mut set = PortSet::EMPTY;
+        for p in ports {
+            set = set.with(*p);
+        }
+        SlaveSample {
+            ports: set,
+            latches: times.map(|t| Latches::from_raw(t, u64::from(t[0]))),
+            t_diff: 0,
+        }
+    }
+
+    #[test]
+    fn line_and_cross() {
+        use Port::*;
+        // S0 line, S1 cross (0,3,1,2), S2 on port 3, S3 on port 1 with S4 below, S5 on port 2.
+        let s = [
+            sample(&[P0, P1], Some([0, 5000, 0, 0])),
+            sample(&[P0, P1, P2, P3], Some([100, 2000, 4000, 600])),
+            sample(&[P0], Some([7, 0, 0, 0])),
+            sample(&[P0, P1], Some([10, 900, 0, 0])),
+            sample(&[P0], None),
+            sample(&[P0], Some([3, 0, 0, 0])),
+        ];
+        let t = Topology::<8>::build(&s).unwrap();
+        assert_eq!(t.len(), 6);
+        assert_eq!(t.node(1).unwrap().parent, Some(Link { slave: 0, port: P1 }));
+        assert_eq!(t.node(2).unwrap().parent, Some(Link { slave: 1, port: P3 }));
+        assert_eq!(t.node(3).unwrap().parent, Some(Link { slave: 1, port: P1 }));
+        assert_eq!(t.node(4).unwrap().parent, Some(Link { slave: 3, port: P1 }));
+        assert_eq!(t.node(5).unwrap().parent, Some(Link { slave: 1, port: P2 }));
+        assert_eq!(
+            t.node(1).unwrap().children,
+            [None, Some(3), Some(5), Some(2)]
+        );
+    }
+
+    #[test]
+    fn wrap_safe_entry_port() {
+        use Port::*;
+        // Port 0 latched just before the 32-bit wrap, port 1 after it.
+        let s = [
+            sample(&[P0, P1], Some([0xFFFF_FF00, 0x0000_0400, 0, 0])),
+            sample(&[P0], None),
+        ];
+        let t = Topology::<2>::build(&s).unwrap();
+        assert_eq!(t.node(0).unwrap().entry, P0);
+        // Entry on port 1 (wired "backwards"): its latch is the earliest.
+        let s = [
+            sample(&[P0, P1], Some([900, 100, 0, 0])),
+            sample(&[P2], None),
+        ];
+        let t = Topology::<2>::build(&s).unwrap();
+        assert_eq!(t.node(0).unwrap().entry, P1);
+        assert_eq!(t.node(1).unwrap().parent, Some(Link { slave: 0, port: P0 }));
+    }
+
+    #[test]
+    fn typed_errors() {
+        use Port::*;
+        let end = sample(&[P0], None);
+        assert_eq!(
+            Topology::<4>::build(&[end, end]),
+            Err(TopologyError::NoFreePort { slave: 1 })
+        );
+        assert_eq!(
+            Topology::<4>::build(&[sample(&[P0, P1], None)]),
+            Err(TopologyError::DanglingPort { slave: 0, port: P1 })
+        );
+        assert_eq!(
+            Topology::<1>::build(&[end, end]),
+            Err(TopologyError::Capacity)
+        );
+        assert_eq!(
+            Topology::<4>::build(&[sample(&[], None)]),
+            Err(TopologyError::NoOpenPort { slave: 0 })
+        );
+        // Port 3 returns after port 1 although it is visited first: stale latch.
+        let bad = sample(&[P0, P1, P3], Some([0, 500, 0, 900]));
+        assert_eq!(
+            Topology::<4>::build(&[bad, end, end]),
+            Err(TopologyError::LatchOrder { slave: 0 })
+        );
+        assert!(Topology::<4>::build(&[]).unwrap().is_empty());
+    }
+}
