@@ -1,0 +1,112 @@
+//! Counter self-compensation (seed 004 §2.3.2, eq. 15–18) with the fractional remainder carried.
+//!
+//! The slave clock is a counter of crystal pulses, multiplied by a PLL (Npll) for finer
+//! correction. Over one sync period the slave drifts Δ ns from the master (Δ > 0: slave fast,
+//! REQ-CONV-007). The seed corrects N' = ⌊−N·Npll⌋ counts per period with N = ⌊Δ/T_slave⌋
+//! (eq. 16–18). Flooring twice per period throws away up to one crystal count (Npll fine
+//! counts) every period, i.e. a systematic rate bias. Here the exact correction
+//! x = −Δ·f_slave·Npll / 10^9 fine counts is computed in Q32 and quantised by [`Carry`], so the
+//! long-run correction rate is exact and the phase error stays under one fine count
+//! (REQ-SERVO-041).
+
+use super::carry::{Carry, CARRY_X_MAX};
+use super::gains::FRAC_BITS;
+
+/// Largest |Δ| per period accepted, in ns (2^40 ns ≈ 18 min). Larger values are clamped.
+pub const DELTA_MAX_NS: i64 = 1 << 40;
+
+/// Largest fine-count rate f_slave·Npll, in Hz (2^34 ≈ 17 GHz).
+pub const COUNT_HZ_MAX: u64 = 1 << 34;
+
+/// Why a compensator configuration was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CounterError {
+    /// f_slave·Npll must be in [1, COUNT_HZ_MAX].
+    CountRate,
+}
+
+/// Per-period counter compensation with carried remainder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CounterCompensator {
+    count_hz: u64,
+    carry: Carry,
+}
+
+impl CounterCompensator {
+    /// A compensator for a crystal of `crystal_hz` multiplied by `npll` (eq. 18's Npll).
+    pub fn new(crystal_hz: u64, npll: u32) -> Result<Self, CounterError> {
+        let count_hz = crystal_hz
+            .checked_mul(u64::from(npll))
+            .filter(|&c| (1..=COUNT_HZ_MAX).contains(&c))
+            .ok_or(CounterError::CountRate)?;
+        Ok(CounterCompensator {
+            count_hz,
+            carry: Carry::new(),
+        })
+    }
+
+    /// Exact correction −Δ·count_hz/10^9 in Q32 fine counts (rounded toward −∞), clamped to
+    /// the carry input range. |Δ|·count_hz·2^32 ≤ 2^40·2^34·2^32 = 2^106 fits in i128.
+    pub fn exact_q32(&self, delta_ns: i64) -> i64 {
+        let d = i128::from(delta_ns.clamp(-DELTA_MAX_NS, DELTA_MAX_NS));
+        let num = d
+            .wrapping_neg()
+            .wrapping_mul(i128::from(self.count_hz))
+            .wrapping_shl(FRAC_BITS);
+        let x = num.div_euclid(1_000_000_000);
+        let lim = i128::from(CARRY_X_MAX);
+        i64::try_from(x.clamp(lim.wrapping_neg(), lim)).unwrap_or(0)
+    }
+
+    /// REQ-SERVO-041: the fine counts N' to add to the slave counter this period (negative:
+    /// drop counts) for a measured drift of `delta_ns` over the period.
+    pub fn per_period(&mut self, delta_ns: i64) -> i64 {
+        let x = self.exact_q32(delta_ns);
+        self.carry.quantize(x)
+    }
+
+    /// As [`Self::per_period`] for a drift given in Q32 ns (a servo command), so the servo's
+    /// fractional ns are not floored away before the conversion. |Δ| is clamped to 2^60.
+    pub fn per_period_q32(&mut self, delta_q32: i64) -> i64 {
+        let d = i128::from(delta_q32.clamp(-(1 << 60), 1 << 60));
+        // |Δ|·count_hz ≤ 2^60·2^34 = 2^94: fits in i128.
+        let x = d
+            .wrapping_neg()
+            .wrapping_mul(i128::from(self.count_hz))
+            .div_euclid(1_000_000_000);
+        let lim = i128::from(CARRY_X_MAX);
+        let x = i64::try_from(x.clamp(lim.wrapping_neg(), lim)).unwrap_or(0);
+        self.carry.quantize(x)
+    }
+
+    /// The carried remainder, Q32 fine counts in [0, 2^32).
+    pub const fn remainder(&self) -> u32 {
+        self.carry.remainder()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exact_rate_where_double_floor_drifts() {
+        // 25 MHz crystal, PLL ×4 = 100 MHz fine counts (10 ns). Slave 25 ns fast per period:
+        // the exact correction is −2.5 fine counts per period. The seed's double floor gives
+        // N = ⌊25/40⌋ = 0 crystal counts, N' = 0: it never corrects this drift at all.
+        let mut c = CounterCompensator::new(25_000_000, 4).unwrap();
+        let mut sum = 0i64;
+        for k in 1..=10_000i64 {
+            sum += c.per_period(25);
+            // Running phase error below one fine count at every period.
+            assert!((2 * sum + 5 * k).abs() < 2, "k={k} sum={sum}");
+        }
+        assert_eq!(sum, -25_000);
+        // A non-representable rate (−3.3 counts): the sum stays within one count of exact.
+        let mut c = CounterCompensator::new(25_000_000, 4).unwrap();
+        let sum: i64 = (0..10_000).map(|_| c.per_period(33)).sum();
+        assert!((-33_001..=-33_000).contains(&sum), "{sum}");
+        assert!(CounterCompensator::new(0, 4).is_err());
+        assert!(CounterCompensator::new(u64::MAX, 2).is_err());
+    }
+}

@@ -1,0 +1,417 @@
+//! The generic servo engine: mode machine, time sanity, step policy, blanking, holdover, outlier
+//! gate, lock detector and gain switch around the PI kernel (servo.md §7).
+//!
+//! One engine serves every loop; adapters turn their measurement into an error θ (ns,
+//! REQ-CONV-007: measured − target, positive = the controlled clock is ahead) and turn the
+//! engine's command back into their actuator's units ([`super::master`], [`super::ptp`]).
+//! [`Servo::update`] is a pure function of (state, input, config): no clock reads, no
+//! allocation, no floating point, so a log replays bit-exactly (servo.md §7 invariant 11).
+//!
+//! ```text
+//!            first sample                 |θ| < gear_ns for gear_count samples
+//!   Init ─────────────────▶ Acquire ─────────────────────────────────────────▶ Tracking
+//!                            ▲   ▲   gate: confirm same-side rejections             │
+//!                            │   └──────────────────────────────────────────────────┘
+//!                            │        any step (first-step or confirmed step)
+//!                            └── holdover_max missing samples (Holdover while missing)
+//! ```
+//! The command is always bounded by y_max: it is either the PI output (clamped) or the held
+//! integrator (|I| ≤ I_max ≤ y_max) — REQ-SERVO-012.
+
+use super::gains::PiGains;
+use super::gate::{Gate, GateConfig, GateVerdict};
+use super::lock::{LockConfig, LockDetector};
+use super::pi::{hold, pi_step, PiLimits};
+use crate::num::wrapping_diff;
+
+/// Engine configuration (validated by [`Servo::new`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ServoConfig {
+    /// Nominal sample interval h₀, ns (> 0). Samples are accepted when the local interval since
+    /// the previous one is in [h₀/2, 4·h₀] (REQ-SERVO-070).
+    pub interval_ns: u32,
+    /// Gains while acquiring (fast).
+    pub acquire: PiGains,
+    /// Gains while tracking (narrow band).
+    pub track: PiGains,
+    /// Output and integrator clamps.
+    pub limits: PiLimits,
+    /// On the first sample after (re)start, step when |θ| > this (ns); 0 = never.
+    pub first_step_ns: u64,
+    /// After the first sample, step when |θ| > this for `step_confirm` samples; 0 = never.
+    pub step_ns: u64,
+    /// Consecutive samples over `step_ns` (same side) before a step (N_c ≥ 1).
+    pub step_confirm: u8,
+    /// Samples ignored after a step (W): the measurement pipeline may still hold the old phase.
+    pub blank: u8,
+    /// Switch from acquire to track gains after `gear_count` samples with |θ| < `gear_ns`.
+    pub gear_ns: u64,
+    /// See `gear_ns` (≥ 1).
+    pub gear_count: u16,
+    /// Outlier gate (armed in Tracking only: while acquiring, θ moves systematically and a
+    /// median of past errors is not a prediction of the next one).
+    pub gate: GateConfig,
+    /// Lock detector thresholds.
+    pub lock: LockConfig,
+    /// Missing or invalid samples tolerated in holdover before re-acquiring (keeping I).
+    pub holdover_max: u32,
+}
+
+/// Why a configuration was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConfigError {
+    /// interval_ns must be > 0.
+    Interval,
+    /// step_confirm and gear_count must be ≥ 1.
+    Counts,
+    /// Lock thresholds: low ≤ high, count ≥ 1.
+    Lock,
+    /// Gains refused (stability region).
+    Gains(super::gains::GainError),
+    /// Limits refused.
+    Limits(super::pi::LimitError),
+    /// Adapter-specific parameter (period, target, rate limit) out of range.
+    Parameter,
+}
+
+/// Servo mode. "Stable" in servo.md is Tracking with `locked == true`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// No sample yet.
+    Init,
+    /// Fast gains, gate disarmed.
+    Acquire,
+    /// Narrow gains, gate armed.
+    Tracking,
+    /// Samples missing or invalid: output the learned frequency (I) only.
+    Holdover,
+}
+
+/// What the engine did with one input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Used by the PI.
+    Accepted,
+    /// Rejected by the outlier gate; held.
+    Rejected,
+    /// Ignored during post-step blanking; held.
+    Blanked,
+    /// No sample this interval; held.
+    Missing,
+    /// Sample time not after the previous one or interval out of [h₀/2, 4h₀]; held.
+    BadInterval,
+    /// Over the step threshold, waiting for confirmation; held.
+    StepPending,
+    /// A step was emitted (see [`Output::step_ns`]); held.
+    Stepped,
+}
+
+/// One input per interval.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Input {
+    /// A measurement: local time of the sample (ns, wrapping) and the error θ (ns).
+    Sample {
+        /// Local monotonic time of the measurement.
+        local_ns: u64,
+        /// Phase error, measured − target.
+        theta_ns: i64,
+    },
+    /// The measurement for this interval was lost (e.g. FRMW WKC 0, frame lost).
+    Missing,
+}
+
+/// Engine output for one input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Output {
+    /// Retard command, Q32 ns per interval, |·| ≤ y_max (REQ-SERVO-012).
+    pub command_q32: i64,
+    /// Phase step: the controlled clock must be moved back by this many ns (0 = none).
+    pub step_ns: i64,
+    /// Mode after this input.
+    pub mode: Mode,
+    /// Lock flag after this input.
+    pub locked: bool,
+    /// What happened to the input.
+    pub verdict: Verdict,
+    /// The PI output was clamped.
+    pub saturated: bool,
+    /// The error used (clamped to ±2^62 for diagnostics), 0 when there was none.
+    pub theta_ns: i64,
+    /// Integrator after this input, Q32.
+    pub integrator_q32: i64,
+}
+
+/// Event counters (diagnostics, ptp4l-style summaries).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Inputs seen.
+    pub inputs: u64,
+    /// Samples used by the PI.
+    pub accepted: u64,
+    /// Gate rejections.
+    pub rejected: u64,
+    /// Steps emitted.
+    pub steps: u64,
+    /// PI outputs clamped.
+    pub saturated: u64,
+    /// Held intervals (missing, invalid).
+    pub held: u64,
+    /// Returns to Acquire (gate confirmation, holdover timeout).
+    pub reacquired: u64,
+}
+
+/// The servo engine state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Servo {
+    cfg: ServoConfig,
+    mode: Mode,
+    resume: Mode,
+    integrator: i64,
+    last_t: Option<u64>,
+    gate: Gate,
+    lock: LockDetector,
+    gear_run: u16,
+    step_run: u8,
+    step_positive: bool,
+    blank_left: u8,
+    missing: u32,
+    first: bool,
+    counters: Counters,
+}
+
+impl Servo {
+    /// Validate `cfg` and start in `Init` with integrator 0.
+    pub fn new(cfg: ServoConfig) -> Result<Self, ConfigError> {
+        if cfg.interval_ns == 0 {
+            return Err(ConfigError::Interval);
+        }
+        if cfg.step_confirm == 0 || cfg.gear_count == 0 {
+            return Err(ConfigError::Counts);
+        }
+        cfg.lock.validate().map_err(|_| ConfigError::Lock)?;
+        Ok(Servo {
+            cfg,
+            mode: Mode::Init,
+            resume: Mode::Acquire,
+            integrator: 0,
+            last_t: None,
+            gate: Gate::new(),
+            lock: LockDetector::new(),
+            gear_run: 0,
+            step_run: 0,
+            step_positive: false,
+            blank_left: 0,
+            missing: 0,
+            first: true,
+            counters: Counters::default(),
+        })
+    }
+
+    /// Seed the integrator with a known frequency (Q32 ns per interval, clamped to ±I_max), e.g.
+    /// the last learned value across a restart (linuxptp's `fadj`).
+    pub fn with_integrator(mut self, i_q32: i64) -> Self {
+        self.integrator = hold(self.cfg.limits, i_q32);
+        self
+    }
+
+    /// Configuration in use.
+    pub const fn config(&self) -> &ServoConfig {
+        &self.cfg
+    }
+
+    /// Current mode.
+    pub const fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Current lock flag.
+    pub const fn is_locked(&self) -> bool {
+        self.lock.is_locked()
+    }
+
+    /// Integrator (learned frequency), Q32 ns per interval, |·| ≤ I_max.
+    pub const fn integrator_q32(&self) -> i64 {
+        self.integrator
+    }
+
+    /// Event counters.
+    pub const fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// Back to `Init`, keeping the learned frequency (servo.md §7: a restart must not forget it).
+    pub fn reset(&mut self) {
+        let i = self.integrator;
+        let counters = self.counters;
+        if let Ok(s) = Servo::new(self.cfg) {
+            *self = s;
+        }
+        self.integrator = i;
+        self.counters = counters;
+    }
+
+    fn held(&self, verdict: Verdict, theta: i64) -> Output {
+        Output {
+            command_q32: hold(self.cfg.limits, self.integrator),
+            step_ns: 0,
+            mode: self.mode,
+            locked: self.lock.is_locked(),
+            verdict,
+            saturated: false,
+            theta_ns: theta,
+            integrator_q32: self.integrator,
+        }
+    }
+
+    /// Enter Acquire (keep I), forget gate window and gear progress.
+    fn reacquire(&mut self) {
+        self.mode = Mode::Acquire;
+        self.resume = Mode::Acquire;
+        self.gate.clear();
+        self.gear_run = 0;
+        self.step_run = 0;
+    }
+
+    /// Count a missing/invalid interval; re-acquire after `holdover_max` of them.
+    fn holdover(&mut self, verdict: Verdict, theta: i64) -> Output {
+        self.counters.held = self.counters.held.saturating_add(1);
+        self.missing = self.missing.saturating_add(1);
+        if self.mode != Mode::Holdover && self.mode != Mode::Init {
+            self.resume = self.mode;
+            self.mode = Mode::Holdover;
+        }
+        if self.missing > self.cfg.holdover_max && self.mode == Mode::Holdover {
+            // Long gap: the phase may have walked off. Keep I, re-acquire, allow a first step.
+            self.reacquire();
+            self.mode = Mode::Holdover;
+            self.lock.unlock();
+            self.first = true;
+            self.last_t = None;
+            self.counters.reacquired = self.counters.reacquired.saturating_add(1);
+        }
+        self.held(verdict, theta)
+    }
+
+    fn step(&mut self, theta: i64) -> Output {
+        // REQ-SERVO-080: I is kept (the frequency is still valid), histories are cleared,
+        // W samples are blanked, lock drops.
+        self.counters.steps = self.counters.steps.saturating_add(1);
+        self.reacquire();
+        self.lock.unlock();
+        self.blank_left = self.cfg.blank;
+        self.first = false;
+        let mut out = self.held(Verdict::Stepped, theta);
+        out.step_ns = theta;
+        out
+    }
+
+    /// REQ-SERVO-070..090: process one input.
+    pub fn update(&mut self, input: Input) -> Output {
+        self.counters.inputs = self.counters.inputs.saturating_add(1);
+        let (t, theta) = match input {
+            Input::Missing => return self.holdover(Verdict::Missing, 0),
+            Input::Sample { local_ns, theta_ns } => (local_ns, theta_ns),
+        };
+        let theta = theta.clamp(-(1 << 62), 1 << 62);
+        // Time sanity (servo.md §7 rule 1, invariant 7).
+        if let Some(prev) = self.last_t {
+            let h = wrapping_diff::<u64>(t, prev);
+            let h0 = i64::from(self.cfg.interval_ns);
+            if h <= 0 {
+                return self.holdover(Verdict::BadInterval, theta);
+            }
+            self.last_t = Some(t);
+            if h < h0 / 2 || h > h0.saturating_mul(4) {
+                return self.holdover(Verdict::BadInterval, theta);
+            }
+        } else {
+            self.last_t = Some(t);
+        }
+        self.missing = 0;
+        match self.mode {
+            Mode::Init => {
+                self.mode = Mode::Acquire;
+                self.resume = Mode::Acquire;
+            }
+            Mode::Holdover => self.mode = self.resume,
+            Mode::Acquire | Mode::Tracking => {}
+        }
+        if self.blank_left > 0 {
+            self.blank_left = self.blank_left.saturating_sub(1);
+            return self.held(Verdict::Blanked, theta);
+        }
+        let mag = theta.unsigned_abs();
+        // Step policy (servo.md §7 rule 6).
+        if self.first {
+            self.first = false;
+            if self.cfg.first_step_ns > 0 && mag > self.cfg.first_step_ns {
+                return self.step(theta);
+            }
+        } else if self.cfg.step_ns > 0 && mag > self.cfg.step_ns {
+            let positive = theta > 0;
+            if self.step_run == 0 || positive != self.step_positive {
+                self.step_run = 1;
+                self.step_positive = positive;
+            } else {
+                self.step_run = self.step_run.saturating_add(1);
+            }
+            if self.step_run >= self.cfg.step_confirm {
+                return self.step(theta);
+            }
+            return self.held(Verdict::StepPending, theta);
+        } else {
+            self.step_run = 0;
+        }
+        // Outlier gate (Tracking only).
+        if self.mode == Mode::Tracking {
+            match self.gate.judge(&self.cfg.gate, theta) {
+                GateVerdict::Accept => {}
+                GateVerdict::Reject => {
+                    self.counters.rejected = self.counters.rejected.saturating_add(1);
+                    return self.held(Verdict::Rejected, theta);
+                }
+                GateVerdict::Confirmed => {
+                    // A real change, not noise: fast gains take it from here.
+                    self.reacquire();
+                    self.counters.reacquired = self.counters.reacquired.saturating_add(1);
+                }
+            }
+        }
+        let gains = if self.mode == Mode::Tracking {
+            self.cfg.track
+        } else {
+            self.cfg.acquire
+        };
+        let s = pi_step(gains, self.cfg.limits, self.integrator, theta);
+        self.integrator = s.integrator;
+        if s.saturated {
+            self.counters.saturated = self.counters.saturated.saturating_add(1);
+        }
+        self.counters.accepted = self.counters.accepted.saturating_add(1);
+        self.gate.push(theta);
+        self.lock.update(&self.cfg.lock, theta);
+        if self.mode == Mode::Acquire {
+            if mag < self.cfg.gear_ns {
+                self.gear_run = self.gear_run.saturating_add(1);
+                if self.gear_run >= self.cfg.gear_count {
+                    // Bumpless apart from ΔKp·θ: I carries over (servo.md §7 rule 5).
+                    self.mode = Mode::Tracking;
+                    self.resume = Mode::Tracking;
+                    self.gate.clear();
+                }
+            } else {
+                self.gear_run = 0;
+            }
+        }
+        Output {
+            command_q32: s.y,
+            step_ns: 0,
+            mode: self.mode,
+            locked: self.lock.is_locked(),
+            verdict: Verdict::Accepted,
+            saturated: s.saturated,
+            theta_ns: theta,
+            integrator_q32: s.integrator,
+        }
+    }
+}

@@ -1,0 +1,186 @@
+//! PI gains in Q32 fixed point, derived from closed-loop pole positions and refused outside the
+//! stable region.
+//!
+//! Why poles: "what should kp/ki be?" is the most common servo question in the field
+//! (servo.md §1.9 item 6). A pole radius is one physically meaningful knob: the error decays as
+//! p^k, so p = 0.99 at 1 kHz is a ~100 ms time constant. For the per-sample PI of
+//! [`super::pi`] the closed-loop characteristic polynomial is z² + (Kp + Ki − 2)·z + (1 − Kp)
+//! (servo.md §1.2 [DERIVED]); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
+//! Ki = (1 − p₁)(1 − p₂) (REQ-SERVO-001).
+//!
+//! Q-format: a gain g is stored as the integer round(g · 2^32) in an `i64` ([`ONE`] = 1.0).
+//! Admissible gains satisfy 0 < Kp < 2 and 0 < Ki, 2·Kp + Ki < 4, so Kp < 2^33, Ki < 2^34 and
+//! Kp + Ki < 2^34: these are the bounds the overflow argument of [`super::pi`] uses.
+
+/// Fractional bits of every gain, integrator and command value in the servo (Q32).
+pub const FRAC_BITS: u32 = 32;
+
+/// 1.0 in Q32.
+pub const ONE: i64 = 1 << FRAC_BITS;
+
+/// Stability margin (REQ-SERVO-002): Kp ∈ [M, 2 − M] and 2·Kp + Ki ≤ 4 − M, M = 2^-10. Keeps
+/// both poles a visible distance inside the unit circle, which excludes linuxptp's marginal
+/// corner Kp = 1, Ki = 2 (a pole at z = −1, servo.md §1.2).
+pub const MARGIN: i64 = ONE >> 10;
+
+/// A closed-loop pole on the real axis in [0, 1), as a Q32 fraction (`u32`, so p < 1 holds by
+/// construction). p = 0 is dead-beat; p → 1 is an ever slower, quieter loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Pole(u32);
+
+impl Pole {
+    /// The pole at `micro` / 1 000 000 (e.g. 990 000 = 0.99). Refuses ≥ 1.0: a pole on or
+    /// outside the unit circle never converges.
+    pub fn from_micro(micro: u32) -> Result<Self, GainError> {
+        if micro >= 1_000_000 {
+            return Err(GainError::PoleOutsideUnitInterval);
+        }
+        // micro < 10^6 < 2^20, so micro · 2^32 < 2^52 and the quotient is < 2^32.
+        let q = (u64::from(micro) << FRAC_BITS) / 1_000_000;
+        u32::try_from(q)
+            .map(Pole)
+            .map_err(|_| GainError::PoleOutsideUnitInterval)
+    }
+
+    /// The pole with raw Q32 value `raw` (p = raw / 2^32).
+    pub const fn from_q32(raw: u32) -> Self {
+        Pole(raw)
+    }
+
+    /// Raw Q32 value.
+    pub const fn q32(self) -> u32 {
+        self.0
+    }
+}
+
+/// Why a gain set was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GainError {
+    /// A pole was given at or beyond 1.0.
+    PoleOutsideUnitInterval,
+    /// Kp outside [MARGIN, 2 − MARGIN]: a pole at or beyond ±1.
+    KpOutOfRange,
+    /// Ki ≤ 0: no integral action, or a pole at z = 1 (no convergence to a frequency error).
+    KiNotPositive,
+    /// 2·Kp + Ki > 4 − MARGIN: a pole at or beyond z = −1 (Nyquist-rate oscillation).
+    JuryViolated,
+}
+
+/// Admissible per-sample PI gains (normalised: the P and I gains per sample, dimensionless).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PiGains {
+    kp: i64,
+    ki: i64,
+}
+
+impl PiGains {
+    /// REQ-SERVO-001: Kp = 1 − p₁p₂, Ki = (1 − p₁)(1 − p₂), then the REQ-SERVO-002 check
+    /// (which real poles in [0, 1) pass unless Ki rounds to zero, i.e. a pole within 2^-32 of
+    /// 1, or both poles are so near 1 that Kp < MARGIN).
+    pub fn from_poles(p1: Pole, p2: Pole) -> Result<Self, GainError> {
+        let (a, b) = (u128::from(p1.0), u128::from(p2.0));
+        let one = 1u128 << FRAC_BITS;
+        // All products < 2^64 and quotients ≤ 2^32; u128 cannot overflow here.
+        let prod = a.wrapping_mul(b) >> FRAC_BITS;
+        let kp = one.wrapping_sub(prod);
+        let ki = one.wrapping_sub(a).wrapping_mul(one.wrapping_sub(b)) >> FRAC_BITS;
+        let kp = i64::try_from(kp).map_err(|_| GainError::KpOutOfRange)?;
+        let ki = i64::try_from(ki).map_err(|_| GainError::KiNotPositive)?;
+        Self::from_q32(kp, ki)
+    }
+
+    /// Critically damped design: a double pole at `p` (Kp = 1 − p², Ki = (1 − p)²).
+    pub fn double_pole(p: Pole) -> Result<Self, GainError> {
+        Self::from_poles(p, p)
+    }
+
+    /// REQ-SERVO-002: raw Q32 gains, accepted only inside the Jury stability region with margin:
+    /// MARGIN ≤ Kp ≤ 2 − MARGIN, Ki ≥ 1 LSB, 2·Kp + Ki ≤ 4 − MARGIN.
+    pub fn from_q32(kp: i64, ki: i64) -> Result<Self, GainError> {
+        const KP_MAX: i64 = 2 * ONE - MARGIN;
+        const SUM_MAX: i64 = 4 * ONE - MARGIN;
+        if !(MARGIN..=KP_MAX).contains(&kp) {
+            return Err(GainError::KpOutOfRange);
+        }
+        if ki <= 0 {
+            return Err(GainError::KiNotPositive);
+        }
+        // kp ≤ 2^33 and ki is compared before it is added, so the sum cannot overflow.
+        if ki > SUM_MAX {
+            return Err(GainError::JuryViolated);
+        }
+        let two_kp_ki = kp.saturating_mul(2).saturating_add(ki);
+        if two_kp_ki > SUM_MAX {
+            return Err(GainError::JuryViolated);
+        }
+        Ok(PiGains { kp, ki })
+    }
+
+    /// Kp in Q32; always in [MARGIN, 2 − MARGIN].
+    pub const fn kp(self) -> i64 {
+        self.kp
+    }
+
+    /// Ki in Q32; always in [1, 4 − MARGIN).
+    pub const fn ki(self) -> i64 {
+        self.ki
+    }
+
+    /// The seed 004 design read as loop poles (e^−aT = 1/2, e^−bT = 1/3): Kp = 5/6, Ki = 1/3
+    /// (servo.md §6). Fast and noise-amplifying; offered for comparison with the paper.
+    pub fn seed004() -> Self {
+        // Poles 1/2 and 1/3 are in [0, 1), so the pole constructor always succeeds; the
+        // fallback is the same values written out (5/6 and 1/3 in Q32).
+        Self::from_poles(Pole(1 << 31), Pole(0x5555_5555)).unwrap_or(PiGains {
+            kp: 3_579_139_413,
+            ki: 1_431_655_765,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn f(q: i64) -> f64 {
+        q as f64 / ONE as f64
+    }
+
+    #[test]
+    fn poles_map_to_expected_gains() {
+        let g = PiGains::seed004();
+        assert!((f(g.kp()) - 5.0 / 6.0).abs() < 1e-9);
+        assert!((f(g.ki()) - 1.0 / 3.0).abs() < 1e-9);
+        let p = Pole::from_micro(990_000).unwrap();
+        let g = PiGains::double_pole(p).unwrap();
+        assert!((f(g.kp()) - (1.0 - 0.99f64 * 0.99)).abs() < 1e-8);
+        assert!((f(g.ki()) - 0.01f64 * 0.01).abs() < 1e-8);
+        // Dead-beat: both poles at 0.
+        let g = PiGains::double_pole(Pole::from_q32(0)).unwrap();
+        assert_eq!((g.kp(), g.ki()), (ONE, ONE));
+    }
+
+    #[test]
+    fn refuses_outside_stability_region() {
+        assert_eq!(
+            Pole::from_micro(1_000_000),
+            Err(GainError::PoleOutsideUnitInterval)
+        );
+        // linuxptp's marginal corner Kp = 1, Ki = 2 (pole at −1).
+        assert_eq!(
+            PiGains::from_q32(ONE, 2 * ONE),
+            Err(GainError::JuryViolated)
+        );
+        assert_eq!(PiGains::from_q32(0, ONE), Err(GainError::KpOutOfRange));
+        assert_eq!(PiGains::from_q32(2 * ONE, 1), Err(GainError::KpOutOfRange));
+        assert_eq!(PiGains::from_q32(ONE, 0), Err(GainError::KiNotPositive));
+        assert_eq!(
+            PiGains::from_q32(ONE, i64::MAX),
+            Err(GainError::JuryViolated)
+        );
+        // Both poles within 2^-32 of 1: Kp rounds below the margin.
+        assert!(PiGains::from_poles(Pole::from_q32(u32::MAX), Pole::from_q32(u32::MAX)).is_err());
+        // linuxptp defaults at 1 s are inside.
+        assert!(PiGains::from_q32(3_006_477_107, 1_288_490_189).is_ok());
+    }
+}

@@ -1,0 +1,339 @@
+//! Master-follows-reference: the loop that keeps the master's cycle on the DC reference clock
+//! by correcting the master's next wake-up deadline (servo.md §3, §7; REQ-SERVO-100..105).
+//!
+//! Model. The master keeps a nominal "app time" that advances exactly one period P per cycle
+//! (its idea of DC system time at the cycle's wake-up), and sends it with the cyclic frame whose
+//! FRMW on the reference's 0x0910 returns the reference's time. Per cycle:
+//!   raw = (app − ref) − target,   θ = fold(raw) ∈ (−P/2, P/2]  (REQ-TIME-008),
+//! positive θ = the master is ahead (woke early in DC terms, REQ-CONV-007). Delaying the next
+//! deadline by c ns lowers the next θ by c, and the master's timer drift adds δ per cycle, so
+//! θₖ₊₁ = θₖ + δ − cₖ: exactly the loop [`super::gains`] places the poles of.
+//!
+//! Outputs per cycle:
+//! - `deadline_correction_ns`: add to the next wake-up deadline (next = prev + P + this). It is
+//!   the PI command quantised with a carried remainder (exact long-run rate), plus a one-off
+//!   phase step when acquiring; |PI part| ≤ y_max_ns (REQ-SERVO-101).
+//! - `app_time_step_ns`: a whole number of periods to add to the app-time base, so app time and
+//!   DC time agree to within P/2 (REQ-SERVO-102). Whole periods never move the wake-up phase,
+//!   so this is how a large offset is absorbed without disturbing the cycle (linuxcnc-ethercat
+//!   PR #502: resync by whole periods only, the remainder is left to the controller).
+
+use super::carry::Carry;
+use super::engine::{ConfigError, Counters, Input, Mode, Output, Servo, ServoConfig, Verdict};
+use super::gains::{PiGains, Pole};
+use super::gate::GateConfig;
+use super::lock::LockConfig;
+use super::pi::{PiLimits, THETA_MAX};
+use crate::num::{fold, wrapping_diff};
+
+/// Largest cycle period the loop accepts: 2·THETA_MAX (536 ms), so the folded error always fits
+/// the PI kernel unclamped.
+pub const PERIOD_MAX_NS: u32 = 1 << 29;
+
+/// Master-loop configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MasterConfig {
+    /// Cycle period P, ns, in [1000, PERIOD_MAX_NS].
+    pub period_ns: u32,
+    /// Desired value of (app − ref), ns, |·| ≤ P (e.g. minus the latency from the app-time
+    /// stamp to the frame passing the reference).
+    pub target_ns: i64,
+    /// The reference is a 32-bit DC: compare only the low 32 bits (wrap-safe for |Δ| < 2^31).
+    pub ref_32bit: bool,
+    /// Engine configuration; `interval_ns` must equal `period_ns`.
+    pub servo: ServoConfig,
+}
+
+impl MasterConfig {
+    /// Defaults for period P (ecdc choices, servo.md §3.7, §7):
+    /// - acquire: double pole 0.9 (Kp 0.19, Ki 0.01), track: double pole 0.99 (noise-rejecting);
+    /// - |correction| ≤ P/1000 per cycle (IgH's ±0.1 %), I_max = y_max;
+    /// - first-sample phase step when |θ| > P/100; no later phase steps (whole periods only);
+    /// - gear to tracking after 32 cycles with |θ| < P/50;
+    /// - lock below P/50 for 32 cycles, unlock above P/20 (linuxcnc: P/10);
+    /// - gate κ = 5 with floor P/100; holdover 100 cycles.
+    pub fn for_period(period_ns: u32) -> Result<Self, ConfigError> {
+        if !(1000..=PERIOD_MAX_NS).contains(&period_ns) {
+            return Err(ConfigError::Parameter);
+        }
+        let p = u64::from(period_ns);
+        let y_max = i64::from(period_ns / 1000);
+        let acquire = PiGains::double_pole(Pole::from_micro(900_000).map_err(ConfigError::Gains)?)
+            .map_err(ConfigError::Gains)?;
+        let track = PiGains::double_pole(Pole::from_micro(990_000).map_err(ConfigError::Gains)?)
+            .map_err(ConfigError::Gains)?;
+        let limits = PiLimits::from_ns(y_max, y_max).map_err(ConfigError::Limits)?;
+        let floor = u32::try_from(p / 100).unwrap_or(u32::MAX);
+        Ok(MasterConfig {
+            period_ns,
+            target_ns: 0,
+            ref_32bit: false,
+            servo: ServoConfig {
+                interval_ns: period_ns,
+                acquire,
+                track,
+                limits,
+                first_step_ns: p / 100,
+                step_ns: 0,
+                step_confirm: 3,
+                blank: 1,
+                gear_ns: p / 50,
+                gear_count: 32,
+                gate: GateConfig::with_floor(floor),
+                lock: LockConfig {
+                    low_ns: p / 50,
+                    high_ns: p / 20,
+                    count: 32,
+                },
+                holdover_max: 100,
+            },
+        })
+    }
+}
+
+/// One cycle's input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MasterInput {
+    /// The FRMW came back.
+    Sample {
+        /// Master's local monotonic time when the cycle ran (for interval sanity), ns.
+        local_ns: u64,
+        /// The app (nominal DC) time this cycle's frame carried, ns.
+        app_ns: u64,
+        /// The reference's system time returned by the FRMW (low 32 bits if 32-bit), ns.
+        ref_ns: u64,
+    },
+    /// The FRMW was lost (frame lost, WKC 0): hold the learned rate.
+    Lost,
+}
+
+/// One cycle's output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MasterOutput {
+    /// Add to the next wake-up deadline, ns (positive = wake later).
+    pub deadline_correction_ns: i64,
+    /// Add to the app-time base, ns; always a multiple of P (0 = none).
+    pub app_time_step_ns: i64,
+    /// Folded phase error θ ∈ (−P/2, P/2], ns (0 when lost).
+    pub phase_error_ns: i64,
+    /// The engine's decision (mode, lock, verdict, saturation).
+    pub engine: Output,
+}
+
+/// Master-follows-reference servo state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MasterServo {
+    period: u32,
+    target: i64,
+    ref_32bit: bool,
+    servo: Servo,
+    carry: Carry,
+    started: bool,
+    whole_run: u8,
+    whole_last: i64,
+}
+
+impl MasterServo {
+    /// Validate and build.
+    pub fn new(cfg: MasterConfig) -> Result<Self, ConfigError> {
+        if !(1000..=PERIOD_MAX_NS).contains(&cfg.period_ns)
+            || cfg.servo.interval_ns != cfg.period_ns
+            || cfg.target_ns.unsigned_abs() > u64::from(cfg.period_ns)
+        {
+            return Err(ConfigError::Parameter);
+        }
+        debug_assert!(i64::from(cfg.period_ns / 2) <= THETA_MAX);
+        Ok(MasterServo {
+            period: cfg.period_ns,
+            target: cfg.target_ns,
+            ref_32bit: cfg.ref_32bit,
+            servo: Servo::new(cfg.servo)?,
+            carry: Carry::new(),
+            started: false,
+            whole_run: 0,
+            whole_last: 0,
+        })
+    }
+
+    /// The engine (mode, lock, counters, integrator).
+    pub const fn engine(&self) -> &Servo {
+        &self.servo
+    }
+
+    /// Current mode.
+    pub const fn mode(&self) -> Mode {
+        self.servo.mode()
+    }
+
+    /// Lock flag (hysteresis, REQ-SERVO-060).
+    pub const fn is_locked(&self) -> bool {
+        self.servo.is_locked()
+    }
+
+    /// Event counters.
+    pub const fn counters(&self) -> &Counters {
+        self.servo.counters()
+    }
+
+    /// Learned drift of the master's timer, ns per cycle (Q32 integrator rounded toward −∞).
+    pub const fn drift_ns_per_cycle(&self) -> i64 {
+        self.servo.integrator_q32() >> 32
+    }
+
+    /// (app − ref) − target as a signed ns value, wrap-safe in the configured width.
+    fn raw_error(&self, app: u64, reference: u64) -> i64 {
+        let d = if self.ref_32bit {
+            i64::from(wrapping_diff::<u32>(low32(app), low32(reference)))
+        } else {
+            wrapping_diff::<u64>(app, reference)
+        };
+        d.saturating_sub(self.target)
+    }
+
+    /// REQ-SERVO-100..105: process one cycle.
+    pub fn update(&mut self, input: MasterInput) -> MasterOutput {
+        let (local_ns, raw) = match input {
+            MasterInput::Lost => {
+                let out = self.servo.update(Input::Missing);
+                return self.finish(out, 0, 0);
+            }
+            MasterInput::Sample {
+                local_ns,
+                app_ns,
+                ref_ns,
+            } => (local_ns, self.raw_error(app_ns, ref_ns)),
+        };
+        let p = u64::from(self.period);
+        let theta = fold::<u64>(raw, p);
+        // raw ≡ θ (mod P) and |θ| ≤ P/2, so `whole` is a multiple of P; saturating ops only
+        // matter for |raw| near 2^63, where the step is still a multiple of P up to saturation.
+        let whole = raw.saturating_sub(theta);
+        let mut app_step = 0i64;
+        if whole == 0 {
+            self.whole_run = 0;
+        } else if !self.started {
+            // First sample: align app time to DC at once (nothing is running on it yet).
+            app_step = whole.saturating_neg();
+        } else if raw.unsigned_abs() >= p {
+            // Later: only a confirmed offset of a period or more (jitter near ±P/2 must not
+            // make the app time flip between neighbouring periods).
+            if self.whole_run > 0 && whole == self.whole_last {
+                self.whole_run = self.whole_run.saturating_add(1);
+            } else {
+                self.whole_run = 1;
+                self.whole_last = whole;
+            }
+            if self.whole_run >= self.servo.config().step_confirm {
+                app_step = whole.saturating_neg();
+                self.whole_run = 0;
+            }
+        }
+        self.started = true;
+        let out = self.servo.update(Input::Sample {
+            local_ns,
+            theta_ns: theta,
+        });
+        if out.verdict == Verdict::Stepped {
+            self.carry.reset();
+        }
+        self.finish(out, app_step, theta)
+    }
+
+    fn finish(&mut self, out: Output, app_step: i64, theta: i64) -> MasterOutput {
+        let pi = self.carry.quantize(out.command_q32);
+        MasterOutput {
+            // |pi| ≤ y_max_ns ≤ 2^28 and |step| ≤ P/2 < 2^28: no overflow.
+            deadline_correction_ns: pi.saturating_add(out.step_ns),
+            app_time_step_ns: app_step,
+            phase_error_ns: theta,
+            engine: out,
+        }
+    }
+}
+
+/// Low 32 bits (a 32-bit DC keeps only these).
+#[inline]
+fn low32(x: u64) -> u32 {
+    u32::try_from(x & 0xFFFF_FFFF).unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Closed loop against a timer drifting `ppm`, no noise: locks and stays inside ±2 ns.
+    fn run(ppm: i64, initial: i64) -> (MasterServo, i64) {
+        let p = 1_000_000i64;
+        let mut m = MasterServo::new(MasterConfig::for_period(1_000_000).unwrap()).unwrap();
+        let delta = ppm; // ns per 1 ms cycle per ppm
+        let mut theta_true = initial; // (app − ref) actual
+        let mut app: u64 = 1 << 40;
+        let mut local: u64 = 0;
+        let mut worst_late = 0i64;
+        for k in 0..20_000 {
+            let reference = (app as i64 - theta_true) as u64;
+            let out = m.update(MasterInput::Sample {
+                local_ns: local,
+                app_ns: app,
+                ref_ns: reference,
+            });
+            // Whole-period app-time steps shift app and the measured error together.
+            app = (app as i64 + out.app_time_step_ns) as u64;
+            theta_true += out.app_time_step_ns;
+            theta_true += delta - out.deadline_correction_ns;
+            app += p as u64;
+            local += p as u64;
+            if k > 15_000 {
+                worst_late = worst_late.max(theta_true.abs());
+            }
+        }
+        (m, worst_late)
+    }
+
+    #[test]
+    fn locks_on_drifting_master() {
+        for &(ppm, init) in &[(100, 0), (-100, 12_345), (50, 3_400_000), (-80, -499_999)] {
+            let (m, worst) = run(ppm, init);
+            assert!(m.is_locked(), "ppm {ppm}");
+            assert_eq!(m.mode(), Mode::Tracking);
+            assert!(worst <= 2, "ppm {ppm} worst {worst}");
+            assert!(
+                (m.drift_ns_per_cycle() - ppm).abs() <= 1,
+                "{}",
+                m.drift_ns_per_cycle()
+            );
+        }
+    }
+
+    #[test]
+    fn whole_periods_only_and_lost_frames_hold() {
+        let mut m = MasterServo::new(MasterConfig::for_period(1_000_000).unwrap()).unwrap();
+        let out = m.update(MasterInput::Sample {
+            local_ns: 0,
+            app_ns: 5_000_000_300,
+            ref_ns: 3_000_000_000,
+        });
+        assert_eq!(out.app_time_step_ns, -2_000_000_000);
+        assert_eq!(out.phase_error_ns, 300);
+        let out = m.update(MasterInput::Lost);
+        assert_eq!(out.engine.verdict, Verdict::Missing);
+        assert_eq!(out.engine.mode, Mode::Holdover);
+        assert_eq!(out.app_time_step_ns, 0);
+    }
+
+    #[test]
+    fn fold_below_minus_half_period() {
+        // The IgH `%` pitfall: −700 µs at P = 1 ms must fold to +300 µs.
+        let mut cfg = MasterConfig::for_period(1_000_000).unwrap();
+        cfg.servo.first_step_ns = 0;
+        let mut m = MasterServo::new(cfg).unwrap();
+        let out = m.update(MasterInput::Sample {
+            local_ns: 0,
+            app_ns: 10_000_000,
+            ref_ns: 10_700_000,
+        });
+        assert_eq!(out.phase_error_ns, 300_000);
+        assert_eq!(out.app_time_step_ns, 1_000_000);
+        assert!(out.deadline_correction_ns > 0 && out.deadline_correction_ns <= 1000);
+    }
+}

@@ -1,0 +1,170 @@
+//! Reference-follows-master: the value and schedule of the FPWR that writes the master's time
+//! to the reference clock's System Time register 0x0910 (REQ-SERVO-110..112).
+//!
+//! An ECAT write covering 0x0910 is a sample for the ESC's own time-control loop: the ESC
+//! compares the written value, at end of frame, with its local copy latched when the frame's
+//! start passed it (esc-dc.md §3 item 2, §4). So the value must be the master's time *at the
+//! moment the frame passes the reference*: the master's time at send plus `lead_ns` (NIC TX
+//! latency + wire and forwarding delay up to the reference). IgH's `sync_reference_clock_to`
+//! writes 4 bytes; a 64-bit reference may take 8.
+//!
+//! The ESC loop slews at most ~760 ppm (esc-dc.md §4.2), so a jump in the master's time would
+//! pull the whole network for minutes. Each written value is therefore checked against the
+//! previous one advanced by the elapsed cycles; a deviation beyond `max_jump_ns` is refused with
+//! a typed error, and nothing is written until the caller re-anchors with [`RefFollower::resync`]
+//! (after re-running offset compensation). A refused write is never a wrong value on the wire.
+
+use crate::num::wrapping_diff;
+
+/// Configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RefFollowConfig {
+    /// Cycle period, ns (> 0).
+    pub period_ns: u32,
+    /// Write every `every`-th cycle (≥ 1; IgH's dc_user example uses 10 at 100 Hz... or 1).
+    pub every: u16,
+    /// Master send time → frame passes the reference, ns.
+    pub lead_ns: u32,
+    /// The reference is a 32-bit DC: write 4 bytes (the low 32 bits).
+    pub ref_32bit: bool,
+    /// Largest tolerated deviation from the expected progression, ns (0 = no check).
+    pub max_jump_ns: u64,
+}
+
+/// Why a write was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RefError {
+    /// period_ns or every was 0.
+    Config,
+    /// The master's time deviated from the expected progression by `deviation_ns`.
+    Jump {
+        /// value − expected, ns (wrap-safe).
+        deviation_ns: i64,
+    },
+}
+
+/// One write to perform this cycle: FPWR of `len` bytes of `value` (little-endian) to 0x0910
+/// of the reference clock.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RefWrite {
+    /// System time to write (only the low 32 bits matter when `len == 4`).
+    pub value: u64,
+    /// 4 or 8.
+    pub len: u8,
+}
+
+impl RefWrite {
+    /// Register address written.
+    pub const REGISTER: u16 = 0x0910;
+
+    /// Payload bytes, little-endian; only the first `len` are sent.
+    pub fn bytes(&self) -> [u8; 8] {
+        self.value.to_le_bytes()
+    }
+}
+
+/// Schedule and value computation for reference-follows-master.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RefFollower {
+    cfg: RefFollowConfig,
+    cycle: u64,
+    last: Option<(u64, u64)>,
+    blocked: bool,
+}
+
+impl RefFollower {
+    /// Validate and build.
+    pub fn new(cfg: RefFollowConfig) -> Result<Self, RefError> {
+        if cfg.period_ns == 0 || cfg.every == 0 {
+            return Err(RefError::Config);
+        }
+        Ok(RefFollower {
+            cfg,
+            cycle: 0,
+            last: None,
+            blocked: false,
+        })
+    }
+
+    /// REQ-SERVO-110/111: call once per cycle with the master's time at send (ns). Returns the
+    /// write to queue this cycle, `Ok(None)` on cycles without a write, or the refusal.
+    pub fn on_cycle(&mut self, master_send_ns: u64) -> Result<Option<RefWrite>, RefError> {
+        let c = self.cycle;
+        self.cycle = self.cycle.wrapping_add(1);
+        if c.checked_rem(u64::from(self.cfg.every)) != Some(0) {
+            return Ok(None);
+        }
+        let value = master_send_ns.wrapping_add(u64::from(self.cfg.lead_ns));
+        // REQ-SERVO-112: progression check against the last written value.
+        if let Some((v0, c0)) = self.last {
+            let cycles = c.wrapping_sub(c0);
+            let expected = v0.wrapping_add(cycles.wrapping_mul(u64::from(self.cfg.period_ns)));
+            let dev = wrapping_diff::<u64>(value, expected);
+            if self.cfg.max_jump_ns > 0 && dev.unsigned_abs() > self.cfg.max_jump_ns {
+                self.blocked = true;
+                return Err(RefError::Jump { deviation_ns: dev });
+            }
+        }
+        if self.blocked {
+            return Err(RefError::Jump { deviation_ns: 0 });
+        }
+        self.last = Some((value, c));
+        let (value, len) = if self.cfg.ref_32bit {
+            (value & 0xFFFF_FFFF, 4)
+        } else {
+            (value, 8)
+        };
+        Ok(Some(RefWrite { value, len }))
+    }
+
+    /// Forget the progression anchor (after the master's time was deliberately stepped and the
+    /// offsets re-written); the next scheduled cycle writes again.
+    pub fn resync(&mut self) {
+        self.last = None;
+        self.blocked = false;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schedule_value_and_jump_refusal() {
+        let mut r = RefFollower::new(RefFollowConfig {
+            period_ns: 1_000_000,
+            every: 2,
+            lead_ns: 1500,
+            ref_32bit: true,
+            max_jump_ns: 50_000,
+        })
+        .unwrap();
+        let base = 0x1_FFFF_0000u64;
+        let w = r.on_cycle(base).unwrap().unwrap();
+        assert_eq!((w.value, w.len), ((base + 1500) & 0xFFFF_FFFF, 4));
+        assert_eq!(r.on_cycle(base + 1_000_000), Ok(None));
+        let w = r.on_cycle(base + 2_000_020).unwrap().unwrap();
+        assert_eq!(w.value, (base + 2_001_520) & 0xFFFF_FFFF);
+        assert_eq!(&w.bytes()[..4], &((base + 2_001_520) as u32).to_le_bytes());
+        assert_eq!(r.on_cycle(0), Ok(None));
+        assert!(matches!(
+            r.on_cycle(base + 4_200_000),
+            Err(RefError::Jump {
+                deviation_ns: 199_980
+            })
+        ));
+        assert_eq!(r.on_cycle(0), Ok(None));
+        assert!(r.on_cycle(base + 6_000_000).is_err()); // stays blocked
+        r.resync();
+        assert_eq!(r.on_cycle(0), Ok(None));
+        assert!(r.on_cycle(base + 8_000_000).unwrap().is_some());
+        assert!(RefFollower::new(RefFollowConfig {
+            period_ns: 0,
+            every: 1,
+            lead_ns: 0,
+            ref_32bit: false,
+            max_jump_ns: 0
+        })
+        .is_err());
+    }
+}
