@@ -4,6 +4,7 @@ need_apt=()
 command -v tshark >/dev/null 2>&1 || need_apt+=(tshark)
 [ -e /usr/include/z3.h ] || need_apt+=(libz3-dev)
 command -v ip >/dev/null 2>&1 || need_apt+=(iproute2)
+command -v jq >/dev/null 2>&1 || need_apt+=(jq)
 command -v clang >/dev/null 2>&1 || need_apt+=(clang)
 if [ "${#need_apt[@]}" -gt 0 ]; then
     echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections 2>/dev/null || true

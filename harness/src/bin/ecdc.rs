@@ -23,6 +23,8 @@ enum Command {
     Scan(cli::scan::Args),
     /// Bring up DC and run the cyclic loop on a network interface.
     Run(cli::run::Args),
+    /// Measure round trips on a network interface (back to back and inside a cycle).
+    Rtt(cli::rtt::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -33,6 +35,7 @@ fn main() -> std::process::ExitCode {
         Command::Emulate(args) => cli::emulate::run(args),
         Command::Scan(args) => cli::scan::run(args),
         Command::Run(args) => cli::run::run(args),
+        Command::Rtt(args) => cli::rtt::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -2,6 +2,8 @@
 
 pub mod decode;
 pub mod emulate;
+pub mod link_args;
+pub mod rtt;
 pub mod run;
 pub mod scan;
 pub mod simulate;

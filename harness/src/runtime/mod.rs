@@ -9,7 +9,8 @@
 //! - [`clock`]: `CLOCK_MONOTONIC` nanoseconds and absolute-deadline sleeps;
 //! - [`rt`]: SCHED_FIFO, mlockall, `/dev/cpu_dma_latency`, pinning, degrading to warnings;
 //! - [`stats`]: allocation-free histograms and per-second rms/max windows;
-//! - [`cyclic`]: the fixed-period loop with its per-second stats line.
+//! - [`cyclic`]: the fixed-period loop with its per-second stats line;
+//! - [`serve`]: the slave side (`ecdc emulate`): answer masters' frames in real time.
 //!
 //! See `docs/runtime.md` for the design and measured round trips.
 
@@ -17,6 +18,7 @@ pub mod clock;
 pub mod cyclic;
 pub mod errors;
 pub mod rt;
+pub mod serve;
 pub mod socket;
 pub mod stats;
 pub mod sys;

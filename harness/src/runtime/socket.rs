@@ -54,8 +54,9 @@ pub struct SocketOptions {
     pub bring_up: bool,
     /// Ethernet payload bytes the MTU must allow.
     pub min_payload: u32,
-    /// How long to wait for carrier after bringing the interface up.
-    pub carrier_wait: Duration,
+    /// How long to wait for carrier; `None` accepts an interface without carrier (with a
+    /// warning), which suits a server such as `ecdc emulate` that waits for its peer anyway.
+    pub carrier_wait: Option<Duration>,
     /// How [`Link::recv`] waits.
     pub wait: WaitMode,
 }
@@ -67,7 +68,7 @@ impl Default for SocketOptions {
             promiscuous: true,
             bring_up: true,
             min_payload: FULL_PAYLOAD,
-            carrier_wait: Duration::from_secs(5),
+            carrier_wait: Some(Duration::from_secs(5)),
             wait: WaitMode::Poll,
         }
     }
@@ -173,7 +174,9 @@ impl RawSocket {
             warnings.push(format!("interface {name} was down; brought it up"));
         }
         // Carrier: a veth is RUNNING as soon as both ends are up; a NIC needs autonegotiation.
-        let carrier_deadline = clock::now_ns().saturating_add(opts.carrier_wait.as_nanos() as u64);
+        let wait = opts.carrier_wait.unwrap_or_default();
+        let carrier_deadline =
+            clock::now_ns().saturating_add(u64::try_from(wait.as_nanos()).unwrap_or(u64::MAX));
         loop {
             flags = sys::if_flags(&fd, name)
                 .map_err(|e| RuntimeError::os("reading interface flags", name, e))?;
@@ -181,6 +184,12 @@ impl RawSocket {
                 break;
             }
             if clock::now_ns() >= carrier_deadline {
+                if opts.carrier_wait.is_none() {
+                    warnings.push(format!(
+                        "interface {name} has no carrier yet; waiting for the peer"
+                    ));
+                    break;
+                }
                 return Err(RuntimeError::NoCarrier {
                     name: name.to_owned(),
                 });

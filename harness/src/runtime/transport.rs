@@ -203,6 +203,11 @@ impl<L: Link> Transport<L> {
         &self.counters
     }
 
+    /// Starts a fresh accounting period (e.g. between two benchmark phases).
+    pub fn reset_counters(&mut self) {
+        self.counters = Counters::default();
+    }
+
     /// The link underneath.
     pub fn link(&self) -> &L {
         &self.link

@@ -1,0 +1,206 @@
+//! `ecdc rtt --iface IF`: round-trip benchmark, back to back and inside a fixed cycle, with
+//! the same probe frame as the C probe in wire-and-runtime.md §5 (BRD 0x0130 len 2 + FRMW
+//! 0x1001:0x0910 len 8, 60 bytes), so the numbers compare directly.
+//!
+//! The peer must answer EtherCAT frames: real slaves, or `ecdc emulate --engine reflect`
+//! (pure socket path) / `ecdc emulate` (emulated ESCs) on the other end of a veth pair.
+
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Context;
+use ecdc_core::wire::{Address, Command, FrameBuilder, MASTER_MAC};
+
+use super::link_args::{LinkArgs, RtArgs};
+use crate::runtime::clock;
+use crate::runtime::cyclic::{self, CycleConfig, CycleReport, CycleTask, LoopSummary};
+use crate::runtime::errors::RuntimeError;
+use crate::runtime::stats::{Histogram, Summary};
+use crate::runtime::sys;
+use crate::runtime::transport::{Counters, Reply, Transport};
+
+/// Arguments of `ecdc rtt`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub link: LinkArgs,
+    #[command(flatten)]
+    pub rt: RtArgs,
+    /// Back-to-back round trips (0 to skip).
+    #[arg(long, default_value_t = 10_000)]
+    pub count: u64,
+    /// Cycles of the in-cycle measurement (0 to skip).
+    #[arg(long, default_value_t = 5_000)]
+    pub cycles: u64,
+    /// Cycle time of the in-cycle measurement, us.
+    #[arg(long, default_value_t = 1000)]
+    pub cycle_us: u64,
+    /// Reply timeout for back-to-back frames, us.
+    #[arg(long, default_value_t = 100_000)]
+    pub timeout_us: u64,
+    /// Print a JSON summary on stdout instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Writes the probe frame with first datagram index `idx`; returns its length.
+fn probe(buf: &mut [u8], idx: u8) -> ecdc_core::wire::Result<usize> {
+    let mut b = FrameBuilder::new(buf)?;
+    b.set_source(MASTER_MAC);
+    b.push(Command::Brd, idx, Address::broadcast(0x0130), &[0, 0])?;
+    b.push(
+        Command::Frmw,
+        idx.wrapping_add(1),
+        Address::configured(0x1001, 0x0910),
+        &[0; 8],
+    )?;
+    b.finish()
+}
+
+/// Result of the back-to-back phase.
+#[derive(Debug, serde::Serialize)]
+struct BackToBack {
+    rtt: Summary,
+    frames: Counters,
+}
+
+/// The in-cycle probe task: one probe per cycle, WKC of the BRD must be non-zero.
+struct ProbeTask;
+
+impl CycleTask for ProbeTask {
+    fn build(&mut self, cycle: u64, _deadline: u64, _now: u64, buf: &mut [u8]) -> Option<usize> {
+        probe(buf, ((cycle % 128) * 2) as u8).ok()
+    }
+    fn complete(&mut self, _cycle: u64, reply: Option<(&[u8], &Reply)>) -> CycleReport {
+        let wkc_ok = reply.is_some_and(|(bytes, _)| brd_wkc(bytes).is_some_and(|w| w > 0));
+        CycleReport {
+            wkc_error: !wkc_ok,
+            ..CycleReport::default()
+        }
+    }
+}
+
+/// WKC of the first datagram (the BRD) of a reply.
+fn brd_wkc(frame: &[u8]) -> Option<u16> {
+    let eth = ecdc_core::wire::EthernetFrame::new_checked(frame).ok()?;
+    let ecat = eth.ecat_frame().ok()?;
+    let first = ecat.iter().next()?.ok()?;
+    Some(first.wkc())
+}
+
+#[derive(Debug, serde::Serialize)]
+struct Report {
+    iface: String,
+    rt: String,
+    wait: crate::runtime::socket::WaitMode,
+    qdisc_bypass: bool,
+    back_to_back: Option<BackToBack>,
+    cyclic: Option<LoopSummary>,
+    cycle_us: u64,
+}
+
+/// Runs `ecdc rtt`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let stop = sys::install_stop_handler().context("installing the Ctrl-C handler")?;
+    let sock = args.link.open(60, true).map_err(anyhow::Error::new)?;
+    let info = sock.info().clone();
+    let rt = args.rt.apply();
+    let mut transport = Transport::new(sock, MASTER_MAC);
+
+    let back_to_back = if args.count > 0 {
+        Some(back_to_back(&mut transport, args, stop)?)
+    } else {
+        None
+    };
+    if let Some(b) = &back_to_back {
+        if b.frames.matched == 0 {
+            return Err(RuntimeError::NoSlaves {
+                name: info.name.clone(),
+                sent: b.frames.sent,
+                ignored: b.frames.ignored(),
+            }
+            .into());
+        }
+    }
+    let cyclic = if args.cycles > 0 {
+        transport.reset_counters();
+        let mut cfg = CycleConfig::new(args.cycle_us.max(1) * 1000);
+        cfg.max_cycles = Some(args.cycles);
+        let summary = cyclic::run(&mut transport, &mut ProbeTask, &cfg, stop, |line| {
+            if !args.json {
+                eprintln!("{line}");
+            }
+        })?;
+        Some(summary)
+    } else {
+        None
+    };
+    let report = Report {
+        iface: info.name.clone(),
+        rt: rt.describe(),
+        wait: args.link.wait,
+        qdisc_bypass: info.qdisc_bypass,
+        back_to_back,
+        cyclic,
+        cycle_us: args.cycle_us,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "interface {} ({}; wait {:?}; qdisc bypass {})",
+            report.iface, report.rt, report.wait, report.qdisc_bypass
+        );
+        if let Some(b) = &report.back_to_back {
+            println!(
+                "back-to-back RTT: {}  (lost {}, stale {})",
+                b.rtt, b.frames.lost, b.frames.stale
+            );
+        }
+        if let Some(c) = &report.cyclic {
+            println!(
+                "in {} us cycle: RTT {}  (lost {}, wkc errors {})",
+                report.cycle_us, c.rtt, c.frames.lost, c.wkc_errors
+            );
+            println!(
+                "in {} us cycle: wake lateness {}  (overruns {})",
+                report.cycle_us, c.wake, c.overruns
+            );
+        }
+    }
+    Ok(())
+}
+
+fn back_to_back(
+    transport: &mut Transport<crate::runtime::socket::RawSocket>,
+    args: &Args,
+    stop: &AtomicBool,
+) -> anyhow::Result<BackToBack> {
+    let mut tx = [0u8; 128];
+    let mut rx = vec![0u8; cyclic::RX_BUF];
+    let mut hist = Histogram::new();
+    for i in 0..args.count {
+        if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            break;
+        }
+        let len = probe(&mut tx, ((i % 128) * 2) as u8)
+            .map_err(|e| anyhow::anyhow!("building probe: {e}"))?;
+        let deadline = clock::now_ns().saturating_add(args.timeout_us * 1000);
+        transport
+            .send(tx.get(..len).unwrap_or_default(), deadline)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        match transport.recv(&mut rx, deadline)? {
+            Some(r) => hist.record(r.rtt_ns()),
+            None => {
+                transport.abandon_all();
+                // Nobody there: give up early instead of waiting count * timeout.
+                if transport.counters().matched == 0 && i >= 9 {
+                    break;
+                }
+            }
+        }
+    }
+    Ok(BackToBack {
+        rtt: hist.summary(),
+        frames: *transport.counters(),
+    })
+}

@@ -1,0 +1,139 @@
+#!/usr/bin/env bash
+# Integration test of the raw-socket runtime over a veth pair between two network namespaces
+# created (and always deleted) by this script. Nothing touches the host's real interfaces.
+#
+#   master ns  [ecm0] <--veth--> [ecs0]  slave ns
+#   ecdc rtt / ecdc run            ecdc emulate
+#
+# Part 1 (transport): `emulate --engine reflect` + `rtt`: every frame answered, accounting exact.
+# Part 2 (DC): `emulate` (ESC emulator) + `run --duration`: lock reached, frame accounting.
+#
+# Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
+# Usage: scripts/netns-test.sh [path/to/ecdc]   (default: builds it with cargo)
+set -uo pipefail
+cd "$(dirname "$0")/.."
+
+skip() { echo "SKIP: $*"; exit 77; }
+fail() { echo "FAIL: $*"; exit 1; }
+
+[ "$(id -u)" = 0 ] || skip "needs root to create network namespaces (run: sudo $0)"
+command -v ip >/dev/null 2>&1 || skip "iproute2 'ip' not installed"
+command -v jq >/dev/null 2>&1 || skip "jq not installed (needed to check the JSON summaries)"
+
+SUFFIX="$$"
+NS_M="ecdc-m-$SUFFIX"
+NS_S="ecdc-s-$SUFFIX"
+WORK="$(mktemp -d /tmp/ecdc-netns.XXXXXX)"
+PIDS=()
+
+cleanup() {
+    for p in "${PIDS[@]:-}"; do
+        [ -n "$p" ] && kill -TERM "$p" 2>/dev/null
+    done
+    for p in "${PIDS[@]:-}"; do
+        [ -n "$p" ] && wait "$p" 2>/dev/null
+    done
+    ip netns del "$NS_M" 2>/dev/null
+    ip netns del "$NS_S" 2>/dev/null
+    rm -rf "$WORK"
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+ip netns add "$NS_M" 2>/dev/null || skip "cannot create network namespaces (no netns support or not permitted)"
+ip netns add "$NS_S" || fail "creating namespace $NS_S"
+ip link add ecm0 netns "$NS_M" type veth peer name ecs0 netns "$NS_S" 2>/dev/null \
+    || skip "cannot create a veth pair (veth module missing?)"
+ip -n "$NS_S" link set ecs0 up || fail "bringing ecs0 up"
+# ecm0 is deliberately left down: `ecdc` must bring it up itself (the usable-state check).
+
+ECDC="${1:-}"
+if [ -z "$ECDC" ]; then
+    cargo build -q -p ecdc-harness --bin ecdc || fail "cargo build"
+    ECDC="${CARGO_TARGET_DIR:-target}/debug/ecdc"
+fi
+[ -x "$ECDC" ] || fail "no ecdc binary at $ECDC"
+ECDC="$(cd "$(dirname "$ECDC")" && pwd)/$(basename "$ECDC")"
+
+# start_emulator ENGINE: runs `ecdc emulate` in the slave namespace, waits until it serves.
+start_emulator() {
+    local engine="$1"
+    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --engine "$engine" --json \
+        >"$WORK/emu-$engine.json" 2>"$WORK/emu-$engine.err" &
+    EMU_PID=$!
+    PIDS+=("$EMU_PID")
+    for _ in $(seq 50); do
+        grep -q "serving" "$WORK/emu-$engine.err" 2>/dev/null && return 0
+        kill -0 "$EMU_PID" 2>/dev/null || break
+        sleep 0.1
+    done
+    return 1
+}
+
+# stop_emulator: SIGTERM, wait, leaves its JSON summary in place.
+stop_emulator() {
+    kill -TERM "$EMU_PID" 2>/dev/null
+    wait "$EMU_PID"
+    local rc=$?
+    PIDS=("${PIDS[@]/$EMU_PID}")
+    return $rc
+}
+
+check() { # check DESCRIPTION JQ-EXPRESSION FILE [extra jq args]
+    local desc="$1" expr="$2" file="$3"
+    shift 3
+    if jq -e "$@" "$expr" "$file" >/dev/null; then
+        echo "  ok   $desc"
+    else
+        echo "  FAIL $desc   ($expr on $file)"
+        FAILED=1
+    fi
+}
+FAILED=0
+
+echo "== part 1: transport over veth (reflecting slave)"
+start_emulator reflect || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect) did not start"; }
+ip netns exec "$NS_M" "$ECDC" rtt --iface ecm0 --count 2000 --cycles 500 --json >"$WORK/rtt.json" 2>"$WORK/rtt.err" \
+    || { cat "$WORK/rtt.err"; fail "ecdc rtt failed"; }
+stop_emulator || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect) exited with an error"; }
+jq -c '{b2b: .back_to_back.rtt, cyclic: .cyclic.rtt, wake: .cyclic.wake}' "$WORK/rtt.json"
+R="$WORK/rtt.json"; E="$WORK/emu-reflect.json"
+check "back-to-back: all 2000 sent and matched" '.back_to_back.frames.sent == 2000 and .back_to_back.frames.matched == 2000' "$R"
+check "back-to-back: nothing stale/foreign/other-master/unprocessed" \
+    '.back_to_back.frames | (.stale + .foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
+check "cyclic: 500 cycles, sent = matched + lost, lost <= 1%" \
+    '.cyclic.cycles == 500 and .cyclic.frames.sent == 500 and (.cyclic.frames.matched + .cyclic.frames.lost) == 500 and .cyclic.frames.lost <= 5' "$R"
+check "cyclic: no foreign/other-master/unprocessed frames" \
+    '.cyclic.frames | (.foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
+check "emulator answered every frame the master sent (2500)" \
+    '.frames.received == 2500 and .frames.answered == 2500 and .frames.already_processed == 0' "$E"
+
+echo "== part 2: DC bring-up and cyclic run on emulated ESCs"
+if start_emulator esc; then
+    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 3 --json >"$WORK/run.json" 2>"$WORK/run.err"
+    RUN_RC=$?
+    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
+    if [ "$RUN_RC" -ne 0 ]; then
+        tail -n 20 "$WORK/run.err"
+        echo "  FAIL ecdc run exited with $RUN_RC"
+        FAILED=1
+    else
+        R="$WORK/run.json"; E="$WORK/emu-esc.json"
+        jq -c '{slaves: .slaves, locked: .cyclic.locked_at_end, max_092c_ns: .cyclic.max_092c_ns, rtt: .cyclic.rtt}' "$R"
+        check "slaves found" '.slaves >= 1' "$R"
+        check "servo locked at the end" '.cyclic.locked_at_end == true' "$R"
+        check "every frame accounted: sent = matched + lost, lost <= 1%" \
+            '.frames.sent == (.frames.matched + .frames.lost) and .frames.lost * 100 <= .frames.sent' "$R"
+        check "no foreign/other-master/unprocessed frames" \
+            '.frames | (.foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
+        check "emulator received and answered every frame the master sent" \
+            '.frames.received == $run[0].frames.sent and .frames.answered == $run[0].frames.sent' "$E" --slurpfile run "$R"
+    fi
+else
+    echo "  FAIL emulator (esc) did not start:"
+    sed 's/^/    /' "$WORK/emu-esc.err"
+    FAILED=1
+fi
+
+[ "$FAILED" = 0 ] || fail "see the lines marked FAIL above"
+echo "PASS: netns integration test"
