@@ -1,0 +1,224 @@
+//! Initial System Time Offset (0x0920) with the propagation delay folded in (REQ-DC-020..024).
+//!
+//! The master samples its clock `M` just before the latching write to 0x0900 (machine's job,
+//! REQ-DC-002). ecdc defines the reference clock's system time at the instant the latch frame
+//! passes it as `M`. The frame reaches slave `s` a propagation delay `D_s` later, so at that
+//! instant the reference's system time is `M + D_s`; the offset is chosen so that `s`'s local
+//! copy of system time reads exactly that:
+//!
+//! ```text
+//!   offset_s = (M + D_s) − local_s(entry)        (mod 2^64, or 2^32 on a 32-bit slave)
+//!   ⇒ local_s(T) + offset_s = M + (T − T_ref)    for every true time T (no drift)
+//! ```
+//!
+//! SOEM, IgH and ethercrab write `M − local` instead and leave every slave `D_s` behind for the
+//! drift loop to remove; folding `D_s` in starts the loop at zero error (masters.md §9 item 5).
+//! Seed 000 eq. 24 and seed 003 eq. 5 are the `D_s = 0` case (eq. 24 with its sign corrected,
+//! see `spec::seed000`).
+//!
+//! `local_s(entry)` is the 64-bit local time at which the frame entered `s`: the EPU stamp 0x0918
+//! moved back by the (wrapping, 32-bit) time from the entry port's stamp to the EPU stamp, which
+//! is 0 when the frame enters through port 0 (REQ-DC-021).
+
+use super::port::Port;
+use super::topology::Latches;
+use crate::num::low32;
+use crate::time::SystemTime;
+
+/// Width of a slave's DC clock (ESC features 0x0008 bit 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ClockWidth {
+    /// 32-bit system time: 0x0910, 0x0920 and 0x0990 are 4 bytes wide.
+    Bits32,
+    /// 64-bit system time: 0x0910, 0x0920 and 0x0990 are 8 bytes wide.
+    Bits64,
+}
+
+impl ClockWidth {
+    /// From ESC features 0x0008 (bit 3 set = 64-bit).
+    pub const fn from_features(features: u16) -> ClockWidth {
+        if features & 0x0008 != 0 {
+            ClockWidth::Bits64
+        } else {
+            ClockWidth::Bits32
+        }
+    }
+
+    /// Register width in bytes (4 or 8).
+    pub const fn bytes(self) -> usize {
+        match self {
+            ClockWidth::Bits32 => 4,
+            ClockWidth::Bits64 => 8,
+        }
+    }
+}
+
+/// A little-endian register image of exactly the slave's width: write `as_slice()` as the
+/// datagram data, never more (REQ-CONV-003).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct RegisterBytes {
+    buf: [u8; 8],
+    len: u8,
+}
+
+impl RegisterBytes {
+    /// A 4-byte image.
+    pub const fn u32(v: u32) -> RegisterBytes {
+        let b = v.to_le_bytes();
+        RegisterBytes {
+            buf: [b[0], b[1], b[2], b[3], 0, 0, 0, 0],
+            len: 4,
+        }
+    }
+
+    /// An 8-byte image.
+    pub const fn u64(v: u64) -> RegisterBytes {
+        RegisterBytes {
+            buf: v.to_le_bytes(),
+            len: 8,
+        }
+    }
+
+    /// The bytes to write (4 or 8).
+    pub fn as_slice(&self) -> &[u8] {
+        self.buf.get(..usize::from(self.len)).unwrap_or(&[])
+    }
+}
+
+/// A time-like register value of a DC slave's width (0x0920 offset, 0x0990 start time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum WidthValue {
+    /// For a 32-bit slave: the low 32 bits.
+    Bits32(u32),
+    /// For a 64-bit slave.
+    Bits64(u64),
+}
+
+impl WidthValue {
+    /// The value reduced to `width`.
+    pub fn new(value: u64, width: ClockWidth) -> WidthValue {
+        match width {
+            ClockWidth::Bits32 => WidthValue::Bits32(low32(value)),
+            ClockWidth::Bits64 => WidthValue::Bits64(value),
+        }
+    }
+
+    /// The register image, exactly 4 or 8 bytes.
+    pub fn to_register(self) -> RegisterBytes {
+        match self {
+            WidthValue::Bits32(v) => RegisterBytes::u32(v),
+            WidthValue::Bits64(v) => RegisterBytes::u64(v),
+        }
+    }
+
+    /// The value zero-extended to 64 bits.
+    pub fn as_u64(self) -> u64 {
+        match self {
+            WidthValue::Bits32(v) => u64::from(v),
+            WidthValue::Bits64(v) => v,
+        }
+    }
+}
+
+/// REQ-DC-021: the 64-bit local time at which the latch frame entered the slave through
+/// `entry`. Exact whenever the EPU stamp follows the entry stamp by less than 2^32 ns (it
+/// follows by at most one round trip through the slave's subtree).
+pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
+    let back = low32(latches.epu).wrapping_sub(latches.at(entry).raw());
+    latches.epu.wrapping_sub(u64::from(back))
+}
+
+/// REQ-DC-020: the System Time Offset for a slave whose latch frame entered at local time
+/// `entry_local` (see [`entry_local_time`]), `delay_ns` after it passed the reference clock (the
+/// same value written to 0x0928; negative before the reference), when the master sampled
+/// `master_time` just before the latch. For the reference itself `delay_ns` is 0.
+pub fn initial_offset(
+    master_time: SystemTime,
+    delay_ns: i64,
+    entry_local: u64,
+    width: ClockWidth,
+) -> WidthValue {
+    let target = master_time.wrapping_add_signed(delay_ns);
+    WidthValue::new(target.as_nanos().wrapping_sub(entry_local), width)
+}
+
+/// REQ-DC-023: re-offset without a new latch (IgH style): given the offset currently in 0x0920
+/// and a system time read back from the slave when the reference's system time was
+/// `reference_time`, the offset that removes the difference. Computed modulo the slave's width.
+pub fn corrected_offset(
+    current: WidthValue,
+    read_system_time: u64,
+    reference_time: SystemTime,
+) -> WidthValue {
+    let step = reference_time.as_nanos().wrapping_sub(read_system_time);
+    match current {
+        WidthValue::Bits32(v) => WidthValue::Bits32(v.wrapping_add(low32(step))),
+        WidthValue::Bits64(v) => WidthValue::Bits64(v.wrapping_add(step)),
+    }
+}
+
+/// REQ-DC-030: whether 0x0920 may be written to a slave with this AL Status (0x0130). Only in
+/// INIT, PRE-OP or BOOT: stepping the offset of a slave in SAFE-OP or OP moves its SYNC grid
+/// under running outputs, which can make it miss SYNC pulses until a 32-bit clock wraps (~4 s)
+/// or, on a 64-bit clock, forever (IgH Lambert patch 0009, masters.md §2.3). Unknown states
+/// count as running.
+pub const fn offset_write_permitted(al_status: u16) -> bool {
+    matches!(al_status & 0x000F, 0x1..=0x3)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dc::topology::Latches;
+
+    #[test]
+    fn offset_makes_system_time_equal_reference_plus_delay() {
+        let m = SystemTime(0x0123_4567_89AB_CDEF);
+        for local in [0u64, 5, u64::MAX, 0xFFFF_FFFF_0000_0010] {
+            for delay in [0i64, 1, 123_456, -77] {
+                let off = initial_offset(m, delay, local, ClockWidth::Bits64).as_u64();
+                assert_eq!(
+                    local.wrapping_add(off),
+                    m.wrapping_add_signed(delay).as_nanos()
+                );
+                let off32 = initial_offset(m, delay, local, ClockWidth::Bits32);
+                assert_eq!(off32.to_register().as_slice().len(), 4);
+                assert_eq!(
+                    low32(local).wrapping_add(low32(off32.as_u64())),
+                    m.wrapping_add_signed(delay).low32()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn entry_time_from_epu() {
+        // Entry port 0: EPU stamp is the entry stamp.
+        let l = Latches::from_raw([0x10, 0x500, 0, 0], 0x0000_0007_0000_0010);
+        assert_eq!(entry_local_time(&l, Port::P0), 0x0000_0007_0000_0010);
+        // Entry on port 1 before a wrap, EPU (port 0 return) after it.
+        let l = Latches::from_raw([0x0000_0100, 0xFFFF_FF00, 0, 0], 0x0000_0008_0000_0100);
+        assert_eq!(entry_local_time(&l, Port::P1), 0x0000_0007_FFFF_FF00);
+    }
+
+    #[test]
+    fn register_widths_and_state_rule() {
+        assert_eq!(RegisterBytes::u64(1).as_slice(), &[1, 0, 0, 0, 0, 0, 0, 0]);
+        assert_eq!(RegisterBytes::u32(0x0403_0201).as_slice(), &[1, 2, 3, 4]);
+        assert_eq!(ClockWidth::from_features(0x000C), ClockWidth::Bits64);
+        assert_eq!(ClockWidth::from_features(0x0004), ClockWidth::Bits32);
+        assert!(offset_write_permitted(0x0001));
+        assert!(offset_write_permitted(0x0002));
+        assert!(offset_write_permitted(0x0012)); // PRE-OP with error flag
+        assert!(offset_write_permitted(0x0003));
+        assert!(!offset_write_permitted(0x0004));
+        assert!(!offset_write_permitted(0x0008));
+        assert!(!offset_write_permitted(0x0000));
+        let c = corrected_offset(
+            WidthValue::Bits32(10),
+            0x1_0000_0005,
+            SystemTime(0x2_0000_0008),
+        );
+        assert_eq!(c, WidthValue::Bits32(13));
+    }
+}
