@@ -57,7 +57,7 @@ pub fn t_ab_x2(t_a1: i128, t_a0: i128, t_b2: i128, t_b0: i128, t_diff: i128) -> 
     (t_a1 - t_a0) - (t_b2 - t_b0) + t_diff
 }
 
-/// General hop rule (the formulas above are instances; REQ-DC-012). Parent `s` sends the frame
+/// General hop rule (the formulas above are instances; REQ-DC-014). Parent `s` sends the frame
 /// out of its port `p` after it came in (or back) at port `q`; `excursion = t_s(p) − t_s(q)`.
 /// The child `c` behind `p` has internal round trip `rtt_c = t_c(last) − t_c(entry)`.
 ///

@@ -10,7 +10,7 @@
 //! exact numerator (`…_x2`, i.e. twice the delay) so that tests compare exact values; the
 //! rounding rule used by `ecdc-core` is [`half`] (REQ-DC-014).
 //!
-//! Errata found while transcribing (REQ-DC-013, REQ-DC-031):
+//! Errata found while transcribing (REQ-DC-090):
 //! - eq. 23, case `i = n`, prints `(t_1B − t_1A) + i·t_DIFF`. Eq. 22 (the case it generalises,
 //!   n = 4) and the derivation from eq. 5 and 17–19 give `(t_1B − t_1A) + (n − 2)·t_DIFF`: the last
 //!   hop (eq. 5) carries no `t_DIFF`. [`eq23_t_ref_x2`] implements the derived form;
@@ -101,7 +101,7 @@ pub fn eq24_offset_printed(t_local: i128, t_sys_ref: i128) -> i128 {
 
 /// The offset that makes eq. 25 zero at the latch instant: `t_OFF = t_SYS,REF + t_DELAY − t_LOCAL`.
 /// With `t_DELAY = 0` this is the datasheet's `system time − local time` (REQ-CONV-004); with the
-/// propagation delay folded in it is ecdc's initial offset (REQ-DC-020).
+/// propagation delay folded in it is ecdc's initial offset (REQ-DC-021).
 pub fn offset_consistent_with_eq25(t_local: i128, t_sys_ref: i128, t_delay: i128) -> i128 {
     t_sys_ref + t_delay - t_local
 }

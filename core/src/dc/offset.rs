@@ -1,4 +1,4 @@
-//! Initial System Time Offset (0x0920) with the propagation delay folded in (REQ-DC-020..024).
+//! Initial System Time Offset (0x0920) with the propagation delay folded in (REQ-DC-021..025).
 //!
 //! The master samples its clock `M` just before the latching write to 0x0900 (machine's job,
 //! REQ-DC-002). ecdc defines the reference clock's system time at the instant the latch frame
@@ -18,7 +18,7 @@
 //!
 //! `local_s(entry)` is the 64-bit local time at which the frame entered `s`: the EPU stamp 0x0918
 //! moved back by the (wrapping, 32-bit) time from the entry port's stamp to the EPU stamp, which
-//! is 0 when the frame enters through port 0 (REQ-DC-021).
+//! is 0 when the frame enters through port 0 (REQ-DC-022).
 
 use super::port::Port;
 use super::topology::Latches;
@@ -120,7 +120,7 @@ impl WidthValue {
     }
 }
 
-/// REQ-DC-021: the 64-bit local time at which the latch frame entered the slave through
+/// REQ-DC-022: the 64-bit local time at which the latch frame entered the slave through
 /// `entry`. Exact whenever the EPU stamp follows the entry stamp by less than 2^32 ns (it
 /// follows by at most one round trip through the slave's subtree).
 pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
@@ -128,7 +128,7 @@ pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
     latches.epu.wrapping_sub(u64::from(back))
 }
 
-/// REQ-DC-020: the System Time Offset for a slave whose latch frame entered at local time
+/// REQ-DC-021, REQ-DC-023: the System Time Offset for a slave whose latch frame entered at local time
 /// `entry_local` (see [`entry_local_time`]), `delay_ns` after it passed the reference clock (the
 /// same value written to 0x0928; negative before the reference), when the master sampled
 /// `master_time` just before the latch. For the reference itself `delay_ns` is 0.
@@ -142,7 +142,7 @@ pub fn initial_offset(
     WidthValue::new(target.as_nanos().wrapping_sub(entry_local), width)
 }
 
-/// REQ-DC-023: re-offset without a new latch (IgH style): given the offset currently in 0x0920
+/// REQ-DC-024: re-offset without a new latch (IgH style): given the offset currently in 0x0920
 /// and a system time read back from the slave when the reference's system time was
 /// `reference_time`, the offset that removes the difference. Computed modulo the slave's width.
 pub fn corrected_offset(

@@ -1,4 +1,4 @@
-//! SYNC0/SYNC1 start time, cycle registers and activation word (REQ-DC-050..056).
+//! SYNC0/SYNC1 start time, cycle registers and activation word (REQ-DC-050..055).
 //!
 //! One start time for every slave, computed once from the reference clock's 64-bit system time
 //! (a 32-bit reference's time widened near the master's estimate, [`reference_now`]) on a grid
