@@ -10,3 +10,29 @@ pub mod offset;
 pub mod port;
 pub mod sync;
 pub mod topology;
+
+// --- state machine (owner: state-machine engineer) ---
+mod activation;
+mod adjust;
+mod bridge;
+pub mod config;
+pub mod cyclic;
+mod discovery;
+mod drift;
+pub mod error;
+pub mod event;
+pub mod machine;
+mod measure;
+mod remeasure;
+pub mod request;
+pub mod slave;
+pub mod state;
+mod steps;
+
+pub use config::{Config, ConfigError, DriftCheck, DriftConfig, MonitorConfig, SyncConfig};
+pub use error::Error;
+pub use event::Event;
+pub use machine::{Machine, Stats};
+pub use request::MAX_INFLIGHT;
+pub use slave::{DcKind, SlaveInfo};
+pub use state::State;

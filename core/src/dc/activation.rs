@@ -1,0 +1,121 @@
+//! SYNC0/SYNC1 programming (REQ-DC-105): one start time for all slaves, computed from the
+//! reference's 64-bit system time (a 32-bit reference's time is extended around the master
+//! clock) on a grid anchored at the DC epoch plus the shift; 0x0981 cleared first; 0x0990 with
+//! the slave's exact width, 0x09A0 and 0x09A4 with 4 bytes; activation by the 2-byte
+//! AssignActivate word at 0x0980. Running slaves (SAFEOP/OP) keep their SYNC unit untouched.
+//! 0x0982 (pulse length) is never written.
+
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::{Item, Machine};
+use crate::dc::request::{le, Op, Pending};
+use crate::dc::slave::SlaveInfo;
+use crate::dc::state::State;
+use crate::wire::register::reg;
+
+/// Whether a slave gets its SYNC unit programmed: it has a system time and is provably not
+/// running (same rule as the offset step, REQ-DC-103).
+fn sync_target(s: &SlaveInfo) -> bool {
+    s.dc.has_system_time() && s.may_step_offset()
+}
+
+impl<const N: usize> Machine<N> {
+    pub(crate) fn activation_item(&self, i: u16) -> Item {
+        let Some(sync) = self.cfg.sync else {
+            return Item::Skip;
+        };
+        match self.state {
+            State::ReadReferenceTime => match self.slave(self.reference) {
+                Some(r) => Item::Send(Op::fprd(r.station, reg::SYSTEM_TIME, r.dc.time_width())),
+                None => Item::Skip,
+            },
+            State::ClearActivation => match self.slave(i) {
+                Some(s) if sync_target(s) => {
+                    Item::Send(Op::fpwr(s.station, reg::SYNC_ACTIVATION, 1, 0))
+                }
+                _ => Item::Skip,
+            },
+            State::ProgramSync => match self.slave(i / 3) {
+                Some(s) if sync_target(s) => Item::Send(match i % 3 {
+                    0 => Op::fpwr(
+                        s.station,
+                        reg::SYNC0_START_TIME,
+                        s.dc.time_width(),
+                        self.sync_start,
+                    ),
+                    1 => Op::fpwr(
+                        s.station,
+                        reg::SYNC0_CYCLE,
+                        4,
+                        u64::from(sync.sync0_cycle_ns),
+                    ),
+                    _ => Op::fpwr(
+                        s.station,
+                        reg::SYNC1_CYCLE,
+                        4,
+                        u64::from(sync.sync1_cycle_ns),
+                    ),
+                }),
+                _ => Item::Skip,
+            },
+            State::ActivateSync => match self.slave(i) {
+                Some(s) if sync_target(s) => Item::Send(Op::fpwr(
+                    s.station,
+                    reg::CYCLIC_UNIT_CONTROL,
+                    2,
+                    u64::from(sync.assign_activate),
+                )),
+                _ => Item::Skip,
+            },
+            _ => Item::Skip,
+        }
+    }
+
+    pub(crate) fn activation_reply(
+        &mut self,
+        now: u64,
+        i: u16,
+        p: Pending,
+        wkc: u16,
+        data: &[u8],
+    ) -> Result<(), Error> {
+        self.expect_wkc(p, 1, wkc)?;
+        match self.state {
+            State::ReadReferenceTime => {
+                let bad = Error::OutOfRange {
+                    station: p.station,
+                    register: p.register,
+                };
+                let raw = le(data, usize::from(p.len)).ok_or(bad)?;
+                let r = self.slave(self.reference).copied().ok_or(bad)?;
+                let sync = self.cfg.sync.ok_or(bad)?;
+                self.sync_start = self.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
+            }
+            State::ActivateSync => {
+                if let Some(s) = self.slave_mut(i) {
+                    s.sync_programmed = true;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    pub(crate) fn activation_done(&mut self) -> Result<State, Error> {
+        match self.state {
+            State::ReadReferenceTime => Ok(State::ClearActivation),
+            State::ClearActivation => Ok(State::ProgramSync),
+            State::ProgramSync => Ok(State::ActivateSync),
+            State::ActivateSync => {
+                let n = self.slaves().iter().filter(|s| s.sync_programmed).count();
+                let slaves = u16::try_from(n).unwrap_or(u16::MAX);
+                self.push_event(Event::SyncStarted {
+                    start: self.sync_start,
+                    slaves,
+                });
+                Ok(State::Cyclic)
+            }
+            _ => Ok(self.state),
+        }
+    }
+}

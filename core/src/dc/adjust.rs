@@ -1,0 +1,128 @@
+//! Offset and delay writes (REQ-DC-103): read AL status, write 0x0920 with the slave's exact
+//! width only to slaves that are provably not running, write 0x0928 to every slave with a
+//! system time, then reset the loop of every slave whose offset changed (0x0934, then 0x0930,
+//! ETG1020 §22.2.4 order as ethercrab and KickCAT).
+
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::{Item, Machine};
+use crate::dc::request::{le, Op, Pending};
+use crate::dc::state::State;
+use crate::wire::register::reg;
+
+impl<const N: usize> Machine<N> {
+    pub(crate) fn adjust_item(&self, i: u16) -> Item {
+        match self.state {
+            State::ReadAlStatus => match self.slave(i) {
+                Some(s) if s.dc.has_system_time() => {
+                    Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
+                }
+                _ => Item::Skip,
+            },
+            State::WriteOffsets => match self.slave(i / 2) {
+                Some(s) if s.dc.has_system_time() => {
+                    if i % 2 == 0 {
+                        // REQ-DC-103: never step the system time of a (possibly) running slave.
+                        if s.may_step_offset() {
+                            let w = s.dc.time_width();
+                            Item::Send(Op::fpwr(s.station, reg::SYSTEM_TIME_OFFSET, w, s.offset))
+                        } else {
+                            Item::Skip
+                        }
+                    } else {
+                        Item::Send(Op::fpwr(
+                            s.station,
+                            reg::SYSTEM_TIME_DELAY,
+                            4,
+                            u64::from(s.delay_ns),
+                        ))
+                    }
+                }
+                _ => Item::Skip,
+            },
+            State::ResetLoops => match self.slave(i / 2) {
+                Some(s) if s.offset_written => {
+                    if i % 2 == 0 {
+                        let v = u64::from(self.cfg.filter_depths);
+                        Item::Send(Op::fpwr(
+                            s.station,
+                            reg::SYSTEM_TIME_DIFF_FILTER_DEPTH,
+                            2,
+                            v,
+                        ))
+                    } else {
+                        let v = u64::from(self.cfg.speed_counter_start);
+                        Item::Send(Op::fpwr(s.station, reg::SPEED_COUNTER_START, 2, v))
+                    }
+                }
+                _ => Item::Skip,
+            },
+            _ => Item::Skip,
+        }
+    }
+
+    pub(crate) fn adjust_reply(
+        &mut self,
+        i: u16,
+        p: Pending,
+        wkc: u16,
+        data: &[u8],
+    ) -> Result<(), Error> {
+        self.expect_wkc(p, 1, wkc)?;
+        match self.state {
+            State::ReadAlStatus => {
+                let v =
+                    le(data, 2)
+                        .and_then(|v| u16::try_from(v).ok())
+                        .ok_or(Error::OutOfRange {
+                            station: p.station,
+                            register: p.register,
+                        })?;
+                if let Some(s) = self.slave_mut(i) {
+                    s.al_status = Some(v);
+                }
+            }
+            State::WriteOffsets if i % 2 == 0 => {
+                if let Some(s) = self.slave_mut(i / 2) {
+                    s.offset_written = true;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    pub(crate) fn adjust_done(&mut self) -> Result<State, Error> {
+        match self.state {
+            State::ReadAlStatus => {
+                for s in self.slaves.iter_mut() {
+                    s.offset_written = false;
+                    s.sync_programmed = false;
+                }
+                Ok(State::WriteOffsets)
+            }
+            State::WriteOffsets => {
+                let mut written = 0u16;
+                let mut skipped = 0u16;
+                for s in self.slaves().iter().filter(|s| s.dc.has_system_time()) {
+                    if s.offset_written {
+                        written = written.saturating_add(1);
+                    } else {
+                        skipped = skipped.saturating_add(1);
+                    }
+                }
+                self.push_event(Event::OffsetsWritten {
+                    written,
+                    skipped_running: skipped,
+                });
+                Ok(State::ResetLoops)
+            }
+            State::ResetLoops => {
+                self.drift_frames = 0;
+                self.drift_ok = 0;
+                Ok(State::DriftBurst)
+            }
+            _ => Ok(self.state),
+        }
+    }
+}

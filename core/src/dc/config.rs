@@ -1,0 +1,238 @@
+//! Configuration of the DC state machine: every knob with its default and where that default
+//! comes from (a citation, or "ecdc choice" with the reason).
+
+/// What the static drift compensation reads between bursts to decide convergence (REQ-DC-104).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriftCheck {
+    /// FPRD 0x092C of every DC slave: exact per-slave values, one datagram per slave.
+    PerSlave,
+    /// One BRD 0x092C: the bitwise OR of all sign-magnitude values, whose magnitude bits are an
+    /// upper bound of every slave's |Δt| (IgH `sync_monitor`). Cheap, but pessimistic.
+    Broadcast,
+    /// Both; convergence requires both to be below the threshold.
+    Both,
+}
+
+/// Static drift compensation (ARMW/FRMW bursts with a convergence gate), REQ-DC-104.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DriftConfig {
+    /// FRMW frames per burst between two 0x092C checks. ecdc choice: 100 keeps the check overhead
+    /// near 1 % while bounding overshoot past convergence to 100 frames.
+    pub burst_frames: u16,
+    /// Convergence threshold on |0x092C| in ns. ecdc choice: 1 µs, ten times stricter than IgH's
+    /// 10 µs gate (`EC_DC_MAX_SYNC_DIFF_NS`), because the offsets already fold the delay in.
+    pub threshold_ns: u32,
+    /// Consecutive checks that must all be below the threshold (K). ecdc choice: 3, so a single
+    /// lucky sample of the filtered difference does not end the burst.
+    pub consecutive: u8,
+    /// Upper bound of FRMW frames before giving up with a per-slave report. 30 000 = twice the
+    /// ~15 000 frames quoted by KickCAT/CherryECAT and seed 000 §2.3.
+    pub max_frames: u32,
+    /// What to read at each check.
+    pub check: DriftCheck,
+}
+
+impl Default for DriftConfig {
+    fn default() -> Self {
+        DriftConfig {
+            burst_frames: 100,
+            threshold_ns: 1_000,
+            consecutive: 3,
+            max_frames: 30_000,
+            check: DriftCheck::Both,
+        }
+    }
+}
+
+/// SYNC0/SYNC1 programming for the DC slaves (REQ-DC-105).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SyncConfig {
+    /// AssignActivate word from the ESI, written as 2 bytes to 0x0980 (low byte 0x0980 cyclic
+    /// unit control, high byte 0x0981 activation). 0x0300 = SYNC0 only, 0x0700 = SYNC0 + SYNC1.
+    pub assign_activate: u16,
+    /// SYNC0 cycle time (0x09A0, 32 bit) in ns. Must be > 0.
+    pub sync0_cycle_ns: u32,
+    /// SYNC1 cycle time (0x09A4, 32 bit) in ns; 0 = SYNC1 mirrors SYNC0.
+    pub sync1_cycle_ns: u32,
+    /// Shift of the first SYNC0 pulse from the common grid, in ns (0 ≤ shift < cycle).
+    pub shift_ns: u32,
+    /// Lead time between reading the reference clock and the first pulse. 100 ms, as IgH
+    /// (`EC_DC_START_OFFSET`) and SOEM (`SyncDelay`).
+    pub start_delay_ns: u64,
+}
+
+impl Default for SyncConfig {
+    fn default() -> Self {
+        SyncConfig {
+            assign_activate: 0x0300,
+            sync0_cycle_ns: 1_000_000,
+            sync1_cycle_ns: 0,
+            shift_ns: 0,
+            start_delay_ns: 100_000_000,
+        }
+    }
+}
+
+/// Cyclic monitoring and lock detection (REQ-DC-106).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MonitorConfig {
+    /// Cycle period when the machine paces itself (`poll_transmit`); an embedding master that
+    /// calls `poll_transmit_into` sets its own cadence. ecdc choice: 1 ms, the usual DC cycle.
+    pub cycle_ns: u64,
+    /// Per-slave FPRD 0x092C datagrams per cycle (round robin). ecdc choice: 8 keeps the cyclic
+    /// overhead at 8 × 16 bytes while sweeping 100 slaves in 13 cycles.
+    pub slaves_per_cycle: u8,
+    /// Lock when the BRD 0x092C upper bound stays ≤ this for `lock_cycles` cycles. ecdc choice:
+    /// 1 µs (the static-drift threshold).
+    pub lock_ns: u32,
+    /// Unlock when the bound stays > this for `unlock_cycles` cycles (hysteresis). ecdc choice:
+    /// 5 µs, half of IgH's 10 µs gate.
+    pub unlock_ns: u32,
+    /// Consecutive good cycles to declare lock. ecdc choice: 10.
+    pub lock_cycles: u16,
+    /// Consecutive bad cycles to declare loss of lock. ecdc choice: 3.
+    pub unlock_cycles: u16,
+    /// Cycles in `Cyclic` without lock before a `NotLocked` error is reported (once per lock
+    /// attempt). ecdc choice: 5 000 (5 s at 1 ms, IgH's `EC_DC_SYNC_WAIT_MS`).
+    pub lock_timeout_cycles: u32,
+    /// Consecutive cycles whose DC datagrams did not come back before the machine gives up and
+    /// re-initialises. ecdc choice: 5 (coast over short bursts of loss).
+    pub max_lost_cycles: u16,
+    /// Consecutive cycles with a wrong working counter before re-initialisation. ecdc choice: 3.
+    pub max_wkc_errors: u16,
+}
+
+impl Default for MonitorConfig {
+    fn default() -> Self {
+        MonitorConfig {
+            cycle_ns: 1_000_000,
+            slaves_per_cycle: 8,
+            lock_ns: 1_000,
+            unlock_ns: 5_000,
+            lock_cycles: 10,
+            unlock_cycles: 3,
+            lock_timeout_cycles: 5_000,
+            max_lost_cycles: 5,
+            max_wkc_errors: 3,
+        }
+    }
+}
+
+/// Complete machine configuration. `Config::default()` is a sane setup for a line or tree of
+/// ESCs; every field is documented with its source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Config {
+    /// Station address of the first slave (position 0); slave `i` gets `station_base + i`.
+    /// 0x1001 is the customary first configured address (SOEM, IgH).
+    pub station_base: u16,
+    /// First datagram index the machine may use. The machine owns `index_count` consecutive
+    /// indices (mod 256), so an embedding master keeps the others for its own datagrams.
+    pub index_first: u8,
+    /// Number of indices owned; at least [`crate::dc::MAX_INFLIGHT`] × 2 so a late reply to
+    /// an abandoned frame cannot match a fresh request. ecdc choice: 0x80..=0xFF.
+    pub index_count: u8,
+    /// Time to wait for a frame to come back. ecdc choice: 10 ms, far above any line's round
+    /// trip (≈ 1 µs per slave, DS S1-88) and below the SYNC start lead time.
+    pub response_timeout_ns: u64,
+    /// Resends of one request chunk (after a timeout or a wrong WKC) before the step fails.
+    /// ecdc choice: 3.
+    pub retries: u8,
+    /// Latch measurements (BWR 0x0900) averaged into the propagation delays. ecdc choice: 4
+    /// halves the 10 ns stamp quantisation noise.
+    pub latch_rounds: u8,
+    /// Largest plausible propagation delay from the reference to any slave, ns; a larger
+    /// computed delay is rejected as out of range instead of being written. ecdc choice: 1 ms
+    /// (≈ 1 000 hops at the 1 µs per hop of DS S1-88).
+    pub max_delay_ns: u32,
+    /// Value written to 0x0934 (2 bytes: 0x0934 system-time-difference filter depth, 0x0935
+    /// speed-counter filter depth) before the loop reset. 0x0C00 as SOEM, ethercrab, KickCAT.
+    pub filter_depths: u16,
+    /// Value written to 0x0930 (speed counter start) to reset the loop; 0x1000 is the reset
+    /// value (DS S2-76) and what IgH writes after an offset change.
+    pub speed_counter_start: u16,
+    /// Static drift compensation.
+    pub drift: DriftConfig,
+    /// SYNC0/SYNC1 programming; `None` leaves the SYNC units untouched.
+    pub sync: Option<SyncConfig>,
+    /// Cyclic monitoring.
+    pub monitor: MonitorConfig,
+    /// Re-initialise automatically after a fault (topology change, slave lost, timeout).
+    pub auto_restart: bool,
+    /// Pause before a re-initialisation. ecdc choice: 10 ms, lets a flapping link settle.
+    pub restart_delay_ns: u64,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            station_base: 0x1001,
+            index_first: 0x80,
+            index_count: 0x80,
+            response_timeout_ns: 10_000_000,
+            retries: 3,
+            latch_rounds: 4,
+            max_delay_ns: 1_000_000,
+            filter_depths: 0x0C00,
+            speed_counter_start: 0x1000,
+            drift: DriftConfig::default(),
+            sync: Some(SyncConfig::default()),
+            monitor: MonitorConfig::default(),
+            auto_restart: true,
+            restart_delay_ns: 10_000_000,
+        }
+    }
+}
+
+/// Why a [`Config`] was rejected by [`crate::dc::Machine::new`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigError {
+    /// `index_count` < 2 × MAX_INFLIGHT.
+    TooFewIndices,
+    /// Station addresses would wrap past 0xFFFF or include 0 for the given capacity.
+    StationRange,
+    /// A SYNC0 cycle of 0, or a shift ≥ the cycle.
+    SyncCycle,
+    /// A zero that must be positive (timeout, cycle, burst size, rounds, K).
+    Zero,
+    /// Lock threshold above the unlock threshold (no hysteresis).
+    Hysteresis,
+    /// 0x0930 value outside the valid range 0x0080..=0x3FFF (DS S2-76).
+    SpeedCounterStart,
+}
+
+impl Config {
+    /// Checks the invariants the machine relies on. `capacity` is the slave capacity `N`.
+    pub fn validate(&self, capacity: usize) -> Result<(), ConfigError> {
+        if usize::from(self.index_count) < crate::dc::request::MAX_INFLIGHT.saturating_mul(2) {
+            return Err(ConfigError::TooFewIndices);
+        }
+        let cap = u32::try_from(capacity).unwrap_or(u32::MAX);
+        if self.station_base == 0 || u32::from(self.station_base).saturating_add(cap) > 0x1_0000 {
+            return Err(ConfigError::StationRange);
+        }
+        if self.response_timeout_ns == 0
+            || self.latch_rounds == 0
+            || self.drift.burst_frames == 0
+            || self.drift.consecutive == 0
+            || self.monitor.cycle_ns == 0
+            || self.monitor.lock_cycles == 0
+            || self.monitor.unlock_cycles == 0
+            || self.monitor.max_lost_cycles == 0
+            || self.monitor.max_wkc_errors == 0
+        {
+            return Err(ConfigError::Zero);
+        }
+        if self.monitor.lock_ns > self.monitor.unlock_ns {
+            return Err(ConfigError::Hysteresis);
+        }
+        if !(0x0080..=0x3FFF).contains(&self.speed_counter_start) {
+            return Err(ConfigError::SpeedCounterStart);
+        }
+        if let Some(s) = self.sync {
+            if s.sync0_cycle_ns == 0 || s.shift_ns >= s.sync0_cycle_ns {
+                return Err(ConfigError::SyncCycle);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,161 @@
+//! Discovery (REQ-DC-100): count the slaves, give each a station address, read what each one
+//! can do (0x0008 features, 0x0110 DL status) and which DC slaves really have a system time.
+
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::{Item, Machine};
+use crate::dc::request::{le, Op, Pending};
+use crate::dc::slave::{DcKind, SlaveInfo};
+use crate::dc::state::State;
+use crate::wire::register::{reg, DlStatus, EscFeatures};
+use crate::wire::{Address, Command};
+
+impl<const N: usize> Machine<N> {
+    pub(crate) fn discovery_item(&self, i: u16) -> Item {
+        match self.state {
+            // BRD of the 2-byte type/revision word: every slave increments the WKC.
+            State::CountSlaves => Item::Send(Op::brd(0x0000, 2)),
+            State::AssignAddresses => Item::Send(Op {
+                command: Command::Apwr,
+                address: Address::position(i, reg::STATION_ADDRESS),
+                len: 2,
+                payload: crate::dc::request::Payload::Le(u64::from(self.station_of(i))),
+            }),
+            State::ReadInfo => {
+                let station = self.station_of(i / 2);
+                if i % 2 == 0 {
+                    Item::Send(Op::fprd(station, reg::ESC_FEATURES, 2))
+                } else {
+                    Item::Send(Op::fprd(station, reg::DL_STATUS, 2))
+                }
+            }
+            State::ProbeSystemTime => match self.slave(i) {
+                Some(s) if s.dc.has_latches() => {
+                    Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME, 4))
+                }
+                _ => Item::Skip,
+            },
+            _ => Item::Skip,
+        }
+    }
+
+    /// Station address given to position `pos`; `Config::validate` keeps it in range.
+    pub(crate) fn station_of(&self, pos: u16) -> u16 {
+        self.cfg.station_base.wrapping_add(pos)
+    }
+
+    pub(crate) fn discovery_reply(
+        &mut self,
+        i: u16,
+        p: Pending,
+        wkc: u16,
+        data: &[u8],
+    ) -> Result<(), Error> {
+        match self.state {
+            State::CountSlaves => {
+                if wkc == 0 {
+                    return Err(Error::NoSlaves);
+                }
+                let cap = u16::try_from(N).unwrap_or(u16::MAX);
+                if wkc > cap {
+                    return Err(Error::TooManySlaves {
+                        found: wkc,
+                        capacity: cap,
+                    });
+                }
+                self.count = wkc;
+                for s in self.slaves.iter_mut() {
+                    *s = SlaveInfo::default();
+                }
+                Ok(())
+            }
+            State::AssignAddresses => {
+                self.expect_wkc(p, 1, wkc)?;
+                let station = self.station_of(i);
+                if let Some(s) = self.slave_mut(i) {
+                    s.station = station;
+                }
+                Ok(())
+            }
+            State::ReadInfo => {
+                self.expect_wkc(p, 1, wkc)?;
+                let v =
+                    le(data, 2)
+                        .and_then(|v| u16::try_from(v).ok())
+                        .ok_or(Error::OutOfRange {
+                            station: p.station,
+                            register: p.register,
+                        })?;
+                if let Some(s) = self.slave_mut(i / 2) {
+                    if i % 2 == 0 {
+                        s.features = v;
+                        let f = EscFeatures(v);
+                        s.dc = match (f.dc_supported(), f.dc_64bit()) {
+                            (false, _) => DcKind::None,
+                            (true, false) => DcKind::Bits32,
+                            (true, true) => DcKind::Bits64,
+                        };
+                    } else {
+                        s.dl_status = v;
+                    }
+                }
+                Ok(())
+            }
+            State::ProbeSystemTime => {
+                // IgH `fsm_slave_scan.c`: WKC 1 = system time present, 0 = latches only.
+                if wkc > 1 {
+                    return self.expect_wkc(p, 1, wkc);
+                }
+                if let Some(s) = self.slave_mut(i) {
+                    if wkc == 0 {
+                        s.dc = DcKind::DelayOnly;
+                    }
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    pub(crate) fn discovery_done(&mut self) -> Result<State, Error> {
+        match self.state {
+            State::CountSlaves => Ok(State::AssignAddresses),
+            State::AssignAddresses => Ok(State::ReadInfo),
+            State::ReadInfo => {
+                // A slave's own entry port must show a link, or the DL status is garbage.
+                for pos in self.positions() {
+                    if let Some(s) = self.slave(pos) {
+                        if DlStatus(s.dl_status).raw() & 0x00F0 == 0 {
+                            return Err(Error::OutOfRange {
+                                station: s.station,
+                                register: reg::DL_STATUS,
+                            });
+                        }
+                    }
+                }
+                Ok(State::ProbeSystemTime)
+            }
+            State::ProbeSystemTime => {
+                let mut sys = 0u16;
+                let mut reference = None;
+                for pos in self.positions() {
+                    if let Some(s) = self.slave(pos) {
+                        if s.dc.has_system_time() {
+                            sys = sys.saturating_add(1);
+                            reference.get_or_insert(pos);
+                        }
+                    }
+                }
+                let reference = reference.ok_or(Error::NoReferenceClock)?;
+                self.reference = reference;
+                self.sys_count = sys;
+                self.push_event(Event::SlavesFound {
+                    count: self.count,
+                    dc: sys,
+                });
+                Ok(State::LatchReadBefore)
+            }
+            _ => Ok(self.state),
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! What the machine tells its caller, through [`crate::dc::Machine::poll_event`], and the
+//! bounded queue that holds it.
+
+use crate::dc::error::Error;
+
+/// Something the caller may want to know or act on. Events are queued in order; when the queue
+/// is full the oldest event is dropped and counted in `Stats::events_dropped`.
+#[non_exhaustive]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Event {
+    /// The network was counted and addressed.
+    SlavesFound {
+        /// All slaves (BRD working counter).
+        count: u16,
+        /// Slaves with DC and a system time (the FRMW working counter).
+        dc: u16,
+    },
+    /// Propagation delays measured (after `latch_rounds` latches).
+    DelaysMeasured {
+        /// Largest delay from the reference, ns.
+        max_delay_ns: u32,
+    },
+    /// Offsets and delays written.
+    OffsetsWritten {
+        /// Slaves whose 0x0920 was written.
+        written: u16,
+        /// Slaves in SAFEOP/OP (or with an unreadable AL status) whose 0x0920 was left alone.
+        skipped_running: u16,
+    },
+    /// Static drift compensation converged.
+    DriftConverged {
+        /// FRMW frames it took.
+        frames: u32,
+        /// Worst |Δt| at the last check, ns.
+        max_diff_ns: u32,
+    },
+    /// SYNC units programmed; the first SYNC0 pulse is at `start`.
+    SyncStarted {
+        /// System time of the first SYNC0 pulse (64-bit; 32-bit slaves got its low half).
+        start: u64,
+        /// Slaves programmed.
+        slaves: u16,
+    },
+    /// Cyclic operation reached lock (|0x092C| bound ≤ `lock_ns` for `lock_cycles` cycles).
+    Locked {
+        /// Frames sent since `start` (or since the last re-initialisation).
+        frames: u64,
+        /// BRD 0x092C upper bound at lock, ns.
+        bound_ns: u32,
+    },
+    /// The bound stayed above `unlock_ns` for `unlock_cycles` cycles.
+    LockLost {
+        /// BRD 0x092C upper bound, ns.
+        bound_ns: u32,
+    },
+    /// A requested delay re-measurement finished and 0x0928 was rewritten.
+    DelaysUpdated {
+        /// Largest change of any slave's delay, ns.
+        max_change_ns: u32,
+    },
+    /// A fault; see [`Error`]. With `auto_restart` a `Restarting` follows.
+    Error(Error),
+    /// The machine re-initialises from `CountSlaves` after `restart_delay_ns`.
+    Restarting,
+}
+
+/// Capacity of the event queue.
+pub const EVENT_QUEUE_LEN: usize = 32;
+
+/// Fixed-size FIFO of events.
+#[derive(Debug, Clone)]
+pub(crate) struct EventQueue {
+    buf: [Option<Event>; EVENT_QUEUE_LEN],
+    head: usize,
+    len: usize,
+}
+
+impl EventQueue {
+    pub(crate) const fn new() -> Self {
+        EventQueue {
+            buf: [None; EVENT_QUEUE_LEN],
+            head: 0,
+            len: 0,
+        }
+    }
+
+    /// Pushes an event; returns false if the oldest had to be dropped.
+    pub(crate) fn push(&mut self, e: Event) -> bool {
+        let mut kept = true;
+        if self.len >= EVENT_QUEUE_LEN {
+            self.head = (self.head.wrapping_add(1)) % EVENT_QUEUE_LEN;
+            self.len = EVENT_QUEUE_LEN.saturating_sub(1);
+            kept = false;
+        }
+        let at = (self.head.wrapping_add(self.len)) % EVENT_QUEUE_LEN;
+        if let Some(slot) = self.buf.get_mut(at) {
+            *slot = Some(e);
+        }
+        self.len = self.len.saturating_add(1);
+        kept
+    }
+
+    pub(crate) fn pop(&mut self) -> Option<Event> {
+        if self.len == 0 {
+            return None;
+        }
+        let e = self.buf.get_mut(self.head).and_then(Option::take);
+        self.head = (self.head.wrapping_add(1)) % EVENT_QUEUE_LEN;
+        self.len = self.len.saturating_sub(1);
+        e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fifo_and_overflow_drops_oldest() {
+        let mut q = EventQueue::new();
+        for i in 0..(EVENT_QUEUE_LEN as u16 + 3) {
+            q.push(Event::LockLost {
+                bound_ns: u32::from(i),
+            });
+        }
+        assert_eq!(q.pop(), Some(Event::LockLost { bound_ns: 3 }));
+        let mut n = 1;
+        while q.pop().is_some() {
+            n += 1;
+        }
+        assert_eq!(n, EVENT_QUEUE_LEN);
+        assert_eq!(q.pop(), None);
+    }
+}

@@ -1,0 +1,548 @@
+//! [`Machine`]: the sans-IO DC bring-up and cyclic state machine.
+
+use crate::dc::config::{Config, ConfigError};
+use crate::dc::cyclic::CyclicState;
+use crate::dc::error::Error;
+use crate::dc::event::{Event, EventQueue};
+use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
+use crate::dc::slave::SlaveInfo;
+use crate::dc::state::State;
+use crate::time::SystemTime;
+use crate::wire::{EthernetFrame, FrameBuilder};
+
+/// Counters for diagnostics. Every field only grows (saturating), except `lock_frames`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Stats {
+    /// Transmissions (own frames, or appends into a caller's frame).
+    pub frames_sent: u64,
+    /// Frames handed to `handle_frame`.
+    pub frames_received: u64,
+    /// Frames with none of our datagrams (malformed, not EtherCAT, not processed by a slave,
+    /// or only someone else's datagrams).
+    pub foreign_frames: u64,
+    /// Datagrams in received frames that matched nothing in flight.
+    pub foreign_datagrams: u64,
+    /// Response timeouts.
+    pub timeouts: u64,
+    /// Resent request chunks.
+    pub retries: u64,
+    /// Re-initialisations after a fault.
+    pub restarts: u64,
+    /// Cyclic transmissions.
+    pub cycles: u64,
+    /// Cycles whose DC datagrams did not come back.
+    pub lost_cycles: u64,
+    /// Events dropped because the queue was full.
+    pub events_dropped: u64,
+    /// Frames from the last `start`/re-initialisation to the last `Locked` event.
+    pub lock_frames: Option<u64>,
+}
+
+/// One item of a request step.
+pub(crate) enum Item {
+    /// Send this datagram.
+    Send(Op),
+    /// Nothing to send for this item (e.g. a non-DC slave).
+    Skip,
+}
+
+/// The sans-IO DC state machine for up to `N` slaves.
+///
+/// Method families (as quinn-proto's `Connection`):
+/// - commands: [`start`](Self::start), [`reset`](Self::reset),
+///   [`request_delay_measurement`](Self::request_delay_measurement);
+/// - input: [`handle_frame`](Self::handle_frame), [`handle_timeout`](Self::handle_timeout);
+/// - output: [`poll_transmit`](Self::poll_transmit) / [`poll_transmit_into`](Self::poll_transmit_into),
+///   [`poll_timeout`](Self::poll_timeout), [`poll_event`](Self::poll_event);
+/// - getters: [`state`](Self::state), [`slaves`](Self::slaves), [`stats`](Self::stats), ….
+///
+/// Loop: feed every received frame to `handle_frame`; call `poll_transmit` until it returns
+/// `None` and send what it wrote; drain `poll_event`; sleep until `poll_timeout` and call
+/// `handle_timeout` (an early or extra call is a harmless no-op). `now` must not go backwards.
+/// It is the master's clock in the DC epoch (REQ-CONV-002): the offsets make the slaves' system
+/// time follow it.
+///
+/// No input (any bytes, any order, any timing) makes a method panic (REQ-CONV-008, property
+/// P6), and only datagrams matched by index, command, register, station and length are used.
+#[derive(Debug, Clone)]
+pub struct Machine<const N: usize> {
+    pub(crate) cfg: Config,
+    pub(crate) state: State,
+    pub(crate) slaves: [SlaveInfo; N],
+    /// Slaves found (BRD working counter), ≤ N.
+    pub(crate) count: u16,
+    /// Position of the reference clock (first slave with a system time).
+    pub(crate) reference: u16,
+    /// Slaves with a system time: the expected FRMW working counter.
+    pub(crate) sys_count: u16,
+    pub(crate) inflight: Inflight,
+    pub(crate) busy: bool,
+    pub(crate) cursor: u16,
+    pub(crate) chunk_start: u16,
+    pub(crate) tries: u8,
+    pub(crate) step_error: Option<Error>,
+    pub(crate) events: EventQueue,
+    pub(crate) stats: Stats,
+    pub(crate) next_index: u8,
+    pub(crate) wake_at: u64,
+    pub(crate) frames_at_start: u64,
+    pub(crate) latch_round: u8,
+    /// Master time sampled just before sending the latch trigger (REQ-DC-102).
+    pub(crate) latch_time: u64,
+    pub(crate) drift_frames: u32,
+    pub(crate) drift_ok: u8,
+    pub(crate) drift_bound: Option<u32>,
+    pub(crate) sync_start: u64,
+    pub(crate) cyc: CyclicState,
+}
+
+impl<const N: usize> Machine<N> {
+    /// A machine in `Idle`. Fails if the configuration is inconsistent.
+    pub fn new(cfg: Config) -> Result<Self, ConfigError> {
+        cfg.validate(N)?;
+        Ok(Machine {
+            cfg,
+            state: State::Idle,
+            slaves: [SlaveInfo::default(); N],
+            count: 0,
+            reference: 0,
+            sys_count: 0,
+            inflight: Inflight::new(),
+            busy: false,
+            cursor: 0,
+            chunk_start: 0,
+            tries: 0,
+            step_error: None,
+            events: EventQueue::new(),
+            stats: Stats::default(),
+            next_index: cfg.index_first,
+            wake_at: 0,
+            frames_at_start: 0,
+            latch_round: 0,
+            latch_time: 0,
+            drift_frames: 0,
+            drift_ok: 0,
+            drift_bound: None,
+            sync_start: 0,
+            cyc: CyclicState::default(),
+        })
+    }
+
+    // ----- commands -------------------------------------------------------------------------
+
+    /// Starts (or restarts) the bring-up from `CountSlaves`.
+    pub fn start(&mut self, _now: SystemTime) {
+        self.reset();
+        self.frames_at_start = self.stats.frames_sent;
+        self.enter(State::CountSlaves);
+    }
+
+    /// Stops everything and returns to `Idle`; replies still in flight will be ignored.
+    pub fn reset(&mut self) {
+        self.inflight.clear();
+        self.busy = false;
+        self.enter(State::Idle);
+    }
+
+    /// Asks for a propagation-delay re-measurement during cyclic operation (ETG.1500
+    /// "continuous propagation delay measurement"). It runs in spare room of the following
+    /// cycles and rewrites only 0x0928 (REQ-DC-107). Ignored outside `Cyclic`.
+    pub fn request_delay_measurement(&mut self) {
+        if self.state == State::Cyclic {
+            self.cyc.remeasure_requested = true;
+        }
+    }
+
+    // ----- getters --------------------------------------------------------------------------
+
+    /// Current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+    /// The configuration.
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+    /// The slaves found, in position order.
+    pub fn slaves(&self) -> &[SlaveInfo] {
+        self.slaves.get(..usize::from(self.count)).unwrap_or(&[])
+    }
+    /// Position of the reference clock, once chosen.
+    pub fn reference(&self) -> Option<u16> {
+        (self.sys_count > 0).then_some(self.reference)
+    }
+    /// Counters.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+    /// Whether cyclic operation is locked.
+    pub fn is_locked(&self) -> bool {
+        self.state == State::Cyclic && self.cyc.locked
+    }
+    /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
+    pub fn diff_bound_ns(&self) -> Option<u32> {
+        self.cyc.bound_ns
+    }
+    /// Reference system time returned by the last cyclic FRMW (64 bit; for a 32-bit reference,
+    /// extended around the master's clock).
+    pub fn reference_time(&self) -> Option<SystemTime> {
+        self.cyc.ref_time.map(SystemTime)
+    }
+    /// System time of the first SYNC0 pulse programmed in the last bring-up.
+    pub fn sync_start(&self) -> Option<SystemTime> {
+        (self.sync_start != 0).then_some(SystemTime(self.sync_start))
+    }
+
+    // ----- output ---------------------------------------------------------------------------
+
+    /// Next event, if any.
+    #[must_use]
+    pub fn poll_event(&mut self) -> Option<Event> {
+        self.events.pop()
+    }
+
+    /// When `handle_timeout` should be called next (a reply deadline, the next cycle, the end
+    /// of a restart pause). `None` when nothing is scheduled.
+    #[must_use]
+    pub fn poll_timeout(&self) -> Option<SystemTime> {
+        let mut t: Option<u64> = None;
+        let mut min = |v: u64| t = Some(t.map_or(v, |x| x.min(v)));
+        if self.busy {
+            min(self.inflight.deadline);
+        }
+        match self.state {
+            State::RestartWait => min(self.wake_at),
+            State::Cyclic if !self.busy => min(self.cyc.next_due),
+            State::Cyclic => min(self.cyc.next_due),
+            _ => {}
+        }
+        t.map(SystemTime)
+    }
+
+    /// Writes the next frame of the machine into `buf` (Ethernet frame, padded to 60 bytes) and
+    /// returns its length, or `None` when nothing is to be sent now (waiting for a reply, for
+    /// the next cycle, or idle). In `Cyclic` a frame is produced once per `monitor.cycle_ns`.
+    #[must_use]
+    pub fn poll_transmit(&mut self, now: SystemTime, buf: &mut [u8]) -> Option<usize> {
+        self.handle_timeout(now);
+        let mut b = match FrameBuilder::new(buf) {
+            Ok(b) => b,
+            Err(_) => {
+                self.push_event(Event::Error(Error::BufferTooSmall));
+                return None;
+            }
+        };
+        if !self.fill(now.0, &mut b, false) {
+            return None;
+        }
+        match b.finish() {
+            Ok(n) => Some(n),
+            Err(_) => {
+                // Cannot happen for a builder that accepted the datagrams; treat as a loss.
+                self.inflight.clear();
+                self.busy = false;
+                None
+            }
+        }
+    }
+
+    /// Appends the machine's datagrams for this moment into a frame the caller is building
+    /// (for example its process-data frame). In `Cyclic` this always appends the cycle's FRMW
+    /// and monitoring datagrams: the caller's cadence *is* the cycle. Returns whether anything
+    /// was appended; datagrams that do not fit are left for the next call.
+    pub fn poll_transmit_into(&mut self, now: SystemTime, builder: &mut FrameBuilder<'_>) -> bool {
+        self.handle_timeout(now);
+        self.fill(now.0, builder, true)
+    }
+
+    // ----- input ----------------------------------------------------------------------------
+
+    /// Handles an expiry of the time returned by `poll_timeout`; harmless when nothing expired.
+    pub fn handle_timeout(&mut self, now: SystemTime) {
+        let now = now.0;
+        if self.busy && now >= self.inflight.deadline {
+            self.stats.timeouts = self.stats.timeouts.saturating_add(1);
+            if self.state == State::Cyclic {
+                self.cyclic_lost(now);
+            } else {
+                self.inflight.clear();
+                self.busy = false;
+                let e = self
+                    .step_error
+                    .take()
+                    .unwrap_or(Error::Timeout { state: self.state });
+                self.retry_or_fail(now, e);
+            }
+        }
+        if self.state == State::RestartWait && now >= self.wake_at {
+            self.frames_at_start = self.stats.frames_sent;
+            self.enter(State::CountSlaves);
+        }
+    }
+
+    /// Handles one received Ethernet frame (any bytes). Datagrams matched to requests in flight
+    /// are used; everything else is counted in `Stats` and ignored.
+    pub fn handle_frame(&mut self, now: SystemTime, bytes: &[u8]) {
+        let now = now.0;
+        self.stats.frames_received = self.stats.frames_received.saturating_add(1);
+        let Ok(eth) = EthernetFrame::new_checked(bytes) else {
+            return self.count_foreign_frame();
+        };
+        // Our own transmission seen again (e.g. on a tap or veth) was not processed by any ESC.
+        if !eth.processed_by_slave() {
+            return self.count_foreign_frame();
+        }
+        let Ok(frame) = eth.ecat_frame() else {
+            return self.count_foreign_frame();
+        };
+        let mut matched = 0u32;
+        for d in frame.iter() {
+            let Ok(d) = d else { break };
+            // A circulated datagram went round a broken ring: its contents are not a reply.
+            if d.circulating() {
+                self.stats.foreign_datagrams = self.stats.foreign_datagrams.saturating_add(1);
+                continue;
+            }
+            match self.inflight.take_match(&d) {
+                Some(p) => {
+                    matched = matched.saturating_add(1);
+                    self.on_reply(now, p, d.wkc(), d.data());
+                }
+                None => {
+                    self.stats.foreign_datagrams = self.stats.foreign_datagrams.saturating_add(1);
+                }
+            }
+        }
+        if matched == 0 {
+            return self.count_foreign_frame();
+        }
+        if self.busy && self.inflight.is_empty() {
+            self.busy = false;
+            if self.state == State::Cyclic {
+                self.cyclic_complete(now);
+            } else if self.state.is_request_step() {
+                self.step_complete(now);
+            }
+        }
+    }
+
+    // ----- engine ---------------------------------------------------------------------------
+
+    fn count_foreign_frame(&mut self) {
+        self.stats.foreign_frames = self.stats.foreign_frames.saturating_add(1);
+    }
+
+    pub(crate) fn push_event(&mut self, e: Event) {
+        if !self.events.push(e) {
+            self.stats.events_dropped = self.stats.events_dropped.saturating_add(1);
+        }
+    }
+
+    /// Enters `to` with a fresh cursor. Internal transitions always follow [`State::can_go`].
+    pub(crate) fn enter(&mut self, to: State) {
+        debug_assert!(self.state.can_go(to), "{} -> {}", self.state, to);
+        self.state = to;
+        self.cursor = 0;
+        self.chunk_start = 0;
+        self.tries = 0;
+        self.step_error = None;
+        self.on_enter(to);
+    }
+
+    /// Reports a fault and stops or schedules a re-initialisation (REQ-DC-111).
+    pub(crate) fn fault(&mut self, now: u64, e: Error) {
+        self.push_event(Event::Error(e));
+        self.inflight.clear();
+        self.busy = false;
+        self.cyc = CyclicState::default();
+        if self.cfg.auto_restart {
+            self.stats.restarts = self.stats.restarts.saturating_add(1);
+            self.wake_at = now.saturating_add(self.cfg.restart_delay_ns);
+            self.enter(State::RestartWait);
+            self.push_event(Event::Restarting);
+        } else {
+            self.enter(State::Failed);
+        }
+    }
+
+    fn retry_or_fail(&mut self, now: u64, e: Error) {
+        if self.tries < self.cfg.retries && e.is_retryable() {
+            self.stats.retries = self.stats.retries.saturating_add(1);
+            let tries = self.tries.saturating_add(1);
+            if matches!(self.state, State::LatchTrigger | State::LatchReadAfter) {
+                // The trigger may or may not have latched: measure the whole round again.
+                self.enter(State::LatchReadBefore);
+            } else {
+                self.cursor = self.chunk_start;
+                self.step_error = None;
+            }
+            self.tries = tries;
+        } else {
+            self.fault(now, e);
+        }
+    }
+
+    pub(crate) fn alloc_index(&mut self) -> u8 {
+        let i = self.next_index;
+        let first = self.cfg.index_first;
+        let off = i.wrapping_sub(first).wrapping_add(1);
+        self.next_index = if off >= self.cfg.index_count {
+            first
+        } else {
+            first.wrapping_add(off)
+        };
+        i
+    }
+
+    /// Emits `op` into `b` and records it in flight; false if it did not fit.
+    pub(crate) fn push_op(&mut self, b: &mut FrameBuilder<'_>, op: Op, tag: Tag) -> bool {
+        if !self.inflight.has_room() {
+            return false;
+        }
+        let index = self.alloc_index();
+        if op.emit(b, index).is_err() {
+            return false;
+        }
+        self.inflight.insert(Pending {
+            index,
+            command: op.command,
+            register: op.register(),
+            station: op.station(),
+            len: op.len,
+            tag,
+        })
+    }
+
+    fn fill(&mut self, now: u64, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
+        if self.state == State::Cyclic {
+            return self.fill_cyclic(now, b, into_caller);
+        }
+        if !self.state.is_request_step() || self.busy {
+            return false;
+        }
+        // Skip items with nothing to send; finish steps that have nothing (left) to send.
+        // Bounded: every step finishes after at most its item count, and there are < 64 steps
+        // between two sends.
+        for _ in 0..64u8 {
+            if !self.state.is_request_step() {
+                return self.state == State::Cyclic && self.fill_cyclic(now, b, into_caller);
+            }
+            let count = self.item_count();
+            while self.cursor < count && matches!(self.item(now, self.cursor), Item::Skip) {
+                self.cursor = self.cursor.saturating_add(1);
+            }
+            if self.cursor < count {
+                break;
+            }
+            self.step_done(now);
+        }
+        if !self.state.is_request_step() {
+            return false;
+        }
+        let before = b.datagram_count();
+        self.chunk_start = self.cursor;
+        self.inflight.clear();
+        if let Some(op) = self.prefix(now) {
+            if !self.push_op(b, op, Tag::Frmw) {
+                if before == 0 {
+                    self.push_event(Event::Error(Error::BufferTooSmall));
+                }
+                return false;
+            }
+        }
+        let count = self.item_count();
+        let max = self.max_per_frame();
+        let mut sent = 0usize;
+        while self.cursor < count && sent < max {
+            match self.item(now, self.cursor) {
+                Item::Skip => self.cursor = self.cursor.saturating_add(1),
+                Item::Send(op) => {
+                    if !self.push_op(b, op, Tag::Item(self.cursor)) {
+                        break;
+                    }
+                    self.before_send(now, self.cursor);
+                    sent = sent.saturating_add(1);
+                    self.cursor = self.cursor.saturating_add(1);
+                }
+            }
+        }
+        if self.inflight.is_empty() {
+            if before == 0 {
+                self.push_event(Event::Error(Error::BufferTooSmall));
+            }
+            self.cursor = self.chunk_start;
+            return false;
+        }
+        self.busy = true;
+        self.inflight.deadline = now.saturating_add(self.cfg.response_timeout_ns);
+        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        true
+    }
+
+    fn on_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
+        match p.tag {
+            Tag::Item(i) if self.state.is_request_step() => {
+                if let Err(e) = self.on_item(now, i, p, wkc, data) {
+                    self.step_error.get_or_insert(e);
+                }
+            }
+            Tag::Frmw if self.state.is_request_step() => {
+                if let Err(e) = self.check_frmw(p, wkc) {
+                    self.step_error.get_or_insert(e);
+                }
+            }
+            _ if self.state == State::Cyclic => self.on_cyclic_reply(now, p, wkc, data),
+            _ => {}
+        }
+    }
+
+    fn step_complete(&mut self, now: u64) {
+        if let Some(e) = self.step_error.take() {
+            return self.retry_or_fail(now, e);
+        }
+        self.tries = 0;
+        let count = self.item_count();
+        while self.cursor < count && matches!(self.item(now, self.cursor), Item::Skip) {
+            self.cursor = self.cursor.saturating_add(1);
+        }
+        if self.cursor >= count {
+            self.step_done(now);
+        }
+    }
+
+    /// Expected-WKC check shared by every step.
+    pub(crate) fn expect_wkc(&self, p: Pending, expected: u16, actual: u16) -> Result<(), Error> {
+        if expected == actual {
+            Ok(())
+        } else {
+            Err(Error::Wkc {
+                command: p.command,
+                station: p.station,
+                register: p.register,
+                expected,
+                actual,
+            })
+        }
+    }
+
+    pub(crate) fn slave(&self, pos: u16) -> Option<&SlaveInfo> {
+        self.slaves
+            .get(usize::from(pos))
+            .filter(|_| pos < self.count)
+    }
+
+    pub(crate) fn slave_mut(&mut self, pos: u16) -> Option<&mut SlaveInfo> {
+        let count = self.count;
+        self.slaves
+            .get_mut(usize::from(pos))
+            .filter(|_| pos < count)
+    }
+
+    /// Positions `0..count`, as u16.
+    pub(crate) fn positions(&self) -> core::ops::Range<u16> {
+        0..self.count
+    }
+}
+
+/// Compile-time guard: the index range must be able to hold two frames' worth of datagrams.
+const _: () = assert!(MAX_INFLIGHT <= 64);

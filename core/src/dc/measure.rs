@@ -1,0 +1,156 @@
+//! Propagation-delay measurement (REQ-DC-101, REQ-DC-102): read the latches, trigger a new
+//! latch with one BWR 0x0900 (master time sampled just before it leaves), read the port and
+//! EPU receive times, and turn them into delays with the pure DC maths. Repeated
+//! `latch_rounds` times and averaged. A port counts as latched only if its time changed across
+//! the trigger (stale-latch detection, Lambert's IgH patch).
+
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::{Item, Machine};
+use crate::dc::request::{le, Op, Pending};
+use crate::dc::state::State;
+use crate::wire::register::reg;
+
+/// Bytes of one full latch read: 0x0900..0x091F (4 port times, system time, EPU time).
+const LATCH_BLOCK: u16 = 32;
+
+impl<const N: usize> Machine<N> {
+    pub(crate) fn measure_item(&self, i: u16) -> Item {
+        match self.state {
+            State::LatchTrigger => Item::Send(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
+            State::LatchReadBefore => match self.slave(i) {
+                Some(s) if s.dc.has_latches() => {
+                    Item::Send(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, 16))
+                }
+                _ => Item::Skip,
+            },
+            State::LatchReadAfter => match self.slave(i) {
+                Some(s) if s.dc.has_latches() => {
+                    Item::Send(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, LATCH_BLOCK))
+                }
+                _ => Item::Skip,
+            },
+            _ => Item::Skip,
+        }
+    }
+
+    pub(crate) fn measure_reply(
+        &mut self,
+        i: u16,
+        p: Pending,
+        wkc: u16,
+        data: &[u8],
+    ) -> Result<(), Error> {
+        let bad = Error::OutOfRange {
+            station: p.station,
+            register: p.register,
+        };
+        match self.state {
+            State::LatchTrigger => {
+                // Every slave with latches must have seen the write; slaves without DC may or
+                // may not count it, so the WKC lies between the two.
+                let latching = self.latching_count();
+                if wkc < latching || wkc > self.count {
+                    return Err(crate::dc::error::Error::Wkc {
+                        command: p.command,
+                        station: 0,
+                        register: p.register,
+                        expected: latching,
+                        actual: wkc,
+                    });
+                }
+                Ok(())
+            }
+            State::LatchReadBefore | State::LatchReadAfter => {
+                self.expect_wkc(p, 1, wkc)?;
+                let mut t = [0u32; 4];
+                for (k, slot) in t.iter_mut().enumerate() {
+                    let at = k.saturating_mul(4);
+                    let v = data
+                        .get(at..at.saturating_add(4))
+                        .and_then(|d| le(d, 4))
+                        .ok_or(bad)?;
+                    *slot = u32::try_from(v).map_err(|_| bad)?;
+                }
+                let after = self.state == State::LatchReadAfter;
+                let epu = if after {
+                    data.get(24..32).and_then(|d| le(d, 8)).ok_or(bad)?
+                } else {
+                    0
+                };
+                if let Some(s) = self.slave_mut(i) {
+                    if after {
+                        s.times_after = t;
+                        s.epu_time = epu;
+                    } else {
+                        s.times_before = t;
+                    }
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Slaves with receive-time latches.
+    pub(crate) fn latching_count(&self) -> u16 {
+        let n = self.slaves().iter().filter(|s| s.dc.has_latches()).count();
+        u16::try_from(n).unwrap_or(u16::MAX)
+    }
+
+    pub(crate) fn measure_done(&mut self) -> Result<State, Error> {
+        match self.state {
+            State::LatchReadBefore => Ok(State::LatchTrigger),
+            State::LatchTrigger => Ok(State::LatchReadAfter),
+            State::LatchReadAfter => {
+                if self.latch_round == 0 {
+                    for s in self.slaves.iter_mut() {
+                        s.delay_sum = 0;
+                    }
+                }
+                self.accumulate_round()?;
+                self.latch_round = self.latch_round.saturating_add(1);
+                if self.latch_round < self.cfg.latch_rounds {
+                    return Ok(State::LatchReadBefore);
+                }
+                self.finish_delays()?;
+                Ok(State::ReadAlStatus)
+            }
+            _ => Ok(self.state),
+        }
+    }
+
+    /// Averages the accumulated delays, checks them and computes the offsets of the last round.
+    fn finish_delays(&mut self) -> Result<(), Error> {
+        let rounds = u64::from(self.cfg.latch_rounds.max(1));
+        let max_delay = self.cfg.max_delay_ns;
+        let mut max_seen = 0u32;
+        let count = self.count;
+        for s in self.slaves.iter_mut().take(usize::from(count)) {
+            if !s.dc.has_system_time() {
+                continue;
+            }
+            // Rounded mean of the rounds.
+            let mean = s
+                .delay_sum
+                .saturating_add(rounds >> 1)
+                .checked_div(rounds)
+                .unwrap_or(0);
+            let d =
+                u32::try_from(mean)
+                    .ok()
+                    .filter(|d| *d <= max_delay)
+                    .ok_or(Error::OutOfRange {
+                        station: s.station,
+                        register: reg::SYSTEM_TIME_DELAY,
+                    })?;
+            s.delay_ns = d;
+            max_seen = max_seen.max(d);
+        }
+        self.compute_offsets()?;
+        self.push_event(Event::DelaysMeasured {
+            max_delay_ns: max_seen,
+        });
+        Ok(())
+    }
+}

@@ -1,0 +1,180 @@
+//! Propagation-delay re-measurement during cyclic operation (REQ-DC-107, ETG.1500 "continuous
+//! propagation delay measurement"): the latch/read steps of `measure.rs` spread over the room
+//! left in cyclic frames, then a rewrite of 0x0928 only where the delay changed. 0x0920 is
+//! never touched here: a delay change is slewed by the ESC, an offset change would step the
+//! clock (Lambert, IgH patch 0009).
+
+use crate::dc::cyclic::Remeasure;
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::Machine;
+use crate::dc::request::{le, Op, Pending, Tag};
+use crate::wire::register::reg;
+use crate::wire::FrameBuilder;
+
+/// Re-measurement datagrams per cycle at most. ecdc choice: 8 keeps the cyclic frame small.
+const PER_CYCLE: u16 = 8;
+
+impl<const N: usize> Machine<N> {
+    fn remeasure_op(&self, pos: u16) -> Option<Op> {
+        let s = self.slave(pos)?;
+        match self.cyc.remeasure {
+            Remeasure::Idle => None,
+            Remeasure::Trigger => Some(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
+            Remeasure::Before if s.dc.has_latches() => {
+                Some(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, 16))
+            }
+            Remeasure::After if s.dc.has_latches() => {
+                Some(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, 32))
+            }
+            Remeasure::Write if s.dc.has_system_time() && s.delay_ns != s.delay_new => Some(
+                Op::fpwr(s.station, reg::SYSTEM_TIME_DELAY, 4, u64::from(s.delay_new)),
+            ),
+            _ => None,
+        }
+    }
+
+    fn remeasure_len(&self) -> u16 {
+        match self.cyc.remeasure {
+            Remeasure::Idle => 0,
+            Remeasure::Trigger => 1,
+            _ => self.count,
+        }
+    }
+
+    pub(crate) fn fill_remeasure(&mut self, _now: u64, b: &mut FrameBuilder<'_>) {
+        if self.cyc.remeasure == Remeasure::Idle {
+            if !self.cyc.remeasure_requested {
+                return;
+            }
+            self.cyc.remeasure_requested = false;
+            self.cyc.remeasure = Remeasure::Before;
+            self.cyc.rm_cursor = 0;
+            self.cyc.rm_error = None;
+        }
+        let len = self.remeasure_len();
+        let mut pos = self.cyc.rm_cursor;
+        let mut pushed = 0u16;
+        while pos < len && pushed < PER_CYCLE {
+            if let Some(op) = self.remeasure_op(pos) {
+                if !self.push_op(b, op, Tag::CycRemeasure(pos)) {
+                    break;
+                }
+                pushed = pushed.saturating_add(1);
+            }
+            pos = pos.saturating_add(1);
+        }
+        self.cyc.rm_sent_to = pos;
+    }
+
+    pub(crate) fn remeasure_reply(&mut self, i: u16, p: Pending, wkc: u16, data: &[u8]) {
+        if let Err(e) = self.remeasure_store(i, p, wkc, data) {
+            self.cyc.rm_error.get_or_insert(e);
+        }
+    }
+
+    fn remeasure_store(&mut self, i: u16, p: Pending, wkc: u16, data: &[u8]) -> Result<(), Error> {
+        let bad = Error::OutOfRange {
+            station: p.station,
+            register: p.register,
+        };
+        match self.cyc.remeasure {
+            Remeasure::Trigger => {
+                let latching = self.latching_count();
+                if wkc < latching || wkc > self.count {
+                    return Err(Error::Wkc {
+                        command: p.command,
+                        station: 0,
+                        register: p.register,
+                        expected: latching,
+                        actual: wkc,
+                    });
+                }
+            }
+            Remeasure::Before | Remeasure::After => {
+                self.expect_wkc(p, 1, wkc)?;
+                let mut t = [0u32; 4];
+                for (k, slot) in t.iter_mut().enumerate() {
+                    let at = k.saturating_mul(4);
+                    let v = data
+                        .get(at..at.saturating_add(4))
+                        .and_then(|d| le(d, 4))
+                        .ok_or(bad)?;
+                    *slot = u32::try_from(v).map_err(|_| bad)?;
+                }
+                let after = self.cyc.remeasure == Remeasure::After;
+                if let Some(s) = self.slave_mut(i) {
+                    if after {
+                        s.times_after = t;
+                    } else {
+                        s.times_before = t;
+                    }
+                }
+            }
+            Remeasure::Write => self.expect_wkc(p, 1, wkc)?,
+            Remeasure::Idle => {}
+        }
+        Ok(())
+    }
+
+    /// Called when a cycle came back complete: move the re-measurement on.
+    pub(crate) fn remeasure_advance(&mut self, now: u64) {
+        if self.cyc.remeasure == Remeasure::Idle {
+            return;
+        }
+        self.cyc.rm_cursor = self.cyc.rm_sent_to;
+        if self.cyc.rm_cursor < self.remeasure_len() {
+            return;
+        }
+        self.cyc.rm_cursor = 0;
+        self.cyc.rm_sent_to = 0;
+        self.cyc.remeasure = match self.cyc.remeasure {
+            Remeasure::Before => Remeasure::Trigger,
+            Remeasure::Trigger => Remeasure::After,
+            Remeasure::After => match self.remeasure_compute() {
+                Ok(()) => Remeasure::Write,
+                Err(e) => {
+                    self.cyc.remeasure = Remeasure::Idle;
+                    return self.fault(now, e);
+                }
+            },
+            Remeasure::Write => {
+                let mut max_change = 0u32;
+                let count = self.count;
+                for s in self.slaves.iter_mut().take(usize::from(count)) {
+                    max_change = max_change.max(s.delay_new.abs_diff(s.delay_ns));
+                    s.delay_ns = s.delay_new;
+                }
+                self.push_event(Event::DelaysUpdated {
+                    max_change_ns: max_change,
+                });
+                Remeasure::Idle
+            }
+            Remeasure::Idle => Remeasure::Idle,
+        };
+    }
+
+    /// One latch round's delays into `delay_new`, range-checked.
+    fn remeasure_compute(&mut self) -> Result<(), Error> {
+        for s in self.slaves.iter_mut() {
+            s.delay_sum = 0;
+        }
+        self.accumulate_round()?;
+        let max = self.cfg.max_delay_ns;
+        let count = self.count;
+        for s in self.slaves.iter_mut().take(usize::from(count)) {
+            if !s.dc.has_system_time() {
+                s.delay_new = s.delay_ns;
+                continue;
+            }
+            s.delay_new = u32::try_from(s.delay_sum)
+                .ok()
+                .filter(|d| *d <= max)
+                .ok_or(Error::OutOfRange {
+                    station: s.station,
+                    register: reg::SYSTEM_TIME_DELAY,
+                })?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,88 @@
+//! What the machine knows about one slave. Public read-only through
+//! [`crate::dc::Machine::slaves`], so users can see delays, offsets and the last 0x092C value
+//! (the per-slave report of a failed convergence gate).
+
+/// DC capability from ESC features 0x0008 and the system-time probe.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DcKind {
+    /// No DC unit (0x0008 bit 2 clear): only adds wire delay.
+    #[default]
+    None,
+    /// DC receive-time latches, but no system time (FPRD 0x0910 came back with WKC 0).
+    DelayOnly,
+    /// 32-bit system time (0x0008 bit 3 clear).
+    Bits32,
+    /// 64-bit system time.
+    Bits64,
+}
+
+impl DcKind {
+    /// Has receive-time latches (takes part in delay measurement).
+    pub const fn has_latches(self) -> bool {
+        !matches!(self, DcKind::None)
+    }
+    /// Has a system time (gets an offset, a delay, drift compensation, SYNC).
+    pub const fn has_system_time(self) -> bool {
+        matches!(self, DcKind::Bits32 | DcKind::Bits64)
+    }
+    /// Width in bytes of 0x0910/0x0920/0x0990 on this slave (8, or 4 for 32-bit DC).
+    pub const fn time_width(self) -> u16 {
+        match self {
+            DcKind::Bits64 => 8,
+            _ => 4,
+        }
+    }
+}
+
+/// One slave, by position (auto-increment order = processing order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SlaveInfo {
+    /// Station address assigned (0x0010).
+    pub station: u16,
+    /// ESC features register 0x0008.
+    pub features: u16,
+    /// DL status 0x0110 read at discovery.
+    pub dl_status: u16,
+    /// DC capability.
+    pub dc: DcKind,
+    /// AL status 0x0130 (low 16 bits) read just before the offset write; `None` if it was not
+    /// read in this bring-up.
+    pub al_status: Option<u16>,
+    /// Port receive times (0x0900..0x090F) before the latest trigger.
+    pub times_before: [u32; 4],
+    /// Port receive times after the latest trigger.
+    pub times_after: [u32; 4],
+    /// EPU receive time 0x0918 of the latest trigger.
+    pub epu_time: u64,
+    /// Sum of the per-round delays (for averaging over `latch_rounds`).
+    pub(crate) delay_sum: u64,
+    /// Propagation delay from the reference, ns (0x0928).
+    pub delay_ns: u32,
+    /// Delay from a running re-measurement, not yet written.
+    pub(crate) delay_new: u32,
+    /// System time offset computed for 0x0920 (full 64 bits; 32-bit slaves get the low half).
+    pub offset: u64,
+    /// Whether 0x0920 was written in the last bring-up.
+    pub offset_written: bool,
+    /// Whether the SYNC unit was programmed in the last bring-up.
+    pub sync_programmed: bool,
+    /// Last 0x092C value decoded to signed ns (negative = local copy behind), if read.
+    pub last_diff_ns: Option<i64>,
+}
+
+/// AL status state codes (0x0130 bits 3:0), ETG.1000.6.
+pub(crate) const AL_INIT: u16 = 0x1;
+pub(crate) const AL_PREOP: u16 = 0x2;
+pub(crate) const AL_BOOT: u16 = 0x3;
+
+impl SlaveInfo {
+    /// REQ-DC-103: a slave may get a new 0x0920 (a step of its system time) only if its AL
+    /// status was read in this bring-up and says INIT, PRE-OP or BOOT. SAFE-OP, OP, an error
+    /// combination or an unread status all mean "possibly running": leave the offset alone.
+    pub fn may_step_offset(&self) -> bool {
+        matches!(
+            self.al_status.map(|s| s & 0x0F),
+            Some(AL_INIT | AL_PREOP | AL_BOOT)
+        )
+    }
+}

@@ -1,0 +1,211 @@
+//! The explicit states of the DC machine and its one transition table.
+//!
+//! ```text
+//!  Idle ──start──▶ CountSlaves ─▶ AssignAddresses ─▶ ReadInfo ─▶ ProbeSystemTime
+//!                      ▲                                               │
+//!                      │                                               ▼
+//!                 RestartWait                      ┌──── LatchReadBefore ◀─────┐ (K rounds)
+//!                      ▲                           ▼                           │
+//!                      │                      LatchTrigger ─▶ LatchReadAfter ──┘
+//!            (any fault, auto_restart)                               │
+//!                      │                                             ▼
+//!                   Failed ◀──(fault, no restart)       ReadAlStatus ─▶ WriteOffsets ─▶ ResetLoops
+//!                                                                                   │
+//!                                 ┌─────────────────────────────────────────────────┘
+//!                                 ▼
+//!                            DriftBurst ◀─▶ DriftCheck ─(K checks below threshold)─┐
+//!                                                                                  ▼
+//!   Cyclic ◀─ ActivateSync ◀─ ProgramSync ◀─ ClearActivation ◀─ ReadReferenceTime ◀┘
+//!     (`sync: None` goes from DriftCheck straight to Cyclic)
+//! ```
+//!
+//! Every state except `Idle`, `RestartWait`, `Failed` and `Cyclic` is a *request step*: a list of
+//! datagrams (usually one per slave) sent in as few frames as fit, whose replies are all
+//! validated before the next step starts. Invalid transitions are refused by [`State::can_go`]
+//! and never panic (REQ-DC-110).
+
+/// One state of [`crate::dc::Machine`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum State {
+    /// Not started; `start` begins the bring-up.
+    Idle,
+    /// BRD 0x0000: the working counter is the number of slaves.
+    CountSlaves,
+    /// APWR 0x0010 per position: station addresses.
+    AssignAddresses,
+    /// FPRD 0x0008 (features), 0x0110 (DL status) per slave.
+    ReadInfo,
+    /// FPRD 0x0910 per DC slave: WKC 1 = has system time, WKC 0 = delay-only ESC.
+    ProbeSystemTime,
+    /// FPRD 0x0900..0x090F per DC slave: latches before the trigger (stale-latch detection).
+    LatchReadBefore,
+    /// BWR 0x0900: latch receive times everywhere; master time sampled just before sending.
+    LatchTrigger,
+    /// FPRD 0x0900..0x091F per DC slave: port times and the EPU time of the trigger frame.
+    LatchReadAfter,
+    /// FPRD 0x0130 per DC slave: AL status, to never step 0x0920 of a running slave.
+    ReadAlStatus,
+    /// FPWR 0x0920 (exact width) on non-running slaves and 0x0928 on every DC slave.
+    WriteOffsets,
+    /// FPWR 0x0934 then 0x0930 on every slave whose offset was written: loop reset.
+    ResetLoops,
+    /// FRMW 0x0910 frames back to back.
+    DriftBurst,
+    /// FRMW plus 0x092C reads: the convergence gate.
+    DriftCheck,
+    /// FPRD 0x0910 of the reference: the one time all SYNC start times derive from.
+    ReadReferenceTime,
+    /// FPWR 0x0981 = 0 on every SYNC slave.
+    ClearActivation,
+    /// FPWR 0x0990 (exact width), 0x09A0, 0x09A4 on every SYNC slave.
+    ProgramSync,
+    /// FPWR 0x0980 (2 bytes) = AssignActivate on every SYNC slave.
+    ActivateSync,
+    /// One FRMW per cycle, 0x092C monitoring, lock detection, delay re-measurement.
+    Cyclic,
+    /// Waiting `restart_delay_ns` before re-initialising after a fault.
+    RestartWait,
+    /// Stopped after a fault with `auto_restart` off; `start` tries again.
+    Failed,
+}
+
+impl State {
+    /// All states, in bring-up order (for tables, tests and the dot graph).
+    pub const ALL: [State; 20] = [
+        State::Idle,
+        State::CountSlaves,
+        State::AssignAddresses,
+        State::ReadInfo,
+        State::ProbeSystemTime,
+        State::LatchReadBefore,
+        State::LatchTrigger,
+        State::LatchReadAfter,
+        State::ReadAlStatus,
+        State::WriteOffsets,
+        State::ResetLoops,
+        State::DriftBurst,
+        State::DriftCheck,
+        State::ReadReferenceTime,
+        State::ClearActivation,
+        State::ProgramSync,
+        State::ActivateSync,
+        State::Cyclic,
+        State::RestartWait,
+        State::Failed,
+    ];
+
+    /// True for the states that send a request list and wait for all replies.
+    pub const fn is_request_step(self) -> bool {
+        !matches!(
+            self,
+            State::Idle | State::Cyclic | State::RestartWait | State::Failed
+        )
+    }
+
+    /// The transition table. `RestartWait`/`Failed` are reachable from every state (faults);
+    /// `Idle` from every state (`reset`); `CountSlaves` from `Idle`, `RestartWait`, `Failed`.
+    pub const fn can_go(self, to: State) -> bool {
+        use State::*;
+        matches!(
+            (self, to),
+            (_, Idle)
+                | (_, RestartWait)
+                | (_, Failed)
+                | (Idle | RestartWait | Failed, CountSlaves)
+                | (CountSlaves, AssignAddresses)
+                | (AssignAddresses, ReadInfo)
+                | (ReadInfo, ProbeSystemTime)
+                | (ProbeSystemTime, LatchReadBefore)
+                | (LatchReadBefore, LatchTrigger)
+                | (LatchTrigger, LatchReadAfter)
+                | (LatchTrigger, LatchReadBefore)
+                | (LatchReadAfter, LatchReadBefore)
+                | (LatchReadAfter, ReadAlStatus)
+                | (ReadAlStatus, WriteOffsets)
+                | (WriteOffsets, ResetLoops)
+                | (ResetLoops, DriftBurst)
+                | (DriftBurst, DriftCheck)
+                | (DriftCheck, DriftBurst)
+                | (DriftCheck, ReadReferenceTime)
+                | (DriftCheck, Cyclic)
+                | (ReadReferenceTime, ClearActivation)
+                | (ClearActivation, ProgramSync)
+                | (ProgramSync, ActivateSync)
+                | (ActivateSync, Cyclic)
+        )
+    }
+
+    /// Short lower-case name, for logs and the CLI.
+    pub const fn name(self) -> &'static str {
+        match self {
+            State::Idle => "idle",
+            State::CountSlaves => "count-slaves",
+            State::AssignAddresses => "assign-addresses",
+            State::ReadInfo => "read-info",
+            State::ProbeSystemTime => "probe-system-time",
+            State::LatchReadBefore => "latch-read-before",
+            State::LatchTrigger => "latch-trigger",
+            State::LatchReadAfter => "latch-read-after",
+            State::ReadAlStatus => "read-al-status",
+            State::WriteOffsets => "write-offsets",
+            State::ResetLoops => "reset-loops",
+            State::DriftBurst => "drift-burst",
+            State::DriftCheck => "drift-check",
+            State::ReadReferenceTime => "read-reference-time",
+            State::ClearActivation => "clear-activation",
+            State::ProgramSync => "program-sync",
+            State::ActivateSync => "activate-sync",
+            State::Cyclic => "cyclic",
+            State::RestartWait => "restart-wait",
+            State::Failed => "failed",
+        }
+    }
+}
+
+impl core::fmt::Display for State {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bring-up path is a chain of allowed transitions, and nothing jumps over the offset
+    /// write or the drift gate.
+    #[test]
+    fn bring_up_path_is_allowed_and_no_shortcuts() {
+        use State::*;
+        let path = [
+            Idle,
+            CountSlaves,
+            AssignAddresses,
+            ReadInfo,
+            ProbeSystemTime,
+            LatchReadBefore,
+            LatchTrigger,
+            LatchReadAfter,
+            ReadAlStatus,
+            WriteOffsets,
+            ResetLoops,
+            DriftBurst,
+            DriftCheck,
+            ReadReferenceTime,
+            ClearActivation,
+            ProgramSync,
+            ActivateSync,
+            Cyclic,
+        ];
+        for w in path.windows(2) {
+            assert!(w[0].can_go(w[1]), "{} -> {}", w[0], w[1]);
+        }
+        assert!(!LatchReadAfter.can_go(WriteOffsets));
+        assert!(!ResetLoops.can_go(Cyclic));
+        assert!(!DriftBurst.can_go(Cyclic));
+        assert!(!Idle.can_go(Cyclic));
+        for s in State::ALL {
+            assert!(s.can_go(RestartWait));
+        }
+    }
+}

@@ -1,0 +1,163 @@
+//! Dispatch of the request steps: for the current [`State`], which datagrams make up the step,
+//! how each reply is checked and stored, and where the step goes when done. The per-step logic
+//! lives in `discovery.rs`, `measure.rs`, `adjust.rs`, `drift.rs` and `activation.rs`.
+
+use crate::dc::error::Error;
+use crate::dc::machine::{Item, Machine};
+use crate::dc::request::{Op, Pending};
+use crate::dc::state::State;
+
+impl<const N: usize> Machine<N> {
+    /// Number of items of the current step.
+    pub(crate) fn item_count(&self) -> u16 {
+        let n = self.count;
+        match self.state {
+            State::CountSlaves | State::LatchTrigger | State::ReadReferenceTime => 1,
+            State::AssignAddresses
+            | State::ProbeSystemTime
+            | State::LatchReadBefore
+            | State::LatchReadAfter
+            | State::ReadAlStatus
+            | State::ClearActivation
+            | State::ActivateSync => n,
+            State::ReadInfo | State::WriteOffsets | State::ResetLoops => n.saturating_mul(2),
+            State::ProgramSync => n.saturating_mul(3),
+            State::DriftBurst => self.cfg.drift.burst_frames,
+            State::DriftCheck => n.saturating_add(1),
+            State::Idle | State::Cyclic | State::RestartWait | State::Failed => 0,
+        }
+    }
+
+    /// Most items per frame: one FRMW per frame in a burst (each frame is one loop sample).
+    pub(crate) fn max_per_frame(&self) -> usize {
+        match self.state {
+            State::DriftBurst => 1,
+            _ => usize::MAX,
+        }
+    }
+
+    /// Datagram sent in front of every frame of the step.
+    pub(crate) fn prefix(&self, now: u64) -> Option<Op> {
+        match self.state {
+            State::DriftCheck => Some(self.frmw_op(now)),
+            _ => None,
+        }
+    }
+
+    /// The drift-compensation FRMW to the reference's 0x0910, of the reference's width.
+    pub(crate) fn frmw_op(&self, now: u64) -> Op {
+        let (station, width) = self
+            .slave(self.reference)
+            .map_or((0, 8), |s| (s.station, s.dc.time_width()));
+        Op::frmw(station, crate::wire::register::reg::SYSTEM_TIME, width, now)
+    }
+
+    /// FRMW working counter: every slave with a system time reads or writes it once.
+    pub(crate) fn check_frmw(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
+        self.expect_wkc(p, self.sys_count, wkc)
+    }
+
+    pub(crate) fn item(&self, now: u64, i: u16) -> Item {
+        match self.state {
+            State::CountSlaves
+            | State::AssignAddresses
+            | State::ReadInfo
+            | State::ProbeSystemTime => self.discovery_item(i),
+            State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
+                self.measure_item(i)
+            }
+            State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => self.adjust_item(i),
+            State::DriftBurst | State::DriftCheck => self.drift_item(now, i),
+            State::ReadReferenceTime
+            | State::ClearActivation
+            | State::ProgramSync
+            | State::ActivateSync => self.activation_item(i),
+            State::Idle | State::Cyclic | State::RestartWait | State::Failed => Item::Skip,
+        }
+    }
+
+    /// Hook right before item `i` goes out (the latch trigger samples master time here).
+    pub(crate) fn before_send(&mut self, now: u64, i: u16) {
+        if self.state == State::LatchTrigger {
+            // REQ-DC-102: master time sampled *before* the latching BWR leaves.
+            self.latch_time = now;
+        }
+        if self.state == State::DriftBurst || self.state == State::DriftCheck {
+            // One loop sample per frame: count the frame at its first item.
+            self.drift_frames = self
+                .drift_frames
+                .saturating_add(u32::from(i == self.chunk_start));
+        }
+    }
+
+    pub(crate) fn on_item(
+        &mut self,
+        now: u64,
+        i: u16,
+        p: Pending,
+        wkc: u16,
+        data: &[u8],
+    ) -> Result<(), Error> {
+        match self.state {
+            State::CountSlaves
+            | State::AssignAddresses
+            | State::ReadInfo
+            | State::ProbeSystemTime => self.discovery_reply(i, p, wkc, data),
+            State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
+                self.measure_reply(i, p, wkc, data)
+            }
+            State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => {
+                self.adjust_reply(i, p, wkc, data)
+            }
+            State::DriftBurst | State::DriftCheck => self.drift_reply(i, p, wkc, data),
+            State::ReadReferenceTime
+            | State::ClearActivation
+            | State::ProgramSync
+            | State::ActivateSync => self.activation_reply(now, i, p, wkc, data),
+            State::Idle | State::Cyclic | State::RestartWait | State::Failed => Ok(()),
+        }
+    }
+
+    /// Per-state initialisation when a state is entered.
+    pub(crate) fn on_enter(&mut self, to: State) {
+        match to {
+            State::CountSlaves => {
+                self.count = 0;
+                self.sys_count = 0;
+                self.reference = 0;
+                self.sync_start = 0;
+                self.latch_round = 0;
+                self.drift_frames = 0;
+                self.drift_ok = 0;
+                self.drift_bound = None;
+            }
+            State::DriftCheck => self.drift_bound = None,
+            State::Cyclic => self.cyclic_enter(),
+            _ => {}
+        }
+    }
+
+    /// The step's items are all sent and answered: validate the whole step and move on.
+    pub(crate) fn step_done(&mut self, now: u64) {
+        let next = match self.state {
+            State::CountSlaves
+            | State::AssignAddresses
+            | State::ReadInfo
+            | State::ProbeSystemTime => self.discovery_done(),
+            State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
+                self.measure_done()
+            }
+            State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => self.adjust_done(),
+            State::DriftBurst | State::DriftCheck => self.drift_done(),
+            State::ReadReferenceTime
+            | State::ClearActivation
+            | State::ProgramSync
+            | State::ActivateSync => self.activation_done(),
+            State::Idle | State::Cyclic | State::RestartWait | State::Failed => return,
+        };
+        match next {
+            Ok(s) => self.enter(s),
+            Err(e) => self.fault(now, e),
+        }
+    }
+}
