@@ -309,7 +309,14 @@ impl Servo {
     pub fn update(&mut self, input: Input) -> Output {
         self.counters.inputs = self.counters.inputs.saturating_add(1);
         let (t, theta) = match input {
-            Input::Missing => return self.holdover(Verdict::Missing, 0),
+            Input::Missing => {
+                // One nominal interval passed without a sample: advance the time anchor so the
+                // next sample's interval check measures from where it is expected.
+                self.last_t = self
+                    .last_t
+                    .map(|t| t.wrapping_add(u64::from(self.cfg.interval_ns)));
+                return self.holdover(Verdict::Missing, 0);
+            }
             Input::Sample { local_ns, theta_ns } => (local_ns, theta_ns),
         };
         let theta = theta.clamp(-(1 << 62), 1 << 62);
