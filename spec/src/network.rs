@@ -460,3 +460,33 @@ pub fn renumber_in_processing_order(net: Network) -> Network {
         .collect();
     Network { escs }
 }
+
+/// What the master would feed `ecdc-core`'s DC maths after this latch: one
+/// [`ecdc_core::dc::topology::SlaveSample`] per ESC in auto-increment order (the network must be
+/// numbered in that order, as [`generate`] does). `with_t_diff` passes each ESC's true
+/// `t_P − t_F`; otherwise 0 ("unknown").
+pub fn core_samples(
+    net: &Network,
+    latch: &Latch,
+    granularity: i128,
+    with_t_diff: bool,
+) -> Vec<ecdc_core::dc::topology::SlaveSample> {
+    use ecdc_core::dc::port::PortSet;
+    use ecdc_core::dc::topology::{Latches, SlaveSample};
+    (0..net.escs.len())
+        .map(|i| {
+            let obs = net.observe(latch, i, granularity);
+            let esc = &net.escs[i];
+            SlaveSample {
+                ports: PortSet::from_dl_status(obs.dl_status),
+                latches: (obs.features & 0x0004 != 0)
+                    .then(|| Latches::from_raw(obs.port_times, obs.epu_time)),
+                t_diff: if with_t_diff {
+                    i32::try_from(esc.t_p - esc.t_f).expect("t_Diff fits i32")
+                } else {
+                    0
+                },
+            }
+        })
+        .collect()
+}
