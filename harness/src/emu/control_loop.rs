@@ -1,0 +1,238 @@
+//! The ESC's hardware time-control loop (drift compensation), as a *rate* correction with
+//! memory.
+//!
+//! What is documented (esc-dc.md §4.1): every ECAT write covering 0x0910 on a slave gives a
+//! sample Δt = (local copy at SOF − 0x0928) − received, on the lower 32 bits; 0x092C is the mean
+//! of Δt over 0x0934 samples in sign-magnitude; 0x0932 is a filtered period-deviation estimate
+//! (depth 0x0935) in ±(S − 0x7F); the clock runs `correction_rate(S, D)` faster or slower.
+//!
+//! What is *not* documented is the update law from Δt to D. The law here is this emulator's
+//! choice (docs/emulator.md §Constants): a PI controller on the filtered Δt, with the integral
+//! part as the rate memory, anti-windup at the ±(S − 0x7F) limit, and the applied D being the
+//! mean of the last 0x0935 commands. REQ-ESC-050..REQ-ESC-056.
+
+/// The counter tick the speed-counter formula is defined on (100 MHz).
+pub const NOMINAL_TICK_NS: i64 = 10;
+/// Reset value of 0x0930 (DS S2-76 Tab.104).
+pub const SPEED_COUNTER_START_RESET: u16 = 0x1000;
+/// Smallest valid 0x0930 value (DS S2-76).
+pub const SPEED_COUNTER_START_MIN: u16 = 0x0080;
+/// Largest valid 0x0930 value (DS S2-76).
+pub const SPEED_COUNTER_START_MAX: u16 = 0x3FFF;
+/// Reset value of 0x0934 (KickCAT, "from the datasheet"; unverified).
+pub const DIFF_FILTER_DEPTH_RESET: u8 = 4;
+/// Reset value of 0x0935 (KickCAT; unverified).
+pub const SPEED_FILTER_DEPTH_RESET: u8 = 0x0C;
+/// Fractional bits of the gains and the integrator.
+const GAIN_FRAC: u32 = 16;
+
+/// Gains of the (undocumented) update law. Model constants without a source.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LoopGains {
+    /// Proportional gain: D LSB per ns of filtered Δt.
+    pub kp: f64,
+    /// Integral gain: D LSB per ns of filtered Δt, per sample.
+    pub ki: f64,
+}
+
+impl Default for LoopGains {
+    fn default() -> Self {
+        // Chosen so that at S = 0x1000 and one sample per ms the phase settles in ≈ 100
+        // samples with ≈ 0.7 damping, and 15 000 back-to-back samples still converge.
+        LoopGains { kp: 1.5, ki: 0.008 }
+    }
+}
+
+/// A fixed-capacity moving mean (depth 1..=255).
+#[derive(Debug, Clone)]
+struct MeanFilter {
+    buf: [i64; 256],
+    len: usize,
+    pos: usize,
+    depth: usize,
+    sum: i64,
+}
+
+impl MeanFilter {
+    fn new(depth: u8) -> Self {
+        MeanFilter {
+            buf: [0; 256],
+            len: 0,
+            pos: 0,
+            depth: usize::from(depth.max(1)),
+            sum: 0,
+        }
+    }
+
+    fn push(&mut self, v: i64) -> i64 {
+        if self.len == self.depth {
+            self.sum -= self.buf[self.pos];
+        } else {
+            self.len += 1;
+        }
+        self.buf[self.pos] = v;
+        self.sum += v;
+        self.pos = (self.pos + 1) % self.depth;
+        // Round half away from zero so a symmetric input gives a symmetric mean.
+        let n = self.len as i64;
+        if self.sum >= 0 {
+            (self.sum + n / 2) / n
+        } else {
+            (self.sum - n / 2) / n
+        }
+    }
+}
+
+/// Loop state of one ESC.
+#[derive(Debug, Clone)]
+pub struct ControlLoop {
+    s: u16,
+    gains: LoopGains,
+    diff: MeanFilter,
+    speed: MeanFilter,
+    /// Rate memory: D × 2^GAIN_FRAC.
+    integ: i64,
+    d: i16,
+    diff_mean: i64,
+    samples: u64,
+}
+
+/// Effective speed counter start: bits 14:0 of the register, clamped to the valid range
+/// (the datasheet gives no behaviour for invalid values; clamping is this model's choice).
+pub fn effective_start(reg: u16) -> u16 {
+    (reg & 0x7FFF).clamp(SPEED_COUNTER_START_MIN, SPEED_COUNTER_START_MAX)
+}
+
+/// Encodes a signed difference as register 0x092C: bits 30..0 = |Δt| (saturated), bit 31 set
+/// when Δt < 0 (local copy behind). REQ-ESC-051, REQ-CONV-006.
+pub fn encode_difference(dt: i64) -> u32 {
+    let mag = dt.unsigned_abs().min(0x7FFF_FFFF) as u32;
+    if dt < 0 {
+        mag | 0x8000_0000
+    } else {
+        mag
+    }
+}
+
+impl ControlLoop {
+    /// A loop in its reset state.
+    pub fn new(gains: LoopGains) -> Self {
+        ControlLoop {
+            s: SPEED_COUNTER_START_RESET,
+            gains,
+            diff: MeanFilter::new(DIFF_FILTER_DEPTH_RESET),
+            speed: MeanFilter::new(SPEED_FILTER_DEPTH_RESET),
+            integ: 0,
+            d: 0,
+            diff_mean: 0,
+            samples: 0,
+        }
+    }
+
+    /// Write to 0x0930: clears 0x092C, 0x0932 and both filters, and latches the filter depths
+    /// (a depth change takes effect here, as KickCAT reports for several ESCs). REQ-ESC-053.
+    pub fn reset(&mut self, start_reg: u16, diff_depth: u8, speed_depth: u8) {
+        self.s = effective_start(start_reg);
+        self.diff = MeanFilter::new(diff_depth);
+        self.speed = MeanFilter::new(speed_depth);
+        self.integ = 0;
+        self.d = 0;
+        self.diff_mean = 0;
+    }
+
+    /// Largest |D| allowed: S − 0x7F (DS S2-76 Tab.105). REQ-ESC-054.
+    pub fn d_limit(&self) -> i16 {
+        (self.s - 0x7F) as i16
+    }
+
+    /// Effective speed counter start.
+    pub fn start(&self) -> u16 {
+        self.s
+    }
+
+    /// One sample Δt (ns, wrap-safe lower-32-bit difference). Returns the new D.
+    pub fn sample(&mut self, dt: i32) -> i16 {
+        self.samples += 1;
+        let m = self.diff.push(i64::from(dt));
+        self.diff_mean = m;
+        let lim = i64::from(self.d_limit());
+        let kp = (self.gains.kp * f64::from(1u32 << GAIN_FRAC)) as i64;
+        let ki = (self.gains.ki * f64::from(1u32 << GAIN_FRAC)) as i64;
+        // Clamp the error so products stay small; at this size the command saturates anyway.
+        let e = m.clamp(-(1 << 30), 1 << 30);
+        let p = e.saturating_mul(kp);
+        let cmd_unclamped = self.integ.saturating_sub(p) >> GAIN_FRAC;
+        let saturated_up = cmd_unclamped >= lim && e < 0;
+        let saturated_down = cmd_unclamped <= -lim && e > 0;
+        if !(saturated_up || saturated_down) {
+            let lim_fp = lim << GAIN_FRAC;
+            self.integ = self
+                .integ
+                .saturating_sub(e.saturating_mul(ki))
+                .clamp(-lim_fp, lim_fp);
+        }
+        let cmd = (self.integ.saturating_sub(p) >> GAIN_FRAC).clamp(-lim, lim);
+        let applied = self.speed.push(cmd).clamp(-lim, lim);
+        self.d = applied as i16;
+        self.d
+    }
+
+    /// Register 0x092C.
+    pub fn difference_register(&self) -> u32 {
+        encode_difference(self.diff_mean)
+    }
+
+    /// Register 0x0932 (two's complement).
+    pub fn speed_diff(&self) -> i16 {
+        self.d
+    }
+
+    /// Number of samples since power-on (diagnostics).
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    /// REQ-ESC-051: bit 31 set means the local copy is behind (Δt < 0).
+    #[test]
+    fn sign_magnitude() {
+        assert_eq!(encode_difference(-5), 0x8000_0005);
+        assert_eq!(encode_difference(5), 5);
+        assert_eq!(encode_difference(0), 0);
+        assert_eq!(encode_difference(-(1i64 << 40)), 0xFFFF_FFFF);
+        assert_eq!(encode_difference(1i64 << 40), 0x7FFF_FFFF);
+    }
+
+    /// REQ-ESC-054: D stays within ±(S − 0x7F) however large the error.
+    #[test]
+    fn d_bounded() {
+        let mut l = ControlLoop::new(LoopGains::default());
+        l.reset(0x1000, 4, 12);
+        for _ in 0..1000 {
+            l.sample(i32::MIN);
+        }
+        assert_eq!(l.speed_diff(), 0x1000 - 0x7F);
+        l.reset(0x0080, 4, 12);
+        for _ in 0..1000 {
+            l.sample(i32::MAX);
+        }
+        assert_eq!(l.speed_diff(), -1);
+    }
+
+    #[test]
+    fn mean_filter_depth() {
+        let mut f = MeanFilter::new(4);
+        for v in [4, 8, 12, 16, 20] {
+            f.push(v);
+        }
+        assert_eq!(f.sum, 8 + 12 + 16 + 20);
+        let mut g = MeanFilter::new(0);
+        assert_eq!(g.push(-7), -7);
+        assert_eq!(g.push(3), 3);
+    }
+}

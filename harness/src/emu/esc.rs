@@ -1,0 +1,734 @@
+//! One ESC: its register file, clock, control loop and SYNC unit, and what its EtherCAT
+//! processing unit (EPU) does to each datagram of a passing frame.
+//!
+//! Per-ESC time is lazy: [`Esc::advance_to`] moves this ESC's clock to a true time, on the way
+//! firing SYNC pulses, applying scheduled power/frequency events and the *pending* effects of
+//! earlier frames (port receive stamps, loop samples at end of frame) in time order. This lets
+//! a frame's data path be computed at once while its timed side effects land when they
+//! physically happen (e.g. a port-1 stamp after the next frame already passed port 0).
+
+use super::control_loop::{ControlLoop, LoopGains};
+use super::datagram::{cmd, DgSpan};
+use super::oscillator::{correction_rate, Oscillator, Wander};
+use super::registers::{addr, EscKind, RegisterFile};
+use super::sync_unit::{SyncSignal, SyncUnit};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// A SYNC output edge, recorded in true time (what an analyzer on the SYNC pins would see).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SyncEdge {
+    /// Slave index (position in the scenario).
+    pub slave: usize,
+    /// SYNC0 or SYNC1.
+    pub signal: SyncSignal,
+    /// True time of the rising edge, ns since simulation start (includes output jitter).
+    pub true_time: u64,
+    /// The system time the edge was programmed for (local copy of system time).
+    pub system_time: u64,
+}
+
+/// Static configuration of one ESC (resolved from the scenario).
+#[derive(Debug, Clone)]
+pub struct EscConfig {
+    pub kind: EscKind,
+    pub ports: u8,
+    pub t_p_ns: u64,
+    pub t_f_ns: u64,
+    pub ppb: f64,
+    pub alias: u16,
+    pub initial_station: u16,
+    pub esc_type: u8,
+    pub ram_bytes: u16,
+    pub pulse_len: u16,
+    pub tick_ns: u64,
+    pub wander: Wander,
+    pub gains: LoopGains,
+    pub sync_jitter_ns: u64,
+    /// Raw local time at true time 0 (ns since this ESC powered up).
+    pub initial_local_ns: u64,
+    pub seed: u64,
+}
+
+/// Something scheduled for this ESC at a true time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Scheduled {
+    PowerOff,
+    PowerOn,
+    FrequencyPpb(f64),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Pending {
+    /// Latch the local time into a port receive-time register.
+    Stamp { port: u8 },
+    /// Commit port 0 / EPU stamps taken at SOF (not visible in the same frame).
+    CommitSof { local: u64 },
+    /// Apply a loop sample at end of frame.
+    Sample { dt: i32 },
+}
+
+/// Per-visit context the network hands to the EPU.
+#[derive(Debug, Clone, Copy)]
+pub struct EpuCtx {
+    /// True time of the frame's first bit at port 0 (SOF).
+    pub t_sof: u64,
+    /// True time the frame ends at this ESC.
+    pub t_eof: u64,
+    /// DL status (0x0110) as seen at SOF, computed from the topology.
+    pub dl_status: u16,
+}
+
+/// What the EPU did that the network needs to know.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EpuResult {
+    /// A BWR/FPWR to 0x0900 was processed: stamp the other ports of this frame.
+    pub latch: bool,
+}
+
+/// One emulated ESC.
+#[derive(Debug, Clone)]
+pub struct Esc {
+    pub(crate) index: usize,
+    pub(crate) cfg: EscConfig,
+    regs: RegisterFile,
+    osc: Oscillator,
+    lp: ControlLoop,
+    sync: SyncUnit,
+    powered: bool,
+    sched: Vec<(u64, Scheduled)>,
+    pending: Vec<(u64, u64, Pending)>,
+    pending_seq: u64,
+    rng: ChaCha8Rng,
+    power_ups: u64,
+}
+
+fn fresh_regs(cfg: &EscConfig) -> RegisterFile {
+    RegisterFile::new(
+        cfg.kind,
+        cfg.ram_bytes,
+        cfg.ports,
+        cfg.esc_type,
+        cfg.pulse_len,
+    )
+}
+
+impl Esc {
+    /// An ESC powered since before true time 0.
+    pub fn new(index: usize, cfg: EscConfig) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let osc_rng = ChaCha8Rng::seed_from_u64(rng.gen());
+        let osc = Oscillator::new(
+            0,
+            cfg.initial_local_ns,
+            cfg.ppb,
+            cfg.tick_ns,
+            cfg.wander.clone(),
+            osc_rng,
+        );
+        let mut regs = fresh_regs(&cfg);
+        regs.set_u16(addr::STATION_ADDRESS, cfg.initial_station);
+        regs.set_u16(addr::STATION_ALIAS, cfg.alias);
+        Esc {
+            index,
+            lp: ControlLoop::new(cfg.gains),
+            cfg,
+            regs,
+            osc,
+            sync: SyncUnit::default(),
+            powered: true,
+            sched: Vec::new(),
+            pending: Vec::new(),
+            pending_seq: 0,
+            rng,
+            power_ups: 0,
+        }
+    }
+
+    /// Schedules a power or frequency event.
+    pub fn schedule(&mut self, t: u64, what: Scheduled) {
+        let pos = self.sched.partition_point(|(x, _)| *x <= t);
+        self.sched.insert(pos, (t, what));
+    }
+
+    fn push_pending(&mut self, t: u64, p: Pending) {
+        self.pending_seq += 1;
+        let key = (t, self.pending_seq);
+        let pos = self.pending.partition_point(|(x, s, _)| (*x, *s) <= key);
+        self.pending.insert(pos, (t, self.pending_seq, p));
+    }
+
+    /// Powered at the anchor.
+    pub fn powered(&self) -> bool {
+        self.powered
+    }
+
+    /// Register file (read-only view, for observers).
+    pub fn regs(&self) -> &RegisterFile {
+        &self.regs
+    }
+
+    /// Current frequency error of the oscillator, ppb.
+    pub fn ppb(&self) -> f64 {
+        self.osc.ppb()
+    }
+
+    /// True time this ESC has been evaluated up to.
+    pub fn anchor(&self) -> u64 {
+        self.osc.anchor()
+    }
+
+    fn mask(&self) -> u64 {
+        if self.cfg.kind.is_64bit() {
+            u64::MAX
+        } else {
+            u32::MAX as u64
+        }
+    }
+
+    /// Local time at the anchor (quantised), wrapped to 64 bits.
+    pub fn local(&self) -> u64 {
+        self.osc.local()
+    }
+
+    /// Local copy of system time at the anchor (width-masked), if the ESC has system time.
+    pub fn system_time(&self) -> Option<u64> {
+        if !self.cfg.kind.has_system_time() || !self.powered {
+            return None;
+        }
+        let off = self.regs.get_u64(addr::SYSTEM_TIME_OFFSET);
+        Some(self.osc.local().wrapping_add(off) & self.mask())
+    }
+
+    /// Moves this ESC to true time `t`, firing everything due on the way (in time order).
+    pub fn advance_to(&mut self, t: u64, edges: &mut Vec<SyncEdge>) {
+        loop {
+            let ts = self.sched.first().map(|e| e.0).filter(|&x| x <= t);
+            let tp = self.pending.first().map(|e| e.0).filter(|&x| x <= t);
+            let next = match (ts, tp) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
+            let until = next.unwrap_or(t);
+            self.run_until(until, edges);
+            match (ts, tp) {
+                (Some(a), _) if Some(a) == next => {
+                    let (_, what) = self.sched.remove(0);
+                    self.apply_scheduled(a, what);
+                }
+                (_, Some(_)) => {
+                    let (_, _, p) = self.pending.remove(0);
+                    self.apply_pending(p);
+                }
+                _ => break,
+            }
+        }
+    }
+
+    /// Advances the clock to `until`, firing SYNC pulses due before or at it.
+    fn run_until(&mut self, until: u64, edges: &mut Vec<SyncEdge>) {
+        if !self.powered {
+            return;
+        }
+        if !self.cfg.kind.has_system_time() {
+            self.osc.advance(until);
+            return;
+        }
+        loop {
+            let Some(sys) = self.system_time() else { break };
+            let Some((sig, d)) = self.sync.next_due(&self.regs, sys) else {
+                break;
+            };
+            match self.osc.time_to_advance(d) {
+                Some(te) if te <= until => {
+                    self.osc.advance(te);
+                    self.fire(sig, te, edges);
+                }
+                Some(_) => break,
+                None => {
+                    let pe = self.osc.piece_end();
+                    if pe > until {
+                        break;
+                    }
+                    self.osc.advance(pe);
+                }
+            }
+        }
+        self.osc.advance(until);
+    }
+
+    fn fire(&mut self, sig: SyncSignal, t: u64, edges: &mut Vec<SyncEdge>) {
+        let (x, out) = self.sync.fire(sig, &mut self.regs);
+        for (i, on) in out.iter().enumerate() {
+            if *on {
+                let j = if self.cfg.sync_jitter_ns > 0 {
+                    self.rng.gen_range(0..=self.cfg.sync_jitter_ns)
+                } else {
+                    0
+                };
+                edges.push(SyncEdge {
+                    slave: self.index,
+                    signal: if i == 0 {
+                        SyncSignal::Sync0
+                    } else {
+                        SyncSignal::Sync1
+                    },
+                    true_time: t + j,
+                    system_time: x,
+                });
+            }
+        }
+    }
+
+    fn apply_scheduled(&mut self, t: u64, what: Scheduled) {
+        match what {
+            Scheduled::PowerOff => {
+                self.osc.advance(t);
+                self.powered = false;
+                self.pending.clear();
+            }
+            Scheduled::PowerOn => {
+                if self.powered {
+                    return;
+                }
+                // REQ-ESC-090: power-up resets the clock (local time 0) and every register.
+                self.power_ups += 1;
+                let osc_rng = ChaCha8Rng::seed_from_u64(self.rng.gen());
+                self.osc = Oscillator::new(
+                    t,
+                    0,
+                    self.cfg.ppb,
+                    self.cfg.tick_ns,
+                    self.cfg.wander.clone(),
+                    osc_rng,
+                );
+                self.regs = fresh_regs(&self.cfg);
+                self.regs.set_u16(addr::STATION_ALIAS, self.cfg.alias);
+                self.lp = ControlLoop::new(self.cfg.gains);
+                self.sync = SyncUnit::default();
+                self.powered = true;
+            }
+            Scheduled::FrequencyPpb(ppb) => {
+                self.osc.advance(t);
+                self.cfg.ppb = ppb;
+                self.osc.set_base_ppb(ppb);
+            }
+        }
+    }
+
+    fn apply_pending(&mut self, p: Pending) {
+        if !self.powered {
+            return;
+        }
+        match p {
+            Pending::Stamp { port } => {
+                let v = self.osc.local() as u32;
+                self.regs
+                    .set_u32(addr::RECEIVE_TIME_PORT0 + 4 * u16::from(port), v);
+            }
+            Pending::CommitSof { local } => {
+                self.regs.set_u32(addr::RECEIVE_TIME_PORT0, local as u32);
+                if self.cfg.kind.has_system_time() {
+                    self.regs.set_dc64(addr::RECEIVE_TIME_EPU, local);
+                }
+            }
+            Pending::Sample { dt } => {
+                self.lp.sample(dt);
+                self.osc
+                    .set_dev(correction_rate(self.lp.start(), self.lp.speed_diff()));
+                self.regs
+                    .set_u32(addr::SYSTEM_TIME_DIFFERENCE, self.lp.difference_register());
+                self.regs
+                    .set_u16(addr::SPEED_COUNTER_DIFF, self.lp.speed_diff() as u16);
+            }
+        }
+    }
+
+    /// Schedules a port receive-time stamp of the current latching frame (ports 1..3).
+    pub fn stamp_port(&mut self, port: u8, t: u64) {
+        self.push_pending(t, Pending::Stamp { port });
+    }
+
+    /// Processes every datagram of the frame at this ESC's EPU. The caller has advanced the
+    /// ESC to `ctx.t_sof`. Returns what the network must finish (port stamps).
+    pub fn process(
+        &mut self,
+        frame: &mut [u8],
+        spans: &[DgSpan],
+        ctx: EpuCtx,
+        edges: &mut Vec<SyncEdge>,
+    ) -> EpuResult {
+        let mut res = EpuResult::default();
+        if !self.powered {
+            return res;
+        }
+        let local_sof = self.osc.local();
+        let sys_sof = self.system_time().unwrap_or(0);
+        let delay = u64::from(self.regs.get_u32(addr::SYSTEM_TIME_DELAY));
+        // REQ-ESC-042: ECAT read of 0x0910 = local copy at SOF − System Time Delay.
+        let sys_read = sys_sof.wrapping_sub(delay) & self.mask();
+        let mut st = Visit {
+            ctx,
+            sys_read,
+            sys_sof,
+            latch: false,
+            sample: None,
+            debug_pulse: false,
+        };
+        for s in spans {
+            self.datagram(frame, *s, &mut st);
+        }
+        if st.latch {
+            // REQ-ESC-030/031: port 0 and EPU are stamped with the SOF time, visible after
+            // the frame.
+            res.latch = true;
+            self.push_pending(ctx.t_eof, Pending::CommitSof { local: local_sof });
+        }
+        if st.debug_pulse {
+            // 0x0981 bit 7: one-shot debug pulse on both outputs, now (self-clearing).
+            for signal in [SyncSignal::Sync0, SyncSignal::Sync1] {
+                edges.push(SyncEdge {
+                    slave: self.index,
+                    signal,
+                    true_time: ctx.t_sof,
+                    system_time: sys_sof,
+                });
+            }
+        }
+        if let Some(dt) = st.sample {
+            // REQ-ESC-050: compared at end of frame.
+            self.push_pending(ctx.t_eof, Pending::Sample { dt });
+        }
+        res
+    }
+
+    fn datagram(&mut self, frame: &mut [u8], s: DgSpan, st: &mut Visit) {
+        let Some(hdr) = frame.get(s.start..s.data()) else {
+            return;
+        };
+        let c = hdr[0];
+        let adp = u16::from_le_bytes([hdr[2], hdr[3]]);
+        let ado = u16::from_le_bytes([hdr[4], hdr[5]]);
+        let logical = u32::from_le_bytes([hdr[2], hdr[3], hdr[4], hdr[5]]);
+        let (data_range, wkc_at) = (s.data()..s.wkc(), s.wkc());
+        let mut wkc_inc: u16 = 0;
+        let mut adp_inc = false;
+        match c {
+            cmd::APRD | cmd::APWR | cmd::APRW | cmd::ARMW => {
+                adp_inc = true;
+                if adp == 0 {
+                    wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, true);
+                } else if c == cmd::ARMW {
+                    wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, false);
+                }
+            }
+            cmd::FPRD | cmd::FPWR | cmd::FPRW | cmd::FRMW => {
+                let station = self.regs.get_u16(addr::STATION_ADDRESS);
+                let alias_on = self.regs.get_u8(addr::DL_CONTROL + 3) & 0x01 != 0;
+                let alias = self.regs.get_u16(addr::STATION_ALIAS);
+                let hit = adp == station || (alias_on && adp == alias);
+                if hit {
+                    wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, true);
+                } else if c == cmd::FRMW {
+                    wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, false);
+                }
+            }
+            cmd::BRD | cmd::BWR | cmd::BRW => {
+                adp_inc = true;
+                wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, true);
+            }
+            cmd::LRD | cmd::LWR | cmd::LRW => {
+                wkc_inc = self.logical(c, logical, &mut frame[data_range]);
+            }
+            _ => {}
+        }
+        if adp_inc {
+            let v = adp.wrapping_add(1).to_le_bytes();
+            frame[s.start + 2] = v[0];
+            frame[s.start + 3] = v[1];
+        }
+        if wkc_inc != 0 {
+            let w = u16::from_le_bytes([frame[wkc_at], frame[wkc_at + 1]]).wrapping_add(wkc_inc);
+            frame[wkc_at..wkc_at + 2].copy_from_slice(&w.to_le_bytes());
+        }
+    }
+
+    /// Physical (register/RAM) access. `addressed` false means "the non-addressed part of an
+    /// ARMW/FRMW": a write. Returns the working-counter increment (REQ-ESC-002).
+    fn reg_access(
+        &mut self,
+        c: u8,
+        ado: u16,
+        data: &mut [u8],
+        st: &mut Visit,
+        addressed: bool,
+    ) -> u16 {
+        match c {
+            cmd::APRD | cmd::FPRD => u16::from(self.read(ado, data, st, false)),
+            cmd::BRD => u16::from(self.read(ado, data, st, true)),
+            cmd::APWR | cmd::FPWR | cmd::BWR => u16::from(self.write(c, ado, data, st)),
+            cmd::APRW | cmd::FPRW => {
+                let input: Vec<u8> = data.to_vec();
+                let r = self.read(ado, data, st, false);
+                let w = self.write(c, ado, &input, st);
+                u16::from(r) + 2 * u16::from(w)
+            }
+            cmd::BRW => {
+                let input: Vec<u8> = data.to_vec();
+                let r = self.read(ado, data, st, true);
+                let w = self.write(c, ado, &input, st);
+                u16::from(r) + 2 * u16::from(w)
+            }
+            cmd::ARMW | cmd::FRMW => {
+                if addressed {
+                    u16::from(self.read(ado, data, st, false))
+                } else {
+                    u16::from(self.write(c, ado, data, st))
+                }
+            }
+            _ => 0,
+        }
+    }
+
+    /// One byte as an ECAT read sees it at SOF.
+    fn read_byte(&self, a: u16, st: &Visit) -> u8 {
+        match a {
+            0x0110..=0x0111 => st.ctx.dl_status.to_le_bytes()[usize::from(a - 0x0110)],
+            0x0910..=0x0917 => st.sys_read.to_le_bytes()[usize::from(a - 0x0910)],
+            _ => self.regs.get_u8(a),
+        }
+    }
+
+    fn read(&mut self, ado: u16, data: &mut [u8], st: &Visit, or: bool) -> bool {
+        let mut any = false;
+        for (i, b) in data.iter_mut().enumerate() {
+            let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
+                break;
+            };
+            if !self.regs.implemented(a) {
+                continue;
+            }
+            any = true;
+            let v = self.read_byte(a, st);
+            *b = if or { *b | v } else { v };
+        }
+        any
+    }
+
+    fn write(&mut self, c: u8, ado: u16, data: &[u8], st: &mut Visit) -> bool {
+        let kind = self.cfg.kind;
+        let sync_owner_ecat = self.regs.get_u8(addr::CYCLIC_UNIT_CONTROL) & 0x01 == 0;
+        let sync_active = SyncUnit::active(&self.regs);
+        let old_act = self.regs.get_u8(addr::SYNC_ACTIVATION);
+        let mut any = false;
+        let mut touched = Touched::default();
+        let mut recv = (st.sys_read as u32).to_le_bytes();
+        for (i, b) in data.iter().enumerate() {
+            let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
+                break;
+            };
+            if !self.regs.implemented(a) {
+                continue;
+            }
+            any = true;
+            match a {
+                0x0900 => touched.latch = true,
+                0x0910..=0x0913 if kind.has_system_time() => {
+                    recv[usize::from(a - 0x0910)] = *b;
+                    if a == 0x0910 {
+                        touched.system_time = true;
+                    }
+                }
+                _ => {}
+            }
+            if !self.regs.ecat_writable(a) {
+                continue;
+            }
+            // REQ-ESC-071: SYNC configuration is ECAT-writable only when ECAT owns the unit;
+            // REQ-ESC-072: the start time only while the unit is inactive.
+            if (0x0981..=0x09A7).contains(&a) && !sync_owner_ecat {
+                continue;
+            }
+            if (0x0990..=0x0997).contains(&a) && sync_active {
+                continue;
+            }
+            self.regs.set_u8(a, *b);
+            match a {
+                0x0120 => touched.al_control = true,
+                0x0930..=0x0931 => touched.speed_start = true,
+                0x0981 => touched.activation = true,
+                0x0990..=0x0993 => touched.start_low = true,
+                0x0994..=0x0997 => touched.start_high = true,
+                _ => {}
+            }
+        }
+        if !any {
+            return false;
+        }
+        // REQ-ESC-030: only BWR/FPWR covering 0x0900 trigger the receive-time latch.
+        if touched.latch && (c == cmd::BWR || c == cmd::FPWR) && kind.has_receive_times() {
+            st.latch = true;
+        }
+        if touched.system_time {
+            // REQ-ESC-050: wrap-safe signed difference of the lower 32 bits.
+            let received = u32::from_le_bytes(recv);
+            let dt = (st.sys_read as u32).wrapping_sub(received) as i32;
+            st.sample = Some(dt);
+        }
+        if touched.speed_start && kind.has_system_time() {
+            // REQ-ESC-053: any write to 0x0930 resets 0x092C, 0x0932 and the filters.
+            self.lp.reset(
+                self.regs.get_u16(addr::SPEED_COUNTER_START),
+                self.regs.get_u8(addr::DIFF_FILTER_DEPTH),
+                self.regs.get_u8(addr::SPEED_FILTER_DEPTH),
+            );
+            self.osc.set_dev(0);
+            self.regs.set_u32(addr::SYSTEM_TIME_DIFFERENCE, 0);
+            self.regs.set_u16(addr::SPEED_COUNTER_DIFF, 0);
+        }
+        if kind.has_system_time() {
+            if touched.start_low || touched.start_high {
+                self.sync
+                    .on_start_time_write(&mut self.regs, st.sys_sof, touched.start_high);
+            }
+            if touched.activation {
+                let debug = self
+                    .sync
+                    .on_activation_write(old_act, &mut self.regs, st.sys_sof);
+                st.debug_pulse |= debug;
+            }
+        }
+        if touched.al_control {
+            self.al_control();
+        }
+        any
+    }
+
+    /// AL state machine as a slave's firmware would drive it: valid requests are reflected in
+    /// 0x0130 at once; invalid ones set the error flag and code 0x0011 (REQ-ESC-020).
+    fn al_control(&mut self) {
+        let ctrl = self.regs.get_u16(addr::AL_CONTROL);
+        let status = self.regs.get_u16(addr::AL_STATUS);
+        let cur = status & 0x0F;
+        let mut err = status & 0x10 != 0;
+        if ctrl & 0x10 != 0 {
+            err = false;
+        }
+        let req = ctrl & 0x0F;
+        let valid_state = matches!(req, 1 | 2 | 3 | 4 | 8);
+        let ok = match (cur, req) {
+            (_, 1) => true,
+            (a, b) if a == b => true,
+            (1, 2) | (1, 3) | (2, 4) | (4, 8) | (4, 2) | (8, 4) | (8, 2) => true,
+            _ => false,
+        };
+        let (new, code) = if !valid_state {
+            (cur, Some(0x0012))
+        } else if ok {
+            (req, None)
+        } else {
+            (cur, Some(0x0011))
+        };
+        if let Some(code) = code {
+            err = true;
+            self.regs.set_u16(addr::AL_STATUS_CODE, code);
+        } else if !err {
+            self.regs.set_u16(addr::AL_STATUS_CODE, 0);
+        }
+        self.regs
+            .set_u16(addr::AL_STATUS, new | if err { 0x10 } else { 0 });
+    }
+
+    /// LRD/LWR/LRW through the FMMU table (byte granularity; start/stop bits ignored).
+    fn logical(&mut self, c: u8, laddr: u32, data: &mut [u8]) -> u16 {
+        let mut read = false;
+        let mut wrote = false;
+        let dlen = data.len() as u64;
+        let l0 = u64::from(laddr);
+        for f in 0..usize::from(self.regs.get_u8(addr::FMMUS_SUPPORTED).min(16)) {
+            let base = addr::FMMU0 + 16 * f as u16;
+            if self.regs.get_u8(base + 12) & 0x01 == 0 {
+                continue;
+            }
+            let typ = self.regs.get_u8(base + 11);
+            let ls = u64::from(self.regs.get_u32(base));
+            let flen = u64::from(self.regs.get_u16(base + 4));
+            let phys = u64::from(self.regs.get_u16(base + 8));
+            let lo = l0.max(ls);
+            let hi = (l0 + dlen).min(ls + flen);
+            let do_read = typ & 0x01 != 0 && c != cmd::LWR;
+            let do_write = typ & 0x02 != 0 && c != cmd::LRD;
+            let mut j = lo;
+            while j < hi {
+                let k = (j - l0) as usize;
+                let Ok(pa) = u16::try_from(phys + (j - ls)) else {
+                    break;
+                };
+                if self.regs.implemented(pa) {
+                    let inb = data[k];
+                    if do_read {
+                        data[k] = self.regs.get_u8(pa);
+                        read = true;
+                    }
+                    if do_write {
+                        if self.regs.ecat_writable(pa) {
+                            self.regs.set_u8(pa, inb);
+                        }
+                        wrote = true;
+                    }
+                }
+                j += 1;
+            }
+        }
+        u16::from(read) + 2 * u16::from(wrote)
+    }
+
+    /// Debug read of the register file (no side effects). 0x0910 reads the local copy at the
+    /// anchor (like a PDI read), 0x0110 reads as stored (the network fills it on ECAT reads).
+    pub fn peek(&self, a: u16, len: usize) -> Vec<u8> {
+        let sys = self.system_time().unwrap_or(0);
+        (0..len)
+            .map(|i| {
+                let x = a.wrapping_add(i as u16);
+                match x {
+                    0x0910..=0x0917 if self.cfg.kind.has_system_time() => {
+                        sys.to_le_bytes()[usize::from(x - 0x0910)]
+                    }
+                    _ => self.regs.get_u8(x),
+                }
+            })
+            .collect()
+    }
+
+    /// Control-loop diagnostics.
+    pub fn control_loop(&self) -> &ControlLoop {
+        &self.lp
+    }
+
+    /// Number of power-ups after the initial one.
+    pub fn power_ups(&self) -> u64 {
+        self.power_ups
+    }
+}
+
+#[derive(Default)]
+struct Touched {
+    latch: bool,
+    system_time: bool,
+    speed_start: bool,
+    activation: bool,
+    start_low: bool,
+    start_high: bool,
+    al_control: bool,
+}
+
+/// Per-visit state while one frame passes this ESC's EPU.
+struct Visit {
+    ctx: EpuCtx,
+    sys_read: u64,
+    sys_sof: u64,
+    latch: bool,
+    sample: Option<i32>,
+    debug_pulse: bool,
+}

@@ -1,0 +1,39 @@
+//! Faults that a scenario (or a running test) can inject at given true times. REQ-ESC-090..094.
+
+use serde::{Deserialize, Serialize};
+
+/// A fault and when it happens (true time, ns since the start of the run).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FaultSpec {
+    pub at_ns: u64,
+    #[serde(flatten)]
+    pub fault: Fault,
+}
+
+/// What goes wrong.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Fault {
+    /// The cable at `port` of `slave` goes down (port 0 = the cable towards the master). Both
+    /// neighbours close that port; frames already beyond the break circulate and are destroyed.
+    LinkBreak { slave: usize, port: u8 },
+    /// The cable comes back.
+    LinkRestore { slave: usize, port: u8 },
+    /// The slave loses power: it disappears from the chain (its neighbours' ports close).
+    /// Loss of the reference slave is this fault applied to the reference.
+    PowerOff { slave: usize },
+    /// Power returns: local time restarts at 0 and every register takes its reset value.
+    PowerOn { slave: usize },
+    /// Off now, on again `off_ns` later.
+    PowerCycle { slave: usize, off_ns: u64 },
+    /// From now on, each frame is lost with this probability.
+    FrameLossRate { rate: f64 },
+    /// The slave's crystal error changes to `ppm` (a temperature step).
+    FrequencyStep { slave: usize, ppm: f64 },
+    /// The cable into the slave's port 0 changes length (applied at frame boundaries).
+    CableLength { slave: usize, meters: f64 },
+    /// Chooses the slave's power-on phase so that its 32-bit local time (the port receive
+    /// times) wraps exactly at this fault's time — e.g. in the middle of a delay measurement.
+    /// Scenario-only (it sets the initial state); `None` = every slave.
+    PortTimeWrap { slave: Option<usize> },
+}

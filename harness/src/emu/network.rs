@@ -1,0 +1,676 @@
+//! The emulated chain as the master sees it: a frame goes in at a true time, the processed
+//! frame comes back at a later true time. Also the observers the rest of the team needs: any
+//! slave's local time and local copy of system time at a true time, SYNC edges in true time,
+//! and faults scheduled at true times.
+
+use super::datagram::{self, DgSpan, ForwardReason, FrameClass, CIRCULATING, IFG_NS, SRC_MAC};
+use super::esc::{EpuCtx, Esc, EscConfig, Scheduled, SyncEdge};
+use super::fault::Fault;
+use super::oscillator::Wander;
+use super::registers::EscKind;
+use super::scenario::{PpmSpec, Scenario};
+use super::topology::Topology;
+use super::{EmuError, TrueTime};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A frame that came back to the master.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Returned {
+    /// The frame as the master receives it (same length as sent; no padding added).
+    pub frame: Vec<u8>,
+    /// True time the first preamble bit reaches the master.
+    pub first_bit: TrueTime,
+    /// True time the last bit (FCS) has arrived: when software can see the frame.
+    pub arrival: TrueTime,
+    /// True time the first bit left the master (later than the requested send time if the
+    /// master's port was still busy with the previous frame).
+    pub sent: TrueTime,
+    /// `Some` if the slaves forwarded the frame without processing it.
+    pub unprocessed: Option<ForwardReason>,
+}
+
+/// Why a frame did not come back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LossReason {
+    /// Injected loss (frame corrupted on its path).
+    Injected,
+    /// The frame circulated in a segment cut off by a link break and was destroyed.
+    Circulated,
+    /// No link from the master to the first slave at send time.
+    NoLink,
+}
+
+/// Outcome of [`Network::transact`].
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Delivery {
+    Returned(Returned),
+    Lost(LossReason),
+}
+
+impl Delivery {
+    /// The returned frame, if any.
+    pub fn returned(self) -> Option<Returned> {
+        match self {
+            Delivery::Returned(r) => Some(r),
+            Delivery::Lost(_) => None,
+        }
+    }
+}
+
+/// A slave's clocks at a true time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClockSample {
+    /// The true time sampled.
+    pub true_time: TrueTime,
+    /// Local time (quantised, 64-bit); `None` while powered off.
+    pub local: Option<u64>,
+    /// Local copy of system time (width-masked); `None` without system time or power.
+    pub system_time: Option<u64>,
+}
+
+/// Static facts about a slave (for reports and for computing expected values).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlaveInfo {
+    pub name: Option<String>,
+    pub kind: EscKind,
+    pub ports: u8,
+    pub parent: Option<(usize, u8)>,
+    pub t_p_ns: u64,
+    pub t_f_ns: u64,
+    /// Cable into port 0, ns.
+    pub cable_ns: u64,
+    /// Configured crystal error (before wander and frequency steps), ppm.
+    pub ppm: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Visit {
+    Epu { slave: usize, t: u64, set_c: bool },
+    Rx { slave: usize, port: u8, t: u64 },
+}
+
+#[derive(Debug, Clone, Copy)]
+enum NetEvent {
+    LossRate(f64),
+    Cable { slave: usize, ns: u64 },
+}
+
+/// Statistics since construction.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    pub frames: u64,
+    pub returned: u64,
+    pub lost: u64,
+}
+
+/// splitmix64: derives independent seeds for independent random streams.
+fn sub_seed(seed: u64, stream: u64) -> u64 {
+    let mut z = seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
+    match *spec {
+        PpmSpec::Fixed(v) => v,
+        PpmSpec::Uniform { min, max } => {
+            if max > min {
+                rng.gen_range(min..=max)
+            } else {
+                min
+            }
+        }
+        PpmSpec::Normal { mean, sd, limit } => {
+            let u1: f64 = rng.gen::<f64>().max(f64::MIN_POSITIVE);
+            let u2: f64 = rng.gen();
+            let n = (-2.0 * u1.ln()).sqrt() * (core::f64::consts::TAU * u2).cos();
+            (mean + sd * n).clamp(-limit.abs(), limit.abs())
+        }
+    }
+}
+
+/// The emulated slave chain.
+#[derive(Debug)]
+pub struct Network {
+    escs: Vec<Esc>,
+    info: Vec<SlaveInfo>,
+    topo: Topology,
+    edges: Vec<SyncEdge>,
+    now: TrueTime,
+    tx_free: TrueTime,
+    master_cable_ns: u64,
+    cable_ns_per_m: f64,
+    phy_jitter_ns: u64,
+    loss_rate: f64,
+    net_events: Vec<(u64, NetEvent)>,
+    jitter_rng: ChaCha8Rng,
+    loss_rng: ChaCha8Rng,
+    visits: Vec<Visit>,
+    spans: Vec<DgSpan>,
+    latch: Vec<bool>,
+    stats: Stats,
+}
+
+impl Network {
+    /// Builds the chain described by `sc`. Faults listed in the scenario are scheduled.
+    pub fn new(sc: &Scenario) -> Result<Self, EmuError> {
+        let slaves = sc.resolve()?;
+        let t = &sc.timing;
+        let mut ppm_rng = ChaCha8Rng::seed_from_u64(sub_seed(sc.seed, 1));
+        let mut phase_rng = ChaCha8Rng::seed_from_u64(sub_seed(sc.seed, 2));
+        let wander = Wander {
+            interval_ns: t.wander_interval_ns,
+            step_ppb: t.wander_step_ppb,
+            revert_pieces: t.wander_revert_pieces,
+        };
+        let cable = |m: f64| (m.max(0.0) * t.cable_ns_per_m).round() as u64;
+        let mut escs = Vec::with_capacity(slaves.len());
+        let mut info = Vec::with_capacity(slaves.len());
+        let mut parents = Vec::with_capacity(slaves.len());
+        let mut cables = Vec::with_capacity(slaves.len());
+        for (i, s) in slaves.iter().enumerate() {
+            let drawn = draw_ppm(&sc.defaults.ppm, &mut ppm_rng);
+            let ppm = s.ppm.unwrap_or(drawn);
+            let phase = if t.power_on_spread_ns > 0 {
+                phase_rng.gen_range(0..t.power_on_spread_ns)
+            } else {
+                0
+            };
+            let mut initial = s.initial_local_ns.unwrap_or(phase);
+            for f in &sc.faults {
+                if let Fault::PortTimeWrap { slave } = f.fault {
+                    if slave.is_none() || slave == Some(i) {
+                        // local(at) = initial + at·(1 + ppm) ≡ 0 (mod 2^32).
+                        let adv = (f.at_ns as f64 * (1.0 + ppm * 1e-6)).round() as u64;
+                        let m = 1u64 << 32;
+                        initial = m + (m - adv % m) % m;
+                    }
+                }
+            }
+            let cfg = EscConfig {
+                kind: s.kind,
+                ports: s.ports,
+                t_p_ns: s.t_p_ns,
+                t_f_ns: s.t_f_ns,
+                ppb: ppm * 1000.0,
+                alias: s.alias,
+                initial_station: s.station,
+                esc_type: s.esc_type.unwrap_or(s.kind.default_type()),
+                ram_bytes: sc.defaults.ram_bytes,
+                pulse_len: sc.defaults.pulse_len,
+                tick_ns: t.tick_ns,
+                wander: wander.clone(),
+                gains: sc.loop_gains,
+                sync_jitter_ns: t.sync_jitter_ns,
+                initial_local_ns: initial,
+                seed: sub_seed(sc.seed, 1000 + i as u64),
+            };
+            escs.push(Esc::new(i, cfg));
+            info.push(SlaveInfo {
+                name: s.name.clone(),
+                kind: s.kind,
+                ports: s.ports,
+                parent: s.parent,
+                t_p_ns: s.t_p_ns,
+                t_f_ns: s.t_f_ns,
+                cable_ns: cable(s.cable_m),
+                ppm,
+            });
+            parents.push(s.parent);
+            cables.push(cable(s.cable_m));
+        }
+        let n = escs.len();
+        let mut net = Network {
+            escs,
+            info,
+            topo: Topology::new(parents, cables),
+            edges: Vec::new(),
+            now: 0,
+            tx_free: 0,
+            master_cable_ns: cable(t.master_cable_m),
+            cable_ns_per_m: t.cable_ns_per_m,
+            phy_jitter_ns: t.phy_jitter_ns,
+            loss_rate: sc.frame_loss_rate,
+            net_events: Vec::new(),
+            jitter_rng: ChaCha8Rng::seed_from_u64(sub_seed(sc.seed, 3)),
+            loss_rng: ChaCha8Rng::seed_from_u64(sub_seed(sc.seed, 4)),
+            visits: Vec::with_capacity(4 * n + 4),
+            spans: Vec::with_capacity(16),
+            latch: vec![false; n],
+            stats: Stats::default(),
+        };
+        for f in &sc.faults {
+            if matches!(f.fault, Fault::PortTimeWrap { .. }) {
+                continue;
+            }
+            net.schedule_fault(f.at_ns, f.fault.clone())?;
+        }
+        Ok(net)
+    }
+
+    /// Number of slaves.
+    pub fn slave_count(&self) -> usize {
+        self.escs.len()
+    }
+
+    /// Latest true time the network has been driven to (by frames, advances or samples).
+    pub fn now(&self) -> TrueTime {
+        self.now
+    }
+
+    /// Frame statistics.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+
+    /// Static facts about slave `i`.
+    pub fn slave_info(&self, i: usize) -> Option<&SlaveInfo> {
+        self.info.get(i)
+    }
+
+    /// The ESC model of slave `i` (register file, loop state), read-only.
+    pub fn esc(&self, i: usize) -> Option<&Esc> {
+        self.escs.get(i)
+    }
+
+    fn check_slave(&self, i: usize) -> Result<(), EmuError> {
+        if i < self.escs.len() {
+            Ok(())
+        } else {
+            Err(EmuError::NoSuchSlave(i))
+        }
+    }
+
+    /// Schedules a fault at true time `at` (≥ now).
+    pub fn schedule_fault(&mut self, at: TrueTime, fault: Fault) -> Result<(), EmuError> {
+        if at < self.now {
+            return Err(EmuError::TimeInPast {
+                t: at,
+                now: self.now,
+            });
+        }
+        match fault {
+            Fault::LinkBreak { slave, port } | Fault::LinkRestore { slave, port } => {
+                self.check_slave(slave)?;
+                let id = self
+                    .topo
+                    .link_id(slave, port)
+                    .ok_or(EmuError::NoSuchPort { slave, port })?;
+                let up = matches!(fault, Fault::LinkRestore { .. });
+                self.topo.set_link(id, at, up);
+            }
+            Fault::PowerOff { slave } => {
+                self.check_slave(slave)?;
+                self.topo.set_power(slave, at, false);
+                self.escs[slave].schedule(at, Scheduled::PowerOff);
+            }
+            Fault::PowerOn { slave } => {
+                self.check_slave(slave)?;
+                self.topo.set_power(slave, at, true);
+                self.escs[slave].schedule(at, Scheduled::PowerOn);
+            }
+            Fault::PowerCycle { slave, off_ns } => {
+                self.schedule_fault(at, Fault::PowerOff { slave })?;
+                self.schedule_fault(at.saturating_add(off_ns.max(1)), Fault::PowerOn { slave })?;
+            }
+            Fault::FrameLossRate { rate } => {
+                if !(0.0..=1.0).contains(&rate) {
+                    return Err(EmuError::Scenario("loss rate must be in [0, 1]".into()));
+                }
+                self.push_net_event(at, NetEvent::LossRate(rate));
+            }
+            Fault::FrequencyStep { slave, ppm } => {
+                self.check_slave(slave)?;
+                self.escs[slave].schedule(at, Scheduled::FrequencyPpb(ppm * 1000.0));
+            }
+            Fault::CableLength { slave, meters } => {
+                self.check_slave(slave)?;
+                let ns = (meters.max(0.0) * self.cable_ns_per_m).round() as u64;
+                self.push_net_event(at, NetEvent::Cable { slave, ns });
+            }
+            Fault::PortTimeWrap { .. } => return Err(EmuError::NotSchedulable),
+        }
+        Ok(())
+    }
+
+    fn push_net_event(&mut self, at: u64, e: NetEvent) {
+        let pos = self.net_events.partition_point(|(x, _)| *x <= at);
+        self.net_events.insert(pos, (at, e));
+    }
+
+    fn apply_net_events(&mut self, t: u64) {
+        while let Some((at, e)) = self.net_events.first().copied() {
+            if at > t {
+                break;
+            }
+            self.net_events.remove(0);
+            match e {
+                NetEvent::LossRate(r) => self.loss_rate = r,
+                NetEvent::Cable { slave, ns } => {
+                    if let Some(c) = self.topo.cable_ns.get_mut(slave) {
+                        *c = ns;
+                    }
+                    if let Some(i) = self.info.get_mut(slave) {
+                        i.cable_ns = ns;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Drives every slave to true time `t` without frames: SYNC pulses keep firing, loops keep
+    /// their rate, scheduled faults take effect.
+    pub fn advance_to(&mut self, t: TrueTime) -> Result<(), EmuError> {
+        if t < self.now {
+            return Err(EmuError::TimeInPast { t, now: self.now });
+        }
+        self.apply_net_events(t);
+        for e in &mut self.escs {
+            if e.anchor() <= t {
+                e.advance_to(t, &mut self.edges);
+            }
+        }
+        self.now = t;
+        Ok(())
+    }
+
+    /// Slave `i`'s local time and local copy of system time at true time `t` (≥ now; the
+    /// network's time moves to `t`). Use it for clock-error plots.
+    pub fn clock(&mut self, i: usize, t: TrueTime) -> Result<ClockSample, EmuError> {
+        self.check_slave(i)?;
+        if t < self.now || t < self.escs[i].anchor() {
+            return Err(EmuError::TimeInPast {
+                t,
+                now: self.now.max(self.escs[i].anchor()),
+            });
+        }
+        self.apply_net_events(t);
+        self.now = t;
+        let e = &mut self.escs[i];
+        e.advance_to(t, &mut self.edges);
+        Ok(ClockSample {
+            true_time: t,
+            local: e.powered().then(|| e.local()),
+            system_time: e.system_time(),
+        })
+    }
+
+    /// All SYNC edges up to now, sorted by true time (then slave), removed from the log.
+    pub fn take_sync_edges(&mut self) -> Vec<SyncEdge> {
+        let now = self.now;
+        for e in &mut self.escs {
+            if e.anchor() <= now {
+                e.advance_to(now, &mut self.edges);
+            }
+        }
+        self.edges
+            .sort_by_key(|e| (e.true_time, e.slave, e.signal as u8));
+        let n = self.edges.partition_point(|e| e.true_time <= now);
+        let rest = self.edges.split_off(n);
+        core::mem::replace(&mut self.edges, rest)
+    }
+
+    /// Debug read of a slave's registers without side effects (0x0910 = local copy now).
+    pub fn peek(&self, i: usize, addr: u16, len: usize) -> Result<Vec<u8>, EmuError> {
+        self.check_slave(i)?;
+        Ok(self.escs[i].peek(addr, len))
+    }
+
+    /// Current oscillator frequency error of slave `i` (configured + wander + steps), ppb.
+    pub fn oscillator_ppb(&self, i: usize) -> Result<f64, EmuError> {
+        self.check_slave(i)?;
+        Ok(self.escs[i].ppb())
+    }
+
+    fn jitter(&mut self, on: bool) -> u64 {
+        if on && self.phy_jitter_ns > 0 {
+            self.jitter_rng.gen_range(0..=self.phy_jitter_ns)
+        } else {
+            0
+        }
+    }
+
+    fn forced_closed(&self, s: usize, port: u8) -> bool {
+        // DL control 0x0101: two loop bits per port; 0b11 = always closed.
+        let v = self.escs[s].regs().get_u8(0x0101);
+        (v >> (2 * port)) & 0x03 == 0x03
+    }
+
+    /// Whether the frame can leave `s` through `port` at `t` (and reach the neighbour).
+    fn port_open(&self, s: usize, port: u8, t: u64) -> bool {
+        if port >= self.info[s].ports || self.forced_closed(s, port) {
+            return false;
+        }
+        if port == 0 {
+            let parent_ok = match self.topo.parent[s] {
+                Some((p, q)) => !self.forced_closed(p, q),
+                None => true,
+            };
+            return parent_ok && self.topo.link_up(s, t);
+        }
+        match self.topo.children[s][usize::from(port)] {
+            Some(c) => self.topo.link_up(c, t) && !self.forced_closed(c, 0),
+            None => false,
+        }
+    }
+
+    /// DL status (0x0110) of `s` at `t`: bit 0 PDI operational, bits 4..7 link on port 0..3,
+    /// bit 8+2p loop closed, bit 9+2p communication. REQ-ESC-015.
+    fn dl_status(&self, s: usize, t: u64) -> u16 {
+        let mut v: u16 = 0x0001;
+        for p in 0..4u8 {
+            let physical = p < self.info[s].ports
+                && match p {
+                    0 => self.topo.link_up(s, t),
+                    _ => self.topo.children[s][usize::from(p)]
+                        .is_some_and(|c| self.topo.link_up(c, t)),
+                };
+            let open = self.port_open(s, p, t);
+            if physical {
+                v |= 1 << (4 + p);
+            }
+            if !open {
+                v |= 1 << (8 + 2 * p);
+            }
+            if open {
+                v |= 1 << (9 + 2 * p);
+            }
+        }
+        v
+    }
+
+    /// Walks the frame through slave `s` entering port 0 at `t`; returns the time the frame's
+    /// first bit leaves port 0 back upstream, or `None` if it was destroyed (circulating).
+    /// Order: 0 → EPU → 3 → 1 → 2 → 0; closed ports loop back at no cost. REQ-ESC-081/082.
+    fn walk(
+        &mut self,
+        s: usize,
+        t_in: u64,
+        c: &mut bool,
+        budget: &mut usize,
+        jit: bool,
+    ) -> Option<u64> {
+        let mut t = t_in;
+        let mut reentry = false;
+        loop {
+            *budget = budget.checked_sub(1)?;
+            if reentry {
+                // Port 0 closed: the frame re-enters the EPU. First time it gets the
+                // circulating bit; the second time it is destroyed. REQ-ESC-005.
+                if *c {
+                    return None;
+                }
+                *c = true;
+            }
+            self.visits.push(Visit::Epu {
+                slave: s,
+                t,
+                set_c: reentry,
+            });
+            t += self.info[s].t_p_ns;
+            for q in [3u8, 1, 2] {
+                if !self.port_open(s, q, t) {
+                    continue;
+                }
+                let Some(child) = self.topo.children[s][usize::from(q)] else {
+                    continue;
+                };
+                let down = t + self.topo.cable_ns[child] + self.jitter(jit);
+                let back = self.walk(child, down, c, budget, jit)?;
+                let rx = back + self.topo.cable_ns[child] + self.jitter(jit);
+                self.visits.push(Visit::Rx {
+                    slave: s,
+                    port: q,
+                    t: rx,
+                });
+                t = rx + self.info[s].t_f_ns;
+            }
+            if self.port_open(s, 0, t) {
+                return Some(t);
+            }
+            reentry = true;
+        }
+    }
+
+    /// Sends `frame` with its first bit leaving the master at `send_time` (≥ now) and returns
+    /// what comes back. All slave effects of the frame happen at their true times.
+    pub fn transact(&mut self, frame: &[u8], send_time: TrueTime) -> Result<Delivery, EmuError> {
+        if send_time < self.now {
+            return Err(EmuError::TimeInPast {
+                t: send_time,
+                now: self.now,
+            });
+        }
+        self.now = send_time;
+        self.apply_net_events(send_time);
+        self.stats.frames += 1;
+        let t0 = send_time.max(self.tx_free);
+        let dur = datagram::wire_duration_ns(frame.len());
+        self.tx_free = t0 + dur + IFG_NS;
+        if self.escs.is_empty() || !self.port_open_master(t0) {
+            self.stats.lost += 1;
+            return Ok(Delivery::Lost(LossReason::NoLink));
+        }
+        let mut buf = frame.to_vec();
+        let mut spans = core::mem::take(&mut self.spans);
+        let class = datagram::walk(&buf, &mut spans);
+        let mut c = match (class, spans.first()) {
+            (FrameClass::Ecat, Some(s)) => {
+                u16::from_le_bytes([buf[s.start + 6], buf[s.start + 7]]) & CIRCULATING != 0
+            }
+            _ => false,
+        };
+        self.visits.clear();
+        let t_in = t0 + self.master_cable_ns + self.jitter(true);
+        let mut budget = 8 * self.escs.len() + 8;
+        let back = self.walk(0, t_in, &mut c, &mut budget, true);
+        let injected = self.loss_rate > 0.0 && self.loss_rng.gen::<f64>() < self.loss_rate;
+        let cut = if injected {
+            self.loss_rng.gen_range(0..=self.visits.len())
+        } else {
+            self.visits.len()
+        };
+        let visits = core::mem::take(&mut self.visits);
+        let mut first = true;
+        for (k, v) in visits.iter().enumerate() {
+            match *v {
+                Visit::Epu { slave, t, set_c } => {
+                    self.latch[slave] = false;
+                    if k >= cut {
+                        continue;
+                    }
+                    let dl = self.dl_status(slave, t);
+                    let esc = &mut self.escs[slave];
+                    esc.advance_to(t, &mut self.edges);
+                    if class != FrameClass::Ecat || !esc.powered() {
+                        continue;
+                    }
+                    if first {
+                        // REQ-ESC-004: the first slave marks the frame as processed.
+                        buf[SRC_MAC] |= 0x02;
+                        first = false;
+                    }
+                    if set_c {
+                        if let Some(s) = spans.first() {
+                            buf[s.start + 7] |= (CIRCULATING >> 8) as u8;
+                        }
+                    }
+                    let ctx = EpuCtx {
+                        t_sof: t,
+                        t_eof: t + dur,
+                        dl_status: dl,
+                    };
+                    let r = esc.process(&mut buf, &spans, ctx, &mut self.edges);
+                    self.latch[slave] = r.latch;
+                }
+                Visit::Rx { slave, port, t } => {
+                    if self.latch[slave] {
+                        self.escs[slave].stamp_port(port, t);
+                    }
+                }
+            }
+        }
+        for v in &visits {
+            if let Visit::Epu { slave, .. } = v {
+                self.latch[*slave] = false;
+            }
+        }
+        self.visits = visits;
+        self.spans = spans;
+        let Some(back) = back else {
+            self.stats.lost += 1;
+            return Ok(Delivery::Lost(LossReason::Circulated));
+        };
+        if injected {
+            self.stats.lost += 1;
+            return Ok(Delivery::Lost(LossReason::Injected));
+        }
+        let first_bit = back + self.master_cable_ns + self.jitter(true);
+        self.stats.returned += 1;
+        Ok(Delivery::Returned(Returned {
+            frame: buf,
+            first_bit,
+            arrival: first_bit + dur,
+            sent: t0,
+            unprocessed: match class {
+                FrameClass::Ecat => None,
+                FrameClass::Forward(r) => Some(r),
+            },
+        }))
+    }
+
+    fn port_open_master(&self, t: u64) -> bool {
+        !self.forced_closed(0, 0) && self.topo.link_up(0, t)
+    }
+
+    /// True time at which a frame sent at `send_time` would reach each slave's EPU, without
+    /// jitter and without side effects (`None` = not reached). For checking delay maths
+    /// against the truth.
+    pub fn epu_arrival_times(&mut self, send_time: TrueTime) -> Vec<Option<TrueTime>> {
+        let mut out = vec![None; self.escs.len()];
+        if self.escs.is_empty() || !self.port_open_master(send_time) {
+            return out;
+        }
+        let saved = core::mem::take(&mut self.visits);
+        let mut c = false;
+        let mut budget = 8 * self.escs.len() + 8;
+        let _ = self.walk(
+            0,
+            send_time + self.master_cable_ns,
+            &mut c,
+            &mut budget,
+            false,
+        );
+        for v in &self.visits {
+            if let Visit::Epu { slave, t, .. } = *v {
+                if out[slave].is_none() {
+                    out[slave] = Some(t);
+                }
+            }
+        }
+        self.visits = saved;
+        out
+    }
+}

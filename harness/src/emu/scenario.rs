@@ -1,0 +1,364 @@
+//! Scenario: everything that makes a run reproducible — topology, delays, oscillator errors,
+//! faults and the seed. Loadable from TOML or JSON (serde) and buildable in code.
+//!
+//! Example (see harness/scenarios/*.toml):
+//! ```toml
+//! seed = 7
+//! [defaults]
+//! ppm = { uniform = { min = -50.0, max = 50.0 } }
+//! [[slaves]]
+//! repeat = 10            # ten slaves in a line
+//! [[faults]]
+//! at_ns = 2_000_000_000
+//! kind = "link_break"
+//! slave = 5
+//! port = 0
+//! ```
+
+use super::control_loop::LoopGains;
+use super::fault::{Fault, FaultSpec};
+use super::registers::EscKind;
+use super::EmuError;
+use serde::{Deserialize, Serialize};
+
+/// Global timing model. Defaults marked "model" have no source (docs/emulator.md §Constants).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Timing {
+    /// Observation quantum of local time (10 ns: 100 MHz DC clock). 1 disables quantisation.
+    pub tick_ns: u64,
+    /// PHY jitter per hop: uniform in [0, phy_jitter_ns] ns added to every cable traversal
+    /// (model). 0 makes hop times exact.
+    pub phy_jitter_ns: u64,
+    /// SYNC output jitter: uniform in [0, sync_jitter_ns] ns added to recorded edges (model;
+    /// the 10 ns quantisation is already in the clock).
+    pub sync_jitter_ns: u64,
+    /// Cable delay per metre (≈ 5 ns/m, DS S1-88).
+    pub cable_ns_per_m: f64,
+    /// Cable from the master to the first slave, metres.
+    pub master_cable_m: f64,
+    /// Local times at true time 0 are uniform in [0, power_on_spread_ns) (slaves powered up at
+    /// different instants before the run). Model.
+    pub power_on_spread_ns: u64,
+    /// Frequency wander piece length, ns (0 = no wander). Model.
+    pub wander_interval_ns: u64,
+    /// Standard deviation of the wander step per piece, ppb. Model.
+    pub wander_step_ppb: f64,
+    /// Mean reversion of the wander, in pieces. Model.
+    pub wander_revert_pieces: f64,
+}
+
+impl Default for Timing {
+    fn default() -> Self {
+        Timing {
+            tick_ns: 10,
+            phy_jitter_ns: 8,
+            sync_jitter_ns: 0,
+            cable_ns_per_m: 5.0,
+            master_cable_m: 1.0,
+            power_on_spread_ns: 5_000_000_000,
+            wander_interval_ns: 100_000_000,
+            wander_step_ppb: 2.0,
+            wander_revert_pieces: 600.0,
+        }
+    }
+}
+
+/// How a slave's crystal error is drawn.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum PpmSpec {
+    /// Uniform in [min, max] ppm.
+    Uniform { min: f64, max: f64 },
+    /// Normal(mean, sd) ppm, clipped to ±limit.
+    Normal { mean: f64, sd: f64, limit: f64 },
+    /// Exactly this value.
+    Fixed(f64),
+}
+
+impl Default for PpmSpec {
+    fn default() -> Self {
+        PpmSpec::Uniform {
+            min: -50.0,
+            max: 50.0,
+        }
+    }
+}
+
+/// Values every slave gets unless its own spec overrides them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SlaveDefaults {
+    pub kind: EscKind,
+    /// Number of ports (2..=4).
+    pub ports: u8,
+    /// Processing delay t_P: port 0 RX → EPU → next port TX, ns (model).
+    pub t_p_ns: u64,
+    /// Forwarding delay t_F: port n RX → next port TX, ns (model).
+    pub t_f_ns: u64,
+    /// Cable into the slave's port 0, metres.
+    pub cable_m: f64,
+    pub ppm: PpmSpec,
+    /// Process RAM, bytes.
+    pub ram_bytes: u16,
+    /// 0x0982 SYNC pulse length, 10 ns units (EEPROM value; model default 1 µs).
+    pub pulse_len: u16,
+}
+
+impl Default for SlaveDefaults {
+    fn default() -> Self {
+        SlaveDefaults {
+            kind: EscKind::Dc64,
+            ports: 2,
+            t_p_ns: 540,
+            t_f_ns: 460,
+            cable_m: 1.0,
+            ppm: PpmSpec::default(),
+            ram_bytes: 4096,
+            pulse_len: 100,
+        }
+    }
+}
+
+/// One slave, or `repeat` identical slaves in a line.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SlaveSpec {
+    /// Free text for reports.
+    pub name: Option<String>,
+    /// Instantiate this many copies, each attached to the previous one (port 1).
+    pub repeat: usize,
+    pub kind: Option<EscKind>,
+    pub ports: Option<u8>,
+    /// Index of the slave this one's port 0 is cabled to (default: the previous slave; the
+    /// first slave is always cabled to the master).
+    pub parent: Option<usize>,
+    /// Port of the parent (default: the parent's first free port among 1, 2, 3).
+    pub port: Option<u8>,
+    pub cable_m: Option<f64>,
+    pub t_p_ns: Option<u64>,
+    pub t_f_ns: Option<u64>,
+    /// Fixed crystal error, ppm (overrides the distribution).
+    pub ppm: Option<f64>,
+    /// 0x0012 station alias (from EEPROM).
+    pub alias: u16,
+    /// 0x0010 at the start of the run, as if a master had already addressed it (it resets to
+    /// 0 on a power cycle). 0 = not addressed.
+    pub station: u16,
+    /// Raw local time at true time 0 (overrides the power-on spread).
+    pub initial_local_ns: Option<u64>,
+    /// 0x0000 type byte.
+    pub esc_type: Option<u8>,
+}
+
+impl Default for SlaveSpec {
+    fn default() -> Self {
+        SlaveSpec {
+            name: None,
+            repeat: 1,
+            kind: None,
+            ports: None,
+            parent: None,
+            port: None,
+            cable_m: None,
+            t_p_ns: None,
+            t_f_ns: None,
+            ppm: None,
+            alias: 0,
+            station: 0,
+            initial_local_ns: None,
+            esc_type: None,
+        }
+    }
+}
+
+/// A complete, reproducible emulator setup.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// Seed of every random stream (ppm draw, power-on phase, jitter, wander, loss).
+    pub seed: u64,
+    pub timing: Timing,
+    pub defaults: SlaveDefaults,
+    pub slaves: Vec<SlaveSpec>,
+    /// Probability that a frame is corrupted somewhere on its path (it does not return and
+    /// slaves after the corruption commit nothing).
+    pub frame_loss_rate: f64,
+    /// Gains of the ESC control-loop law (model).
+    pub loop_gains: LoopGains,
+    pub faults: Vec<FaultSpec>,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Scenario {
+            seed: 0,
+            timing: Timing::default(),
+            defaults: SlaveDefaults::default(),
+            slaves: Vec::new(),
+            frame_loss_rate: 0.0,
+            loop_gains: LoopGains::default(),
+            faults: Vec::new(),
+        }
+    }
+}
+
+/// A slave after defaults, repeats and the topology have been resolved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResolvedSlave {
+    pub name: Option<String>,
+    pub kind: EscKind,
+    pub ports: u8,
+    /// (parent index, parent port); `None` = cabled to the master.
+    pub parent: Option<(usize, u8)>,
+    pub cable_m: f64,
+    pub t_p_ns: u64,
+    pub t_f_ns: u64,
+    pub ppm: Option<f64>,
+    pub alias: u16,
+    pub station: u16,
+    pub initial_local_ns: Option<u64>,
+    pub esc_type: Option<u8>,
+}
+
+impl Scenario {
+    /// `n` default slaves in a line.
+    pub fn line(n: usize) -> Self {
+        Scenario {
+            slaves: vec![SlaveSpec {
+                repeat: n,
+                ..SlaveSpec::default()
+            }],
+            ..Scenario::default()
+        }
+    }
+
+    /// Appends a slave spec (builder style).
+    pub fn with_slave(mut self, s: SlaveSpec) -> Self {
+        self.slaves.push(s);
+        self
+    }
+
+    /// Appends a fault at a true time (builder style).
+    pub fn with_fault(mut self, at_ns: u64, fault: Fault) -> Self {
+        self.faults.push(FaultSpec { at_ns, fault });
+        self
+    }
+
+    /// Jitter, wander and quantisation off: hop times and clocks are exact (for tests).
+    pub fn ideal(mut self) -> Self {
+        self.timing.phy_jitter_ns = 0;
+        self.timing.sync_jitter_ns = 0;
+        self.timing.wander_interval_ns = 0;
+        self.timing.wander_step_ppb = 0.0;
+        self
+    }
+
+    /// Parses TOML.
+    pub fn from_toml_str(s: &str) -> Result<Self, EmuError> {
+        toml::from_str(s).map_err(|e| EmuError::Scenario(e.to_string()))
+    }
+
+    /// Parses JSON.
+    pub fn from_json_str(s: &str) -> Result<Self, EmuError> {
+        serde_json::from_str(s).map_err(|e| EmuError::Scenario(e.to_string()))
+    }
+
+    /// Loads a `.toml` or `.json` file (by extension; anything else is tried as TOML).
+    pub fn load(path: &std::path::Path) -> Result<Self, EmuError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| EmuError::Scenario(format!("{}: {e}", path.display())))?;
+        if path.extension().is_some_and(|e| e == "json") {
+            Self::from_json_str(&text)
+        } else {
+            Self::from_toml_str(&text)
+        }
+    }
+
+    /// Serialises to TOML.
+    pub fn to_toml_string(&self) -> Result<String, EmuError> {
+        toml::to_string(self).map_err(|e| EmuError::Scenario(e.to_string()))
+    }
+
+    /// Expands repeats and defaults and checks the topology.
+    pub fn resolve(&self) -> Result<Vec<ResolvedSlave>, EmuError> {
+        let d = &self.defaults;
+        let mut out: Vec<ResolvedSlave> = Vec::new();
+        let mut used: Vec<[bool; 4]> = Vec::new();
+        for spec in &self.slaves {
+            for r in 0..spec.repeat {
+                let i = out.len();
+                let ports = spec.ports.unwrap_or(d.ports);
+                if !(2..=4).contains(&ports) {
+                    return Err(EmuError::Scenario(format!(
+                        "slave {i}: ports must be 2..=4, got {ports}"
+                    )));
+                }
+                let parent = if i == 0 {
+                    None
+                } else {
+                    let p = if r == 0 {
+                        spec.parent.unwrap_or(i - 1)
+                    } else {
+                        i - 1
+                    };
+                    if p >= i {
+                        return Err(EmuError::Scenario(format!(
+                            "slave {i}: parent {p} must come before it"
+                        )));
+                    }
+                    let pports = out[p].ports;
+                    let port = match (r, spec.port) {
+                        (0, Some(q)) => q,
+                        _ => [1u8, 2, 3]
+                            .into_iter()
+                            .find(|q| *q < pports && !used[p][usize::from(*q)])
+                            .ok_or_else(|| {
+                                EmuError::Scenario(format!(
+                                    "slave {i}: parent {p} has no free port"
+                                ))
+                            })?,
+                    };
+                    if port == 0 || port >= pports || used[p][usize::from(port)] {
+                        return Err(EmuError::Scenario(format!(
+                            "slave {i}: port {port} of slave {p} is invalid or taken"
+                        )));
+                    }
+                    used[p][usize::from(port)] = true;
+                    Some((p, port))
+                };
+                if spec.parent.is_some() && i == 0 {
+                    return Err(EmuError::Scenario(
+                        "slave 0 is cabled to the master and has no parent".into(),
+                    ));
+                }
+                out.push(ResolvedSlave {
+                    name: spec.name.clone(),
+                    kind: spec.kind.unwrap_or(d.kind),
+                    ports,
+                    parent,
+                    cable_m: spec.cable_m.unwrap_or(d.cable_m),
+                    t_p_ns: spec.t_p_ns.unwrap_or(d.t_p_ns),
+                    t_f_ns: spec.t_f_ns.unwrap_or(d.t_f_ns),
+                    ppm: spec.ppm,
+                    alias: spec.alias,
+                    station: spec.station,
+                    initial_local_ns: spec.initial_local_ns,
+                    esc_type: spec.esc_type,
+                });
+                let mut u = [false; 4];
+                u[0] = true;
+                used.push(u);
+            }
+        }
+        if !(0.0..=1.0).contains(&self.frame_loss_rate) {
+            return Err(EmuError::Scenario(
+                "frame_loss_rate must be in [0, 1]".into(),
+            ));
+        }
+        if self.timing.tick_ns == 0 {
+            return Err(EmuError::Scenario("tick_ns must be ≥ 1".into()));
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,92 @@
+//! Shared helpers for the emulator tests: frames are built and parsed with `ecdc_core::wire`,
+//! so every emulator test also checks that what the emulator returns is a valid frame.
+#![allow(dead_code)]
+
+use ecdc_core::wire::{Address, Command, EcatFrame, EthernetFrame, FrameBuilder};
+use ecdc_harness::emu::{Delivery, Network, Returned};
+
+/// One datagram as the master sees it in the reply.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Reply {
+    pub adp: u16,
+    pub ado: u16,
+    pub data: Vec<u8>,
+    pub wkc: u16,
+    pub circulating: bool,
+}
+
+/// Builds an Ethernet frame with the given datagrams.
+pub fn frame(dgs: &[(Command, Address, &[u8])]) -> Vec<u8> {
+    let mut buf = vec![0u8; 1514];
+    let mut b = FrameBuilder::new(&mut buf).unwrap();
+    for (i, (c, a, d)) in dgs.iter().enumerate() {
+        b.push(*c, i as u8, *a, d).unwrap();
+    }
+    let n = b.finish().unwrap();
+    buf.truncate(n);
+    buf
+}
+
+/// Parses the datagrams of a returned frame (strictly, with the core codec).
+pub fn replies(frame: &[u8]) -> Vec<Reply> {
+    let eth = EthernetFrame::new_checked(frame).unwrap();
+    let ecat = EcatFrame::new_checked(eth.payload()).unwrap();
+    ecat.iter()
+        .map(|d| {
+            let d = d.unwrap();
+            Reply {
+                adp: d.adp(),
+                ado: d.ado(),
+                data: d.data().to_vec(),
+                wkc: d.wkc(),
+                circulating: d.circulating(),
+            }
+        })
+        .collect()
+}
+
+/// Sends one frame, expects it back.
+pub fn send(
+    net: &mut Network,
+    t: u64,
+    dgs: &[(Command, Address, &[u8])],
+) -> (Vec<Reply>, Returned) {
+    let f = frame(dgs);
+    match net.transact(&f, t).unwrap() {
+        Delivery::Returned(r) => (replies(&r.frame), r),
+        Delivery::Lost(why) => panic!("frame lost: {why:?}"),
+    }
+}
+
+/// Sends one datagram, expects it back; returns (reply, arrival).
+pub fn one(net: &mut Network, t: u64, c: Command, a: Address, d: &[u8]) -> (Reply, u64) {
+    let (r, ret) = send(net, t, &[(c, a, d)]);
+    (r.into_iter().next().unwrap(), ret.arrival)
+}
+
+pub fn u16_of(d: &[u8]) -> u16 {
+    u16::from_le_bytes([d[0], d[1]])
+}
+pub fn u32_of(d: &[u8]) -> u32 {
+    u32::from_le_bytes(d[..4].try_into().unwrap())
+}
+pub fn u64_of(d: &[u8]) -> u64 {
+    u64::from_le_bytes(d[..8].try_into().unwrap())
+}
+
+/// Assigns station addresses 0x1000 + i by APWR, returns the time after the last reply.
+pub fn address_all(net: &mut Network, mut t: u64) -> u64 {
+    for i in 0..net.slave_count() {
+        let a = (0x1000 + i as u16).to_le_bytes();
+        let (r, arr) = one(
+            net,
+            t,
+            Command::Apwr,
+            Address::position(i as u16, 0x0010),
+            &a,
+        );
+        assert_eq!(r.wkc, 1);
+        t = arr + 1_000;
+    }
+    t
+}
