@@ -1,1 +1,291 @@
-//! Property bodies for the dc_math area (see docs/verification.md).
+//! Property bodies for the DC maths (REQ-PROP P3 delay, P4 offset; spec/req/dc.md).
+//!
+//! One body per property. Each is a plain `pub fn` that panics (assert) when the property is
+//! violated, and is called by
+//! - the Kani harnesses in [`harness`] (`cfg(kani)`; Kani is not installed on the build machine,
+//!   so these have never been run here),
+//! - the property tests in `proofs/tests/dc_math.rs`.
+//!
+//! P3 is stated over *physically generated* port times (a line or tree of ESCs with
+//! non-negative delays), because for arbitrary numbers "delay ≥ 0" is not a property of any
+//! formula: the core must then return a typed error instead, which [`p3_arbitrary_latches`]
+//! checks.
+
+// Index loops mirror the physical description and keep Kani's unwinding obvious.
+#![allow(clippy::needless_range_loop)]
+
+use ecdc_core::dc::delay;
+use ecdc_core::dc::offset::{self, ClockWidth};
+use ecdc_core::dc::port::{Port, PortSet};
+use ecdc_core::dc::sync;
+use ecdc_core::dc::topology::{Latches, SlaveSample, Topology};
+use ecdc_core::time::SystemTime;
+use ecdc_spec::seed000;
+
+/// A line of `n ≤ N` DC ESCs (ports 0 in, 1 out) with one common `t_F` and `t_Diff` (seed 000's
+/// assumptions), per-ESC cables and clock phases. Small integer types keep the Kani state small;
+/// every physically meaningful value fits.
+#[derive(Debug, Clone, Copy)]
+pub struct Line<const N: usize> {
+    /// Number of ESCs, 1..=N (clamped).
+    pub n: usize,
+    /// Forwarding delay, ns.
+    pub t_f: u16,
+    /// `t_P − t_F`, ns (non-negative here; any sign is covered by the tree property).
+    pub t_diff: u16,
+    /// Cable to the upstream neighbour, ns.
+    pub cable: [u16; N],
+    /// Low 32 bits of each ESC's local clock phase (any value: wraps anywhere).
+    pub phase: [u32; N],
+}
+
+/// Port times a line produces, plus the true arrival times (ns after the master sent).
+fn line_latches<const N: usize>(line: &Line<N>) -> ([SlaveSample; N], [i64; N]) {
+    let n = line.n.clamp(1, N);
+    let t_p = i64::from(line.t_f) + i64::from(line.t_diff);
+    let t_f = i64::from(line.t_f);
+    let mut arrival = [0i64; N];
+    let mut acc = 0i64;
+    for i in 0..n {
+        acc += i64::from(line.cable[i]) + if i > 0 { t_p } else { 0 };
+        arrival[i] = acc;
+    }
+    // Frame comes back at ESC i's port 1 (i < n−1).
+    let mut back = [0i64; N];
+    if n >= 2 {
+        back[n - 2] = arrival[n - 1] + t_p + i64::from(line.cable[n - 1]);
+        let mut i = n - 2;
+        while i > 0 {
+            back[i - 1] = back[i] + t_f + i64::from(line.cable[i]);
+            i -= 1;
+        }
+    }
+    let mut samples = [SlaveSample::default(); N];
+    for i in 0..n {
+        let local = |t: i64| line.phase[i].wrapping_add(t as u32);
+        let mut ports = PortSet::EMPTY.with(Port::P0);
+        let mut raw = [0u32; 4];
+        raw[0] = local(arrival[i]);
+        if i + 1 < n {
+            ports = ports.with(Port::P1);
+            raw[1] = local(back[i]);
+        }
+        samples[i] = SlaveSample {
+            ports,
+            latches: Some(Latches::from_raw(raw, u64::from(raw[0]))),
+            t_diff: i32::from(line.t_diff),
+        };
+    }
+    (samples, arrival)
+}
+
+/// P3 on lines (REQ-DC-014..020): for every line within capacity and every clock phase, the
+/// computed delays exist (no overflow, no error), are ≥ 0, are bounded by the reference's round
+/// trip, increase along the processing order, equal seed 000 eq. 23 (derived form, i128) and
+/// equal the true propagation delays.
+pub fn p3_line<const N: usize>(line: &Line<N>) {
+    let n = line.n.clamp(1, N);
+    let (samples, arrival) = line_latches(line);
+    let samples = &samples[..n];
+    let topo = Topology::<N>::build(samples).expect("a line is a valid topology");
+    let delays = delay::compute(samples, &topo, 0).expect("physical latches give delays");
+    let lat = |i: usize| samples[i].latches.expect("DC");
+    let rtt: [i128; N] = core::array::from_fn(|i| {
+        if i + 1 < n {
+            i128::from(lat(i).ports[1].wrapping_since(lat(i).ports[0]))
+        } else {
+            0
+        }
+    });
+    let mut prev = -1i64;
+    for i in 0..n {
+        let d = delays.ns(i).expect("every slave has a delay");
+        assert!(d >= 0, "delay {d} < 0 at {i}");
+        assert!(
+            i128::from(d) <= rtt[0].max(0),
+            "delay {d} above the round trip at {i}"
+        );
+        assert!(d >= prev, "not monotone at {i}");
+        prev = d;
+        let (num, den) = delays.exact(i).expect("exact");
+        let eq23 = seed000::eq23_t_ref_x2(&rtt[..n], n, i + 1, i128::from(line.t_diff))
+            .expect("i in range");
+        assert_eq!((i128::from(num), den), (eq23, 2), "eq. 23 at {i}");
+        assert_eq!(d, arrival[i] - arrival[0], "true delay at {i}");
+        assert_eq!(delays.register_value(i), Ok(d as u32));
+    }
+}
+
+/// P3, robustness half: for ANY latch values and DL status (not necessarily physical), topology
+/// and delay computation never panic and either fail with a typed error or return delays whose
+/// register values are non-negative (`BeforeReference` otherwise).
+pub fn p3_arbitrary_latches(samples: &[SlaveSample], reference: usize) {
+    let Ok(topo) = Topology::<8>::build(samples) else {
+        return;
+    };
+    let Ok(delays) = delay::compute(samples, &topo, reference) else {
+        return;
+    };
+    for i in 0..samples.len() {
+        match (delays.ns(i), delays.register_value(i)) {
+            (Some(d), Ok(r)) => assert_eq!(i64::from(r), d),
+            (Some(d), Err(_)) => assert!(d < 0 || d > i64::from(u32::MAX)),
+            (None, Err(_)) => assert!(samples[i].latches.is_none()),
+            (None, Ok(_)) => panic!("register value without a delay"),
+        }
+    }
+}
+
+/// P3 on trees via the network model (REQ-DC-061): delays relative to the first DC ESC are
+/// ≥ 0, at most its round trip through all its ports, non-decreasing along the auto-increment
+/// (processing) order, and equal to the model's; no overflow, no error. Quantised stamps are not
+/// used here (exactness); the model tests cover them.
+pub fn p3_tree(net: &ecdc_spec::network::Network) {
+    use ecdc_spec::network::{core_samples, Dc};
+    let latch = net.latch().expect("tree");
+    let samples = core_samples(net, &latch, 1, true);
+    let topo = Topology::<64>::build(&samples).expect("valid topology");
+    let reference = net
+        .escs
+        .iter()
+        .position(|e| e.dc != Dc::None)
+        .expect("a DC ESC");
+    let delays = delay::compute(&samples, &topo, reference).expect("delays");
+    let node = topo.node(reference).expect("ref");
+    let lat = samples[reference].latches.expect("ref latches");
+    let rtt_ref = i64::from(lat.at(node.last_port()).wrapping_since(lat.at(node.entry)));
+    let mut prev = 0i64;
+    for (i, e) in net.escs.iter().enumerate() {
+        let Some(d) = delays.ns(i) else {
+            assert_eq!(e.dc, Dc::None);
+            continue;
+        };
+        assert!(
+            d >= 0 && d <= rtt_ref,
+            "delay {d} outside [0, {rtt_ref}] at {i}"
+        );
+        assert!(d >= prev, "delays not monotone at {i}");
+        prev = d;
+        assert_eq!(i128::from(d), latch.delay(reference, i));
+    }
+}
+
+/// P4 (REQ-DC-021, 023): for every master time, delay and entry local time, the offset makes
+/// `local + offset ≡ master + delay` modulo 2^64 (64-bit slaves) or 2^32 (32-bit slaves), and
+/// its register image has exactly the slave's width.
+pub fn p4_offset(master: u64, delay_ns: i64, entry_local: u64, bits64: bool) {
+    let width = if bits64 {
+        ClockWidth::Bits64
+    } else {
+        ClockWidth::Bits32
+    };
+    let off = offset::initial_offset(SystemTime(master), delay_ns, entry_local, width);
+    let target = master.wrapping_add(delay_ns as u64);
+    let img = off.to_register();
+    if bits64 {
+        assert_eq!(entry_local.wrapping_add(off.as_u64()), target);
+        assert_eq!(img.as_slice().len(), 8);
+    } else {
+        let off32 = u32::try_from(off.as_u64()).expect("32-bit offset fits 32 bits");
+        assert_eq!((entry_local as u32).wrapping_add(off32), target as u32);
+        assert_eq!(img.as_slice().len(), 4);
+    }
+    assert_eq!(
+        img.as_slice(),
+        &off.as_u64().to_le_bytes()[..img.as_slice().len()]
+    );
+}
+
+/// P4 (REQ-DC-022): widening the entry port's 32-bit stamp with the EPU stamp gives a 64-bit
+/// local time whose low 32 bits are the entry stamp and which precedes the EPU stamp by exactly
+/// the wrapping gap (< 2^32), for every EPU value, entry stamp and entry port.
+pub fn p4_entry_local(epu: u64, entry_stamp: u32, entry_port: u8) {
+    let port = Port::from_number(entry_port % 4).expect("0..=3");
+    let mut raw = [0u32; 4];
+    raw[port.index()] = entry_stamp;
+    let lat = Latches::from_raw(raw, epu);
+    let r = offset::entry_local_time(&lat, port);
+    assert_eq!(r as u32, entry_stamp);
+    assert_eq!(
+        epu.wrapping_sub(r),
+        u64::from((epu as u32).wrapping_sub(entry_stamp))
+    );
+}
+
+/// REQ-DC-050..052: the SYNC start equals the exact i128 definition — first multiple of the
+/// period at or after `now + margin`, plus shift — whenever that lies strictly after `now`, less
+/// than 2^31 ns ahead and inside u64; otherwise the matching typed error. The 0x0990 images have
+/// exact widths (8 bytes, or the low 32 bits in 4).
+pub fn sync_start(now: u64, margin: u64, period: u64, shift: i64) {
+    let got = sync::start_time(SystemTime(now), margin, period, shift);
+    if period == 0 {
+        assert_eq!(got, Err(sync::SyncError::ZeroCycle));
+        return;
+    }
+    let max = i128::from(u64::MAX);
+    let earliest = i128::from(now) + i128::from(margin);
+    let p = i128::from(period);
+    let grid = (earliest + p - 1).div_euclid(p) * p;
+    let start = grid + i128::from(shift);
+    if earliest > max || grid > max || start < 0 || start > max {
+        assert_eq!(got, Err(sync::SyncError::Overflow));
+        return;
+    }
+    let lead = start - i128::from(now);
+    if lead <= 0 || lead >= 1i128 << 31 {
+        assert_eq!(got, Err(sync::SyncError::StartOutOfWindow));
+        return;
+    }
+    let start = got.expect("inside the window");
+    assert_eq!(i128::from(start.as_nanos()), grid + i128::from(shift));
+    let s = start.as_nanos();
+    let r64 = sync::start_time_register(start, ClockWidth::Bits64);
+    let r32 = sync::start_time_register(start, ClockWidth::Bits32);
+    assert_eq!(r64.as_slice(), &s.to_le_bytes());
+    assert_eq!(r32.as_slice(), &(s as u32).to_le_bytes());
+}
+
+/// Kani harnesses (never run here: Kani is not installed on the build machine).
+#[cfg(kani)]
+mod harness {
+    use super::*;
+
+    #[kani::proof]
+    #[kani::unwind(6)]
+    fn p3_line_3() {
+        let line = Line::<3> {
+            n: kani::any(),
+            t_f: kani::any(),
+            t_diff: kani::any(),
+            cable: kani::any(),
+            phase: kani::any(),
+        };
+        kani::assume(line.n >= 1 && line.n <= 3);
+        kani::assume(line.t_f <= 2_000 && line.t_diff <= 1_000);
+        kani::assume(line.cable.iter().all(|c| *c <= 10_000));
+        kani::cover!(line.phase[0] > u32::MAX - 10_000, "wrap inside the latch");
+        kani::cover!(line.n == 3 && line.t_diff > 0, "three slaves with t_Diff");
+        p3_line(&line);
+    }
+
+    #[kani::proof]
+    fn p4_offset_any() {
+        let delay: i64 = kani::any();
+        kani::assume(delay.unsigned_abs() < 1 << 40);
+        kani::cover!(delay < 0, "slave before the reference");
+        p4_offset(kani::any(), delay, kani::any(), kani::any());
+    }
+
+    #[kani::proof]
+    fn p4_entry_local_any() {
+        p4_entry_local(kani::any(), kani::any(), kani::any());
+    }
+
+    #[kani::proof]
+    fn sync_start_any() {
+        let period: u64 = kani::any();
+        kani::assume(period <= 1 << 34);
+        kani::cover!(period == 0, "zero period");
+        sync_start(kani::any(), kani::any(), period, kani::any());
+    }
+}
