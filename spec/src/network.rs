@@ -471,22 +471,23 @@ pub fn core_samples(
     granularity: i128,
     with_t_diff: bool,
 ) -> Vec<ecdc_core::dc::topology::SlaveSample> {
-    use ecdc_core::dc::port::PortSet;
-    use ecdc_core::dc::topology::{Latches, SlaveSample};
+    use ecdc_core::dc::topology::SlaveSample;
     (0..net.escs.len())
         .map(|i| {
             let obs = net.observe(latch, i, granularity);
             let esc = &net.escs[i];
-            SlaveSample {
-                ports: PortSet::from_dl_status(obs.dl_status),
-                latches: (obs.features & 0x0004 != 0)
-                    .then(|| Latches::from_raw(obs.port_times, obs.epu_time)),
-                t_diff: if with_t_diff {
-                    i32::try_from(esc.t_p - esc.t_f).expect("t_Diff fits i32")
-                } else {
-                    0
-                },
-            }
+            let t_diff = if with_t_diff {
+                i32::try_from(esc.t_p - esc.t_f).expect("t_Diff fits i32")
+            } else {
+                0
+            };
+            SlaveSample::from_registers(
+                obs.dl_status,
+                obs.features,
+                obs.port_times,
+                obs.epu_time,
+                t_diff,
+            )
         })
         .collect()
 }

@@ -69,6 +69,25 @@ pub struct SlaveSample {
     pub t_diff: i32,
 }
 
+impl SlaveSample {
+    /// From the raw registers read after a latch: DL Status 0x0110, ESC Features 0x0008,
+    /// Receive Time Port 0..3 (0x0900..0x090F) and Receive Time EPU (0x0918). The latches are
+    /// kept only when the ESC has DC (features bit 2); `t_diff` as in [`SlaveSample::t_diff`].
+    pub fn from_registers(
+        dl_status: u16,
+        features: u16,
+        port_times: [u32; 4],
+        epu: u64,
+        t_diff: i32,
+    ) -> SlaveSample {
+        SlaveSample {
+            ports: PortSet::from_dl_status(dl_status),
+            latches: (features & 0x0004 != 0).then_some(Latches::from_raw(port_times, epu)),
+            t_diff,
+        }
+    }
+}
+
 /// Where a slave is attached upstream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Link {
