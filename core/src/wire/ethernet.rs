@@ -142,6 +142,24 @@ impl<T: AsRef<[u8]>> EthernetFrame<T> {
     }
 }
 
+impl<'a> EthernetFrame<&'a [u8]> {
+    /// The payload, borrowing the underlying buffer rather than the view.
+    pub fn into_payload(self) -> &'a [u8] {
+        let at = self.header_len();
+        self.buffer.get(at..).unwrap_or(&[])
+    }
+
+    /// Like [`EthernetFrame::ecat_frame`], borrowing the underlying buffer.
+    pub fn into_ecat_frame(self) -> Result<EcatFrame<&'a [u8]>> {
+        self.check_len()?;
+        let ethertype = self.ethertype();
+        if ethertype != ETHERTYPE_ETHERCAT {
+            return Err(Error::NotEtherCat { ethertype });
+        }
+        EcatFrame::new_checked(self.into_payload())
+    }
+}
+
 impl<T: AsRef<[u8]> + AsMut<[u8]>> EthernetFrame<T> {
     /// Sets the destination MAC.
     pub fn set_dst(&mut self, m: [u8; 6]) {
