@@ -101,6 +101,7 @@ proptest! {
             cable: (0, 5_000),
             non_dc_percent: non_dc,
             bits32_percent: 30,
+            rate_ppb: (0, 0),
         };
         dc_math::p3_tree(&generate(&mut SplitMix::new(seed), &p));
     }

@@ -14,9 +14,10 @@
 //! Nothing here knows any delay formula: delays are arrival-time differences. All arithmetic is
 //! `i128`; clocks are reduced modulo 2^64 or 2^32 only when a register value is produced.
 //!
-//! Not modelled (stated so tests do not over-claim): clock drift during the latch frame (100 ppm
-//! over a 100 µs round trip is 10 ns; the drift loop and the emulator cover drift), asymmetric
-//! cables, PHY jitter.
+//! Clock rate errors are modelled (`rate_ppb`: the local clock runs `1 + rate_ppb·10⁻⁹` times
+//! true time during the latch); the delay formulas assume equal rates, so tests with non-zero
+//! rates measure that error (100 ppm over a 100 µs round trip is 10 ns). Not modelled:
+//! asymmetric cables, PHY jitter.
 
 use crate::esc_dc::{hop_is_processing, next_port};
 use crate::register::wrap;
@@ -57,8 +58,11 @@ pub struct Esc {
     pub t_f: i128,
     /// DC capability.
     pub dc: Dc,
-    /// Local clock phase: `local(T) = (T + phase) mod 2^width`, T = true time of the simulation.
+    /// Local clock phase: `local(T) = (T + ⌊T·rate_ppb/10⁹⌋ + phase) mod 2^width`, T = true time
+    /// of the simulation (0 = the master sends the latch frame).
     pub phase: u64,
+    /// Rate error of the local clock in parts per billion (0 = ideal).
+    pub rate_ppb: i64,
     /// Values the receive-time registers of *closed* ports hold (left over from earlier frames;
     /// the master must ignore them).
     pub stale: [u32; 4],
@@ -240,7 +244,8 @@ impl Network {
     /// Local clock value of ESC `i` at true time `t` (full width, unquantised).
     pub fn local_time(&self, i: usize, t: i128) -> i128 {
         let esc = &self.escs[i];
-        wrap(t + i128::from(esc.phase), esc.dc.width())
+        let drift = (t * i128::from(esc.rate_ppb)).div_euclid(1_000_000_000);
+        wrap(t + drift + i128::from(esc.phase), esc.dc.width())
     }
 
     /// Register values of ESC `i` after `latch`, with receive times quantised down to multiples
@@ -361,6 +366,8 @@ pub struct GenParams {
     pub non_dc_percent: u64,
     /// Percent of DC ESCs with a 32-bit clock.
     pub bits32_percent: u64,
+    /// Clock rate error range, ppb (`(0, 0)` = ideal clocks).
+    pub rate_ppb: (i64, i64),
 }
 
 /// Generates a random network with `count` ESCs (indices in auto-increment order). Half of the
@@ -434,6 +441,10 @@ pub fn generate(rng: &mut SplitMix, params: &GenParams) -> Network {
             t_f,
             dc,
             phase,
+            rate_ppb: i64::try_from(
+                rng.range(i128::from(params.rate_ppb.0), i128::from(params.rate_ppb.1)),
+            )
+            .expect("in range"),
             stale,
         });
     }

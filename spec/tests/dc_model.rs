@@ -33,6 +33,7 @@ fn params(count: usize, shape: Shape, non_dc: u64, bits32: u64) -> GenParams {
         cable: (0, 5_000),
         non_dc_percent: non_dc,
         bits32_percent: bits32,
+        rate_ppb: (0, 0),
     }
 }
 
@@ -319,6 +320,7 @@ fn esc(parent: Option<(usize, u8)>, dc: Dc, phase: u64) -> Esc {
         t_f: 300,
         dc,
         phase,
+        rate_ppb: 0,
         stale: [0xDEAD_BEEF; 4],
     }
 }
@@ -368,4 +370,46 @@ fn every_clock_wraps_during_latch() {
     }
     let net = Network { escs };
     check(&net, 1, true, u64::MAX - 3).unwrap();
+}
+
+/// REQ-DC-060: clock rate errors during the latch frame (±100 ppm, the Ethernet crystal limit)
+/// violate the formulas' equal-rate assumption. Measured here, bounded loosely: every stamp
+/// difference used is at most the whole latch round trip R and is off by ≤ |rate|·R + 1 ns, a
+/// hop uses four of them with total weight 4 in 2·D, so |error| ≤ hops·(2·|rate|·R + 2) ns.
+#[test]
+fn rate_error_during_latch_measured() {
+    let mut rng = SplitMix::new(0x0100_0000);
+    let (mut worst, mut worst_rtt) = (0i128, 0i128);
+    for k in 0..300u32 {
+        let count = usize::try_from(rng.range(1, 64)).unwrap();
+        let p = GenParams {
+            rate_ppb: (-100_000, 100_000),
+            ..params(count, shape_of(u8::try_from(k % 4).unwrap()), 15, 30)
+        };
+        let net = generate(&mut rng, &p);
+        let latch = net.latch().unwrap();
+        let samples = core_samples(&net, &latch, 1, true);
+        let topo = Topology::<CAP>::build(&samples).unwrap();
+        let reference = first_dc(&net);
+        let delays = delay::compute(&samples, &topo, reference).unwrap();
+        let r = latch.back_at_master;
+        for (s, e) in net.escs.iter().enumerate() {
+            if e.dc == Dc::None {
+                continue;
+            }
+            let err = (i128::from(delays.ns(s).unwrap()) - latch.delay(reference, s)).abs();
+            let (hops, _) = path_stats(&net, reference, s);
+            // 2·|rate|·R with |rate| ≤ 1e-4, in ns, rounded up
+            let bound = hops * ((2 * r).div_euclid(10_000) + 1 + 2) + 1;
+            assert!(err <= bound, "slave {s}: err {err} > {bound} (R = {r} ns)");
+            if err > worst {
+                worst = err;
+                worst_rtt = r;
+            }
+        }
+    }
+    eprintln!(
+        "±100 ppm clocks, exact stamps, 300 networks: worst delay error {worst} ns (latch round trip {} µs)",
+        worst_rtt / 1000
+    );
 }

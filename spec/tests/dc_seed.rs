@@ -16,6 +16,7 @@ fn esc(parent: Option<(usize, u8)>, cable: i128, dc: Dc, phase: u64) -> Esc {
         t_f: 300,
         dc,
         phase,
+        rate_ppb: 0,
         stale: [0x5A5A_5A5A; 4],
     }
 }
@@ -88,6 +89,7 @@ fn seed000_eq23_last_case_erratum() {
             cable: (0, 3000),
             non_dc_percent: 0,
             bits32_percent: 50,
+            rate_ppb: (0, 0),
         };
         let net = generate(&mut rng, &p);
         let latch = net.latch().unwrap();
@@ -197,6 +199,7 @@ fn register_contract_after_offsets() {
             cable: (0, 3000),
             non_dc_percent: 20,
             bits32_percent: 40,
+            rate_ppb: (0, 0),
         };
         let net = generate(&mut rng, &p);
         let latch = net.latch().unwrap();
