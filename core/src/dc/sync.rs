@@ -138,6 +138,12 @@ impl Activation {
         })
     }
 
+    /// The 2-byte image for one write at 0x0980 covering 0x0980 and 0x0981 (IgH style), in
+    /// register order. Use it only after 0x0990/0x09A0/0x09A4 are written (REQ-DC-034).
+    pub const fn to_register(self) -> [u8; 2] {
+        [self.cyclic_unit_control, self.activation]
+    }
+
     /// Whether SYNC0 is enabled (0x0981 bit 1).
     pub const fn sync0(self) -> bool {
         self.activation & 0x02 != 0
@@ -207,6 +213,7 @@ mod tests {
         let a = Activation::from_assign_activate(0x0300, 0).unwrap();
         assert_eq!((a.cyclic_unit_control, a.activation), (0x00, 0x03));
         assert!(a.sync0() && !a.sync1());
+        assert_eq!(a.to_register(), [0x00, 0x03]);
         assert!(Activation::from_assign_activate(0x0700, 0).unwrap().sync1());
         assert_eq!(
             Activation::from_assign_activate(0x0301, 0),
