@@ -31,6 +31,34 @@
 //! Non-DC slaves (no latches) between DC slaves act as wire (REQ-DC-017): they must have exactly
 //! two open ports, because the excursion seen by `a` would otherwise include branches no DC
 //! slave timed. The datasheet requires receive times on every ESC with more than two ports.
+//!
+//! The whole pipeline for two 64-bit slaves in a line, from the registers read after the latch
+//! to the values written back:
+//!
+//! ```
+//! use ecdc_core::dc::{delay, offset, topology::{SlaveSample, Topology}};
+//! use ecdc_core::time::SystemTime;
+//! // DL status: ports 0+1 open (0x5A00) / only port 0 open (0x5600); features: 64-bit DC.
+//! let samples = [
+//!     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 0x7_0000_03E8, 0),
+//!     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 0x2_0000_005A, 0),
+//! ];
+//! let topo = Topology::<8>::build(&samples).unwrap();
+//! let delays = delay::compute(&samples, &topo, 0).unwrap(); // slave 0 is the reference
+//! assert_eq!(delays.register_value(1), Ok(500)); // 0x0928 of slave 1: (2000 − 1000) / 2
+//! let master = SystemTime(1_000_000_000); // sampled just before the latch (REQ-DC-002)
+//! let entry = topo.node(1).unwrap().entry;
+//! let latches = samples[1].latches.as_ref().unwrap();
+//! let off = offset::initial_offset(
+//!     master,
+//!     delays.ns(1).unwrap(),
+//!     offset::entry_local_time(latches, entry),
+//!     offset::ClockWidth::Bits64,
+//! );
+//! // slave 1's system time when the frame reached it = reference's time then
+//! assert_eq!(0x2_0000_005A_u64.wrapping_add(off.as_u64()), 1_000_000_500);
+//! assert_eq!(off.to_register().as_slice().len(), 8); // exactly 8 bytes to 0x0920
+//! ```
 
 use super::port::Port;
 use super::topology::{Latches, SlaveSample, Topology};
@@ -84,6 +112,43 @@ pub enum DelayError {
     /// [`Delays::accumulate`] got rounds with different slaves, reference or DC sets.
     RoundMismatch,
 }
+
+impl core::fmt::Display for DelayError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            DelayError::Mismatch => write!(f, "samples and topology do not match"),
+            DelayError::BadReference { slave } => {
+                write!(f, "reference clock {slave} has no receive-time latches")
+            }
+            DelayError::NoUpstreamDc { slave } => {
+                write!(f, "slave {slave}: no upstream DC slave times its path")
+            }
+            DelayError::NonDcJunction { slave } => {
+                write!(f, "slave {slave}: non-DC junction between DC slaves")
+            }
+            DelayError::Inconsistent { slave } => {
+                write!(
+                    f,
+                    "slave {slave}: receive times inconsistent (stale latch?)"
+                )
+            }
+            DelayError::NegativeHop { slave } => {
+                write!(f, "slave {slave}: configured t_Diff makes a hop negative")
+            }
+            DelayError::Overflow { slave } => write!(f, "slave {slave}: delay out of range"),
+            DelayError::BeforeReference { slave } => {
+                write!(
+                    f,
+                    "slave {slave} precedes the reference clock (negative delay)"
+                )
+            }
+            DelayError::RoundMismatch => write!(f, "latch rounds differ in slaves or reference"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for DelayError {}
 
 /// Propagation delays relative to a reference clock, for up to `N` slaves (REQ-DC-018).
 ///

@@ -44,6 +44,26 @@ pub enum SyncError {
     PdiOwnsCyclicUnit,
 }
 
+impl core::fmt::Display for SyncError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let text = match self {
+            SyncError::ZeroCycle => "SYNC grid period is 0",
+            SyncError::StartOutOfWindow => "SYNC start not within (now, now + 2^31 ns)",
+            SyncError::Overflow => "SYNC start overflows 64-bit system time",
+            SyncError::DebugPulse => "AssignActivate sets the one-shot debug pulse (0x0981 bit 7)",
+            SyncError::SyncWithoutUnit => "AssignActivate enables SYNC without the sync unit",
+            SyncError::EnhancedUnsupported => {
+                "AssignActivate uses enhanced activation bits the ESC lacks"
+            }
+            SyncError::PdiOwnsCyclicUnit => "AssignActivate gives the cyclic unit to the PDI",
+        };
+        f.write_str(text)
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for SyncError {}
+
 /// REQ-DC-051: the reference clock's current 64-bit system time from a 0x0910 read. For a
 /// 32-bit reference only the low 32 bits are meaningful; they are widened to the 64-bit time
 /// nearest `estimate` (the master's own estimate of system time, e.g. its latch sample plus the

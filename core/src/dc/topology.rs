@@ -161,6 +161,31 @@ pub enum TopologyError {
     },
 }
 
+impl core::fmt::Display for TopologyError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            TopologyError::Capacity => write!(f, "more slaves than the configured capacity"),
+            TopologyError::NoOpenPort { slave } => write!(f, "slave {slave} has no open port"),
+            TopologyError::NoFreePort { slave } => {
+                write!(f, "slave {slave}: no earlier slave has a free open port")
+            }
+            TopologyError::DanglingPort { slave, port } => {
+                write!(
+                    f,
+                    "slave {slave}: open port {} leads to no slave",
+                    port.number()
+                )
+            }
+            TopologyError::LatchOrder { slave } => {
+                write!(f, "slave {slave}: receive times not in processing order")
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for TopologyError {}
+
 /// The reconstructed tree for up to `N` slaves (REQ-DC-012).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Topology<const N: usize> {
