@@ -5,8 +5,9 @@
 use anyhow::Context;
 
 use super::link_args::{LinkArgs, RtArgs};
+use crate::emu::{Delivery, Network, Scenario};
 use crate::runtime::clock;
-use crate::runtime::serve::{self, Reflector, ServeSummary};
+use crate::runtime::serve::{self, Reflector, Responder, ServeSummary};
 use crate::runtime::sys;
 
 /// Which slave model answers.
@@ -28,6 +29,18 @@ pub struct Args {
     /// Slave model.
     #[arg(long, value_enum, default_value_t = Engine::Esc)]
     pub engine: Engine,
+    /// Number of default slaves in a line (ignored with --scenario).
+    #[arg(long, default_value_t = 3)]
+    pub slaves: usize,
+    /// Scenario file (TOML or JSON, see docs/emulator.md): topology, delays, crystals, faults.
+    #[arg(long)]
+    pub scenario: Option<std::path::PathBuf>,
+    /// Override the scenario's random seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Override the scenario's frame loss probability (0..1).
+    #[arg(long)]
+    pub loss_rate: Option<f64>,
     /// Stop after this many seconds (default: until Ctrl-C / SIGTERM).
     #[arg(long)]
     pub duration: Option<f64>,
@@ -50,7 +63,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let until = args
         .duration
         .map(|s| clock::now_ns().saturating_add((s.max(0.0) * 1e9) as u64));
-    let spin = if args.rt.rt { 20_000 } else { 0 };
+    // The emulated wire time is a few us: a sleep that short costs a whole wake-up (tens of
+    // us on a VM), so spin for it instead.
+    let spin = 200_000;
     let print = |c: &serve::ServeCounters| {
         if args.stats {
             eprintln!(
@@ -69,10 +84,27 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             serve::serve(&mut sock, &mut Reflector, stop, until, spin, print)?
         }
         Engine::Esc => {
-            anyhow::bail!(
-                "emulate --engine esc: the ESC emulator (harness/src/emu) does not offer its network API yet; \
-                 use --engine reflect"
-            )
+            let scenario = load_scenario(args)?;
+            let net =
+                Network::new(&scenario).map_err(|e| anyhow::anyhow!("emulator scenario: {e:?}"))?;
+            let n = net.slave_count();
+            let mut esc = EscResponder {
+                net,
+                mono_start: clock::now_ns(),
+                sync_edges: 0,
+            };
+            eprintln!(
+                "ecdc emulate: serving {n} emulated ESCs on {} ({}); Ctrl-C to stop",
+                args.link.iface,
+                rt.describe()
+            );
+            let s = serve::serve(&mut sock, &mut esc, stop, until, spin, print)?;
+            let st = esc.net.stats();
+            eprintln!(
+                "emulate: emulator frames {} returned {} lost {}; SYNC edges {}",
+                st.frames, st.returned, st.lost, esc.sync_edges
+            );
+            s
         }
     };
     if args.json {
@@ -85,4 +117,49 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+fn load_scenario(args: &Args) -> anyhow::Result<Scenario> {
+    let mut sc = match &args.scenario {
+        Some(path) => {
+            Scenario::load(path).map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))?
+        }
+        None => {
+            anyhow::ensure!(args.slaves >= 1, "--slaves must be at least 1");
+            Scenario::line(args.slaves)
+        }
+    };
+    if let Some(seed) = args.seed {
+        sc.seed = seed;
+    }
+    if let Some(p) = args.loss_rate {
+        anyhow::ensure!((0.0..=1.0).contains(&p), "--loss-rate must be within 0..1");
+        sc.frame_loss_rate = p;
+    }
+    Ok(sc)
+}
+
+/// The ESC emulator as a [`Responder`]: true time = host monotonic time since start.
+struct EscResponder {
+    net: Network,
+    mono_start: u64,
+    sync_edges: u64,
+}
+
+impl Responder for EscResponder {
+    fn respond(&mut self, now_ns: u64, buf: &mut [u8], len: usize) -> Option<(usize, u64)> {
+        let t = now_ns.saturating_sub(self.mono_start).max(self.net.now());
+        let frame = buf.get(..len)?;
+        let delivery = self.net.transact(frame, t).ok()?;
+        // SYNC edges are logged by the emulator; drain them so a long run does not grow memory.
+        self.sync_edges += self.net.take_sync_edges().len() as u64;
+        match delivery {
+            Delivery::Returned(r) => {
+                let out = buf.get_mut(..r.frame.len())?;
+                out.copy_from_slice(&r.frame);
+                Some((r.frame.len(), self.mono_start.saturating_add(r.arrival)))
+            }
+            Delivery::Lost(_) => None,
+        }
+    }
 }

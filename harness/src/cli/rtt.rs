@@ -71,9 +71,10 @@ impl CycleTask for ProbeTask {
         probe(buf, ((cycle % 128) * 2) as u8).ok()
     }
     fn complete(&mut self, _cycle: u64, reply: Option<(&[u8], &Reply)>) -> CycleReport {
-        let wkc_ok = reply.is_some_and(|(bytes, _)| brd_wkc(bytes).is_some_and(|w| w > 0));
+        // Lost frames are counted by the loop; a WKC error is a reply nobody processed.
+        let wkc_error = reply.is_some_and(|(bytes, _)| brd_wkc(bytes).is_none_or(|w| w == 0));
         CycleReport {
-            wkc_error: !wkc_ok,
+            wkc_error,
             ..CycleReport::default()
         }
     }

@@ -1,10 +1,406 @@
-//! `ecdc run`.
+//! `ecdc run --iface IF`: scan, DC bring-up with the core state machine (with a progress bar
+//! during static drift compensation), then cyclic DC with a per-second monitoring line and
+//! the master following the reference clock; a summary on Ctrl-C or after `--duration`.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use anyhow::Context;
+use ecdc_core::dc::{Config, DcKind, Event, Machine, State};
+use ecdc_core::servo::master::{MasterConfig, MasterServo};
+use ecdc_core::wire::MASTER_MAC;
+
+use super::link_args::{LinkArgs, RtArgs};
+use super::scan::{print_slaves, report_slaves, ScannedSlave, MAX_SLAVES};
+use crate::runtime::bringup::{self, Limits, Outcome, Progress, Until};
+use crate::runtime::capture_link::CaptureLink;
+use crate::runtime::clock::{self, DcClock};
+use crate::runtime::cyclic::{self, CycleConfig, LoopSummary};
+use crate::runtime::dc_task::DcTask;
+use crate::runtime::socket::{RawSocket, FULL_PAYLOAD};
+use crate::runtime::sys;
+use crate::runtime::transport::{Counters, Transport};
 
 /// Arguments of `ecdc run`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    #[command(flatten)]
+    pub link: LinkArgs,
+    #[command(flatten)]
+    pub rt: RtArgs,
+    /// Cycle time, us (also the SYNC0 cycle).
+    #[arg(long, default_value_t = 1000)]
+    pub cycle_us: u64,
+    /// Seconds of cyclic operation, then stop with a summary (default: until Ctrl-C).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Record every frame sent and received into this pcap file (Wireshark-readable).
+    #[arg(long)]
+    pub pcap: Option<PathBuf>,
+    /// Print the summary as JSON on stdout (progress and per-second lines stay on stderr).
+    #[arg(long)]
+    pub json: bool,
+    /// Suppress the per-second lines and the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Leave the SYNC units alone (no 0x0980/0x0990/0x09A0 writes).
+    #[arg(long)]
+    pub no_sync: bool,
+    /// Servo target for (app time - reference time), ns: the reference should see the frame
+    /// this long after the master's nominal cycle time (negative = before).
+    #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+    pub target_ns: i64,
+    /// Sleep until this long before each deadline, then spin (us; 0 = pure sleep).
+    #[arg(long, default_value_t = 0)]
+    pub spin_us: u64,
+}
+
+/// The run summary (`--json`).
+#[derive(Debug, serde::Serialize)]
+struct RunSummary {
+    iface: String,
+    rt: String,
+    cycle_us: u64,
+    slaves: usize,
+    dc_slaves: usize,
+    reference: Option<u16>,
+    slave_table: Vec<ScannedSlave>,
+    bringup_ms: f64,
+    drift_frames: Option<u32>,
+    drift_max_diff_ns: Option<u32>,
+    restarts: u32,
+    cyclic: Option<LoopSummary>,
+    servo_drift_ns_per_cycle: Option<i64>,
+    machine_frames_sent: u64,
+    machine_timeouts: u64,
+    machine_lost_cycles: u64,
+    frames: Counters,
+    pcap_frames: Option<u64>,
+    interrupted: bool,
+}
+
+/// Renders the bring-up progress (one updating line on a terminal, a line a second otherwise).
+struct ProgressBar {
+    tty: bool,
+    quiet: bool,
+    last_line: u64,
+    drawn: bool,
+}
+
+impl ProgressBar {
+    fn show(&mut self, p: &Progress) {
+        if self.quiet {
+            return;
+        }
+        let now = clock::now_ns();
+        if !self.tty && now < self.last_line + clock::NS_PER_S {
+            return;
+        }
+        self.last_line = now;
+        let diff = p.max_diff_ns.map_or("-".to_owned(), |d| format!("{d} ns"));
+        let line = if matches!(p.state, State::DriftBurst | State::DriftCheck) {
+            let width = 30usize;
+            let filled = ((p.drift_frames.min(u64::from(p.drift_max)) as f64
+                / f64::from(p.drift_max.max(1)))
+                * width as f64) as usize;
+            format!(
+                "static drift compensation [{}{}] {} FRMW frames, max |0x092C| {diff}",
+                "#".repeat(filled),
+                ".".repeat(width - filled),
+                p.drift_frames
+            )
+        } else {
+            format!("bring-up: {:?}, {} frames", p.state, p.frames)
+        };
+        if self.tty {
+            eprint!("\r\x1b[2K{line}");
+            self.drawn = true;
+        } else {
+            eprintln!("{line}");
+        }
+    }
+
+    fn line(&mut self, text: &str) {
+        if self.quiet {
+            return;
+        }
+        if self.drawn {
+            eprint!("\r\x1b[2K");
+            self.drawn = false;
+        }
+        eprintln!("{text}");
+    }
+}
+
+fn describe(e: &Event) -> String {
+    match e {
+        Event::SlavesFound { count, dc } => {
+            format!("found {count} slaves, {dc} with a DC system time")
+        }
+        Event::DelaysMeasured { max_delay_ns } => {
+            format!("propagation delays measured (max {max_delay_ns} ns)")
+        }
+        Event::OffsetsWritten {
+            written,
+            skipped_running,
+        } => {
+            format!(
+                "offsets written to {written} slaves ({skipped_running} running slaves left alone)"
+            )
+        }
+        Event::DriftConverged {
+            frames,
+            max_diff_ns,
+        } => {
+            format!("static drift compensation converged after {frames} frames, max |0x092C| {max_diff_ns} ns")
+        }
+        Event::SyncStarted { start, slaves } => {
+            format!("SYNC0 started on {slaves} slaves at system time {start}")
+        }
+        Event::Locked { frames, bound_ns } => {
+            format!("DC locked after {frames} frames (|0x092C| bound {bound_ns} ns)")
+        }
+        Event::LockLost { bound_ns } => format!("DC lock lost (|0x092C| bound {bound_ns} ns)"),
+        Event::DelaysUpdated { max_change_ns } => {
+            format!("delays re-measured (max change {max_change_ns} ns)")
+        }
+        Event::Error(err) => format!("DC error: {err:?}"),
+        Event::Restarting => "DC re-initialising".to_owned(),
+        other => format!("{other:?}"),
+    }
+}
 
 /// Runs `ecdc run`.
-pub fn run(_args: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("run: not implemented yet")
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        (100..=100_000).contains(&args.cycle_us),
+        "--cycle-us must be within 100..=100000"
+    );
+    let cycle_ns = args.cycle_us * 1000;
+    let stop = sys::install_stop_handler().context("installing the Ctrl-C handler")?;
+    let sock: RawSocket = args
+        .link
+        .open(FULL_PAYLOAD, true)
+        .map_err(anyhow::Error::new)?;
+    let link = match &args.pcap {
+        Some(path) => CaptureLink::create(sock, path)
+            .with_context(|| format!("creating {}", path.display()))?,
+        None => CaptureLink::passthrough(sock),
+    };
+    let rt = args.rt.apply();
+    let mut t = Transport::new(link, MASTER_MAC);
+
+    let mut cfg = Config::default();
+    cfg.monitor.cycle_ns = cycle_ns;
+    cfg.sync = if args.no_sync {
+        None
+    } else {
+        let mut s = cfg.sync.unwrap_or_default();
+        s.sync0_cycle_ns = u32::try_from(cycle_ns).context("cycle too long")?;
+        Some(s)
+    };
+    let mut m: Box<Machine<MAX_SLAVES>> = Box::new(
+        Machine::new(cfg).map_err(|e| anyhow::anyhow!("DC machine configuration: {e:?}"))?,
+    );
+    let dc = DcClock::from_realtime();
+    let bar = std::cell::RefCell::new(ProgressBar {
+        tty: std::io::stderr().is_terminal(),
+        quiet: args.quiet,
+        last_line: 0,
+        drawn: false,
+    });
+    let total_cycles = args
+        .duration
+        .map(|s| ((s.max(0.0) * 1e9) as u64) / cycle_ns);
+
+    let started = clock::now_ns();
+    let mut bringup_ms = 0.0;
+    let mut drift: Option<(u32, u32)> = None;
+    let mut restarts = 0u32;
+    let mut done_cycles = 0u64;
+    let mut cyclic_summary: Option<LoopSummary> = None;
+    let mut servo_drift = None;
+    let mut interrupted;
+    let mut slave_table = Vec::new();
+
+    loop {
+        let t0 = clock::now_ns();
+        let outcome = bringup::bring_up(
+            &mut m,
+            &mut t,
+            &dc,
+            &args.link.iface,
+            Until::Cyclic,
+            &Limits::default(),
+            stop,
+            |e| {
+                if let Event::DriftConverged {
+                    frames,
+                    max_diff_ns,
+                } = e
+                {
+                    drift = Some((*frames, *max_diff_ns));
+                }
+                bar.borrow_mut().line(&describe(e));
+            },
+            |p| bar.borrow_mut().show(p),
+        );
+        let outcome = outcome.map_err(anyhow::Error::new)?;
+        bringup_ms += (clock::now_ns() - t0) as f64 / 1e6;
+        if outcome == Outcome::Interrupted {
+            interrupted = true;
+            break;
+        }
+        if slave_table.is_empty() {
+            let (table, topo_err) = report_slaves::<MAX_SLAVES>(m.slaves(), true);
+            if !args.json && !args.quiet {
+                print_slaves(&table, m.reference(), topo_err.as_deref());
+            }
+            slave_table = table;
+        }
+
+        let ref_32bit = m
+            .reference()
+            .and_then(|r| m.slaves().get(usize::from(r)))
+            .is_some_and(|s| s.dc == DcKind::Bits32);
+        let mut mcfg = MasterConfig::for_period(u32::try_from(cycle_ns).context("cycle too long")?)
+            .map_err(|e| anyhow::anyhow!("servo configuration: {e:?}"))?;
+        mcfg.ref_32bit = ref_32bit;
+        mcfg.target_ns = args.target_ns;
+        let servo =
+            MasterServo::new(mcfg).map_err(|e| anyhow::anyhow!("servo configuration: {e:?}"))?;
+
+        let mut ccfg = CycleConfig::new(cycle_ns);
+        ccfg.spin_ns = args.spin_us * 1000;
+        ccfg.max_cycles = total_cycles.map(|n| n.saturating_sub(done_cycles));
+        let quiet = args.quiet;
+        let mut task = DcTask::new(&mut m, servo, dc, cycle_ns, |cycle, e| {
+            if !quiet {
+                eprintln!("cycle {cycle}: {}", describe(e));
+            }
+        });
+        let summary = cyclic::run(&mut t, &mut task, &ccfg, stop, |line| {
+            if !quiet {
+                eprintln!("{line}");
+            }
+        })?;
+        servo_drift = Some(task.servo().drift_ns_per_cycle());
+        done_cycles += summary.cycles;
+        let stopped_by_task = summary.stopped_by_task;
+        interrupted = summary.interrupted;
+        cyclic_summary = Some(summary);
+        if !stopped_by_task || interrupted {
+            break;
+        }
+        restarts += 1;
+        bar.borrow_mut()
+            .line("cyclic operation ended by the DC machine; bringing DC up again");
+        if restarts > 10 {
+            anyhow::bail!("DC re-initialised more than 10 times; giving up");
+        }
+    }
+
+    let pcap_frames = match &args.pcap {
+        Some(path) => Some(
+            t.link_mut()
+                .finish()
+                .with_context(|| format!("writing {}", path.display()))?,
+        ),
+        None => None,
+    };
+    let stats = *m.stats();
+    let summary = RunSummary {
+        iface: args.link.iface.clone(),
+        rt: rt.describe(),
+        cycle_us: args.cycle_us,
+        slaves: m.slaves().len(),
+        dc_slaves: m.slaves().iter().filter(|s| s.dc.has_system_time()).count(),
+        reference: m.reference(),
+        slave_table,
+        bringup_ms,
+        drift_frames: drift.map(|d| d.0),
+        drift_max_diff_ns: drift.map(|d| d.1),
+        restarts,
+        cyclic: cyclic_summary,
+        servo_drift_ns_per_cycle: servo_drift,
+        machine_frames_sent: stats.frames_sent,
+        machine_timeouts: stats.timeouts,
+        machine_lost_cycles: stats.lost_cycles,
+        frames: *t.counters(),
+        pcap_frames,
+        interrupted,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        print_summary(&summary, clock::now_ns() - started);
+    }
+    Ok(())
+}
+
+fn print_summary(s: &RunSummary, elapsed_ns: u64) {
+    println!();
+    println!(
+        "summary: {} on {} ({}), {} slaves ({} DC), cycle {} us, {:.1} s total{}",
+        if s.interrupted {
+            "interrupted"
+        } else {
+            "finished"
+        },
+        s.iface,
+        s.rt,
+        s.slaves,
+        s.dc_slaves,
+        s.cycle_us,
+        elapsed_ns as f64 / 1e9,
+        if s.restarts > 0 {
+            format!(", {} re-initialisations", s.restarts)
+        } else {
+            String::new()
+        }
+    );
+    println!(
+        "  bring-up {:.0} ms; static drift: {}",
+        s.bringup_ms,
+        match (s.drift_frames, s.drift_max_diff_ns) {
+            (Some(f), Some(d)) => format!("{f} frames, max |0x092C| {d} ns at convergence"),
+            _ => "-".to_owned(),
+        }
+    );
+    if let Some(c) = &s.cyclic {
+        println!(
+            "  cyclic: {} cycles, DC lock at end: {}, locked cycles {}; servo lock at end: {}, locked cycles {}",
+            c.cycles,
+            yes_no(c.locked_at_end),
+            c.locked_cycles,
+            yes_no(c.servo_locked_at_end),
+            c.servo_locked_cycles
+        );
+        println!("  wake lateness: {}", c.wake);
+        println!("  round trip:    {}", c.rtt);
+        println!(
+            "  max |0x092C| {} ns; servo error rms {} max {} ns; WKC errors {}; overruns {}",
+            c.max_092c_ns.map_or("-".to_owned(), |v| v.to_string()),
+            c.servo_rms_ns.map_or("-".to_owned(), |v| format!("{v:.0}")),
+            c.servo_max_ns.map_or("-".to_owned(), |v| v.to_string()),
+            c.wkc_errors,
+            c.overruns
+        );
+    }
+    let f = &s.frames;
+    println!(
+        "  frames: sent {} matched {} lost {} stale {} | ignored: foreign {} own-unprocessed {} other-master {} truncated {}",
+        f.sent, f.matched, f.lost, f.stale, f.foreign, f.own_unprocessed, f.other_master, f.truncated
+    );
+    if let Some(n) = s.pcap_frames {
+        println!("  pcap: {n} frames recorded");
+    }
+}
+
+fn yes_no(v: Option<bool>) -> &'static str {
+    match v {
+        Some(true) => "yes",
+        Some(false) => "no",
+        None => "-",
+    }
 }

@@ -62,17 +62,23 @@ pub struct CycleReport {
     pub max_092c_ns: Option<u64>,
     /// Servo error this cycle (phase of our wake-up against the reference), ns.
     pub servo_error_ns: Option<i64>,
-    /// Servo lock state.
+    /// DC lock state (slaves' |0x092C| within bounds).
     pub locked: Option<bool>,
+    /// Master-follows-reference servo lock state.
+    pub servo_locked: Option<bool>,
+    /// End the loop after this cycle (e.g. the DC machine left cyclic operation).
+    pub stop: bool,
 }
 
 /// One cycle's work.
 pub trait CycleTask {
     /// Writes this cycle's frame into `buf` and returns its length; `None` sends nothing.
-    /// `deadline` is the scheduled wake-up, `now` the actual one (monotonic ns).
-    fn build(&mut self, cycle: u64, deadline: u64, now: u64, buf: &mut [u8]) -> Option<usize>;
+    /// `period` counts periods since the loop started, including periods skipped after an
+    /// overrun (so `start + period × cycle` is the nominal time of this wake-up); `deadline`
+    /// is the scheduled wake-up, `now` the actual one (monotonic ns).
+    fn build(&mut self, period: u64, deadline: u64, now: u64, buf: &mut [u8]) -> Option<usize>;
     /// Evaluates the reply (`None`: it did not arrive in time) and returns the report.
-    fn complete(&mut self, cycle: u64, reply: Option<(&[u8], &Reply)>) -> CycleReport;
+    fn complete(&mut self, period: u64, reply: Option<(&[u8], &Reply)>) -> CycleReport;
 }
 
 /// Per-second accounting, printed as one line.
@@ -98,8 +104,10 @@ pub struct SecondStats {
     pub servo: Window,
     /// Servo correction applied to the deadlines.
     pub adjust: Window,
-    /// Last lock state.
+    /// Last DC lock state.
     pub locked: Option<bool>,
+    /// Last servo lock state.
+    pub servo_locked: Option<bool>,
 }
 
 impl std::fmt::Display for SecondStats {
@@ -133,8 +141,13 @@ impl std::fmt::Display for SecondStats {
             )?;
         }
         match self.locked {
-            Some(true) => write!(f, "  locked"),
-            Some(false) => write!(f, "  unlocked"),
+            Some(true) => write!(f, "  dc locked")?,
+            Some(false) => write!(f, "  dc unlocked")?,
+            None => {}
+        }
+        match self.servo_locked {
+            Some(true) => write!(f, ", servo locked"),
+            Some(false) => write!(f, ", servo unlocked"),
             None => Ok(()),
         }
     }
@@ -161,8 +174,14 @@ pub struct LoopSummary {
     pub servo_rms_ns: Option<f64>,
     /// Largest |servo error| over the run.
     pub servo_max_ns: Option<u64>,
-    /// Lock state at the end.
+    /// DC lock state at the end.
     pub locked_at_end: Option<bool>,
+    /// Servo lock state at the end.
+    pub servo_locked_at_end: Option<bool>,
+    /// Cycles with the servo locked.
+    pub servo_locked_cycles: u64,
+    /// The task asked to stop (e.g. the DC machine re-initialises).
+    pub stopped_by_task: bool,
     /// Cycles spent locked.
     pub locked_cycles: u64,
     /// Frame accounting.
@@ -189,16 +208,20 @@ pub fn run<L: Link, T: CycleTask>(
     let mut sec = SecondStats::default();
     let mut totals = SecondStats::default();
     let mut locked_cycles = 0u64;
+    let mut servo_locked_cycles = 0u64;
+    let mut stopped_by_task = false;
     let max_adjust = i64::try_from(cfg.max_adjust_ns).unwrap_or(i64::MAX);
 
     let start = clock::now_ns().saturating_add(cfg.cycle_ns);
     let mut deadline = start;
     let mut next_line = start.saturating_add(clock::NS_PER_S);
     let mut cycle = 0u64;
+    // Period number since start, skipped periods included (what a nominal clock advances by).
+    let mut period = 0u64;
     let mut interrupted = false;
 
     loop {
-        if cfg.max_cycles.is_some_and(|m| cycle >= m) {
+        if cfg.max_cycles.is_some_and(|m| cycle >= m) || stopped_by_task {
             break;
         }
         if stop.load(Ordering::Relaxed) {
@@ -216,7 +239,7 @@ pub fn run<L: Link, T: CycleTask>(
 
         let reply_deadline = woke.saturating_add(cfg.reply_timeout_ns);
         let mut got: Option<Reply> = None;
-        if let Some(len) = task.build(cycle, deadline, woke, &mut tx) {
+        if let Some(len) = task.build(period, deadline, woke, &mut tx) {
             let frame = tx.get(..len).unwrap_or_default();
             match transport.send(frame, reply_deadline) {
                 Ok(_) => {}
@@ -234,11 +257,11 @@ pub fn run<L: Link, T: CycleTask>(
                 rtt_hist.record(r.rtt_ns());
                 sec.rtt
                     .record(i64::try_from(r.rtt_ns()).unwrap_or(i64::MAX));
-                task.complete(cycle, Some((rx.get(..r.len).unwrap_or_default(), r)))
+                task.complete(period, Some((rx.get(..r.len).unwrap_or_default(), r)))
             }
             None => {
                 sec.lost += 1;
-                task.complete(cycle, None)
+                task.complete(period, None)
             }
         };
         if report.wkc_error {
@@ -257,6 +280,12 @@ pub fn run<L: Link, T: CycleTask>(
         if report.locked == Some(true) {
             locked_cycles += 1;
         }
+        if report.servo_locked.is_some() {
+            sec.servo_locked = report.servo_locked;
+        }
+        if report.servo_locked == Some(true) {
+            servo_locked_cycles += 1;
+        }
         let adjust = report.adjust_ns.clamp(-max_adjust, max_adjust);
         sec.adjust.record(adjust);
 
@@ -269,9 +298,14 @@ pub fn run<L: Link, T: CycleTask>(
         if now > deadline {
             let behind = (now - deadline) / cfg.cycle_ns.max(1) + 1;
             deadline = deadline.saturating_add(behind.saturating_mul(cfg.cycle_ns));
+            period += behind;
             sec.overruns += behind;
         }
         cycle += 1;
+        period += 1;
+        if report.stop {
+            stopped_by_task = true;
+        }
 
         if now >= next_line {
             sec.second = (now - start) / clock::NS_PER_S;
@@ -282,9 +316,11 @@ pub fn run<L: Link, T: CycleTask>(
                 totals.max_092c_ns = Some(totals.max_092c_ns.unwrap_or(0).max(v));
             }
             totals.locked = sec.locked.or(totals.locked);
-            let locked = sec.locked;
+            totals.servo_locked = sec.servo_locked.or(totals.servo_locked);
+            let (locked, servo_locked) = (sec.locked, sec.servo_locked);
             sec = SecondStats {
                 locked,
+                servo_locked,
                 ..SecondStats::default()
             };
             next_line = next_line.saturating_add(clock::NS_PER_S);
@@ -297,6 +333,7 @@ pub fn run<L: Link, T: CycleTask>(
         totals.max_092c_ns = Some(totals.max_092c_ns.unwrap_or(0).max(v));
     }
     let locked_at_end = sec.locked.or(totals.locked);
+    let servo_locked_at_end = sec.servo_locked.or(totals.servo_locked);
     transport.abandon_all();
     Ok(LoopSummary {
         cycles: cycle,
@@ -310,6 +347,9 @@ pub fn run<L: Link, T: CycleTask>(
         servo_max_ns: (servo_all.count() > 0).then(|| servo_all.max_abs()),
         locked_at_end,
         locked_cycles,
+        servo_locked_at_end,
+        servo_locked_cycles,
+        stopped_by_task,
         frames: *transport.counters(),
         interrupted,
     })

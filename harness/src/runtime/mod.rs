@@ -10,12 +10,18 @@
 //! - [`rt`]: SCHED_FIFO, mlockall, `/dev/cpu_dma_latency`, pinning, degrading to warnings;
 //! - [`stats`]: allocation-free histograms and per-second rms/max windows;
 //! - [`cyclic`]: the fixed-period loop with its per-second stats line;
+//! - [`bringup`]: drives the DC machine's request steps up to delays (scan) or cyclic (run);
+//! - [`dc_task`]: the machine + master-follows-reference servo as the cyclic loop's task;
+//! - [`capture_link`]: records every frame sent and received into a pcap file;
 //! - [`serve`]: the slave side (`ecdc emulate`): answer masters' frames in real time.
 //!
 //! See `docs/runtime.md` for the design and measured round trips.
 
+pub mod bringup;
+pub mod capture_link;
 pub mod clock;
 pub mod cyclic;
+pub mod dc_task;
 pub mod errors;
 pub mod rt;
 pub mod serve;

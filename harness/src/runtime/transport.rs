@@ -213,6 +213,11 @@ impl<L: Link> Transport<L> {
         &self.link
     }
 
+    /// The link underneath, mutably (e.g. to flush a capture).
+    pub fn link_mut(&mut self) -> &mut L {
+        &mut self.link
+    }
+
     /// Frames awaiting a reply.
     pub fn in_flight(&self) -> usize {
         self.slots.iter().filter(|s| s.used).count()
