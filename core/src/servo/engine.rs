@@ -48,6 +48,10 @@ pub struct ServoConfig {
     pub gear_ns: u64,
     /// See `gear_ns` (≥ 1).
     pub gear_count: u16,
+    /// Take the tracking gains anyway after this many accepted samples in Acquire (0 = never):
+    /// with measurement noise larger than `gear_ns` the consecutive-run criterion may never be
+    /// met, and the fast acquisition gains pass more of that noise through.
+    pub acquire_max: u32,
     /// Outlier gate (armed in Tracking only: while acquiring, θ moves systematically and a
     /// median of past errors is not a prediction of the next one).
     pub gate: GateConfig,
@@ -171,6 +175,7 @@ pub struct Servo {
     gate: Gate,
     lock: LockDetector,
     gear_run: u16,
+    acquired: u32,
     step_run: u8,
     step_positive: bool,
     blank_left: u8,
@@ -198,6 +203,7 @@ impl Servo {
             gate: Gate::new(),
             lock: LockDetector::new(),
             gear_run: 0,
+            acquired: 0,
             step_run: 0,
             step_positive: false,
             blank_left: 0,
@@ -269,6 +275,7 @@ impl Servo {
         self.resume = Mode::Acquire;
         self.gate.clear();
         self.gear_run = 0;
+        self.acquired = 0;
         self.step_run = 0;
     }
 
@@ -398,16 +405,18 @@ impl Servo {
         self.gate.push(theta);
         self.lock.update(&self.cfg.lock, theta);
         if self.mode == Mode::Acquire {
+            self.acquired = self.acquired.saturating_add(1);
             if mag < self.cfg.gear_ns {
                 self.gear_run = self.gear_run.saturating_add(1);
-                if self.gear_run >= self.cfg.gear_count {
-                    // Bumpless apart from ΔKp·θ: I carries over (servo.md §7 rule 5).
-                    self.mode = Mode::Tracking;
-                    self.resume = Mode::Tracking;
-                    self.gate.clear();
-                }
             } else {
                 self.gear_run = 0;
+            }
+            let timed_out = self.cfg.acquire_max > 0 && self.acquired >= self.cfg.acquire_max;
+            if self.gear_run >= self.cfg.gear_count || timed_out {
+                // Bumpless apart from ΔKp·θ: I carries over (servo.md §7 rule 5).
+                self.mode = Mode::Tracking;
+                self.resume = Mode::Tracking;
+                self.gate.clear();
             }
         }
         Output {

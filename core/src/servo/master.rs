@@ -49,7 +49,7 @@ impl MasterConfig {
     /// - acquire: double pole 0.9 (Kp 0.19, Ki 0.01), track: double pole 0.99 (noise-rejecting);
     /// - |correction| ≤ P/1000 per cycle (IgH's ±0.1 %), I_max = y_max;
     /// - first-sample phase step when |θ| > P/100; no later phase steps (whole periods only);
-    /// - gear to tracking after 32 cycles with |θ| < P/50;
+    /// - gear to tracking after 32 cycles with |θ| < P/50, or after 2000 cycles regardless;
     /// - lock below P/50 for 32 cycles, unlock above P/20 (linuxcnc: P/10);
     /// - gate κ = 5 with floor P/100; holdover 100 cycles.
     pub fn for_period(period_ns: u32) -> Result<Self, ConfigError> {
@@ -79,6 +79,7 @@ impl MasterConfig {
                 blank: 1,
                 gear_ns: p / 50,
                 gear_count: 32,
+                acquire_max: 2000,
                 gate: GateConfig::with_floor(floor),
                 lock: LockConfig {
                     low_ns: p / 50,

@@ -167,6 +167,7 @@ mod tests {
                 blank: 1,
                 gear_ns: 100,
                 gear_count: 8,
+                acquire_max: 0,
                 gate: GateConfig::with_floor(50),
                 lock: LockConfig {
                     low_ns: 50,
