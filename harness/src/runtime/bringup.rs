@@ -182,7 +182,9 @@ pub fn bring_up<L: Link, const N: usize>(
             }
         }
         let c = *t.counters();
-        if let (0, Some(mac)) = (c.matched, c.other_master_mac) {
+        // Two masters on one segment overwrite each other's station addresses and DC
+        // registers: refuse to bring DC up next to another master.
+        if let Some(mac) = c.other_master_mac {
             return Err(RuntimeError::OtherMaster {
                 name: iface.to_owned(),
                 mac,
