@@ -96,13 +96,16 @@ start_emulator reflect || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect
 ip netns exec "$NS_M" "$ECDC" rtt --iface ecm0 --count 2000 --cycles 500 --json >"$WORK/rtt.json" 2>"$WORK/rtt.err" \
     || { cat "$WORK/rtt.err"; fail "ecdc rtt failed"; }
 stop_emulator || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect) exited with an error"; }
-jq -c '{b2b: .back_to_back.rtt, cyclic: .cyclic.rtt, wake: .cyclic.wake}' "$WORK/rtt.json"
+jq -c '{b2b_rtt: .back_to_back.rtt, cyclic_rtt: .cyclic.rtt, wake: .cyclic.wake}' "$WORK/rtt.json"
+jq -c '{b2b_frames: .back_to_back.frames, cyclic_frames: .cyclic.frames, cycles: .cyclic.cycles, overruns: .cyclic.overruns}' "$WORK/rtt.json"
 R="$WORK/rtt.json"; E="$WORK/emu-reflect.json"
 check "back-to-back: all 2000 sent and matched" '.back_to_back.frames.sent == 2000 and .back_to_back.frames.matched == 2000' "$R"
 check "back-to-back: nothing stale/foreign/other-master/unprocessed" \
     '.back_to_back.frames | (.stale + .foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
-check "cyclic: 500 cycles, sent = matched + lost, lost <= 1%" \
-    '.cyclic.cycles == 500 and .cyclic.frames.sent == 500 and (.cyclic.frames.matched + .cyclic.frames.lost) == 500 and .cyclic.frames.lost <= 5' "$R"
+# A reply later than the cycle's reply timeout (800 us) counts as lost and then stale; on a
+# loaded CI machine scheduling stalls cause a few, so the bound is loose, the identity exact.
+check "cyclic: 500 cycles, sent = matched + lost, stale <= lost, lost <= 5%" \
+    '.cyclic.cycles == 500 and .cyclic.frames.sent == 500 and (.cyclic.frames.matched + .cyclic.frames.lost) == 500 and .cyclic.frames.stale <= .cyclic.frames.lost and .cyclic.frames.lost <= 25' "$R"
 check "cyclic: no foreign/other-master/unprocessed frames" \
     '.cyclic.frames | (.foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
 check "emulator answered every frame the master sent (2500)" \
@@ -119,11 +122,13 @@ if start_emulator esc; then
         FAILED=1
     else
         R="$WORK/run.json"; E="$WORK/emu-esc.json"
-        jq -c '{slaves: .slaves, locked: .cyclic.locked_at_end, max_092c_ns: .cyclic.max_092c_ns, rtt: .cyclic.rtt}' "$R"
+        jq -c '{slaves: .slaves, dc_locked: .cyclic.locked_at_end, servo_locked: .cyclic.servo_locked_at_end, max_092c_ns: .cyclic.max_092c_ns, drift_frames: .drift_frames, rtt: .cyclic.rtt, wake: .cyclic.wake}' "$R"
+        jq -c '{frames: .frames, restarts: .restarts}' "$R"
         check "slaves found" '.slaves >= 1' "$R"
-        check "servo locked at the end" '.cyclic.locked_at_end == true' "$R"
-        check "every frame accounted: sent = matched + lost, lost <= 1%" \
-            '.frames.sent == (.frames.matched + .frames.lost) and .frames.lost * 100 <= .frames.sent' "$R"
+        check "DC locked at the end (BRD 0x092C bound within the lock threshold)" '.cyclic.locked_at_end == true' "$R"
+        check "bring-up went through static drift compensation" '.drift_frames > 0' "$R"
+        check "every frame accounted: sent = matched + lost, stale <= lost, lost <= 5%" \
+            '.frames.sent == (.frames.matched + .frames.lost) and .frames.stale <= .frames.lost and .frames.lost * 20 <= .frames.sent' "$R"
         check "no foreign/other-master/unprocessed frames" \
             '.frames | (.foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
         check "emulator received and answered every frame the master sent" \
@@ -134,6 +139,50 @@ else
     sed 's/^/    /' "$WORK/emu-esc.err"
     FAILED=1
 fi
+
+echo "== part 3: errors a user can act on"
+# expect_error DESCRIPTION PATTERN COMMAND...: the command must fail and say PATTERN on stderr.
+expect_error() {
+    local desc="$1" pattern="$2"
+    shift 2
+    local out rc
+    out="$("$@" 2>&1 >/dev/null)"
+    rc=$?
+    if [ "$rc" -ne 0 ] && grep -q -- "$pattern" <<<"$out"; then
+        echo "  ok   $desc"
+    else
+        echo "  FAIL $desc (exit $rc): $out"
+        FAILED=1
+    fi
+}
+M=(ip netns exec "$NS_M")
+expect_error "no such interface lists the existing ones" "no interface named \"nope0\".*available: .*ecm0" \
+    "${M[@]}" "$ECDC" scan --iface nope0
+expect_error "no slaves answer (nothing on the peer)" "no EtherCAT slave answered on ecm0" \
+    "${M[@]}" "$ECDC" scan --iface ecm0
+ip -n "$NS_M" link set ecm0 down
+expect_error "interface down with --no-bring-up says how to raise it" "ip link set ecm0 up" \
+    "${M[@]}" "$ECDC" scan --iface ecm0 --no-bring-up
+ip -n "$NS_M" link set ecm0 mtu 1000
+expect_error "MTU too small says how to fix it" "MTU 1000.*ip link set ecm0 mtu 1500" \
+    "${M[@]}" "$ECDC" scan --iface ecm0
+ip -n "$NS_M" link set ecm0 mtu 1500
+if command -v setpriv >/dev/null 2>&1; then
+    expect_error "missing CAP_NET_RAW explains setcap" "setcap cap_net_raw,cap_net_admin+ep" \
+        "${M[@]}" setpriv --reuid=65534 --regid=65534 --clear-groups --inh-caps=-all "$ECDC" scan --iface ecm0
+else
+    echo "  skip missing-capability check (setpriv not installed)"
+fi
+# A second master on the segment: `ecdc rtt` with SOEM's MAC, sending from the slave side.
+ip netns exec "$NS_S" "$ECDC" rtt --iface ecs0 --source-mac 01:01:01:01:01:01 --count 0 --cycles 5000 \
+    >/dev/null 2>&1 &
+OTHER_PID=$!
+PIDS+=("$OTHER_PID")
+sleep 0.3
+expect_error "frames of another master are refused, naming its MAC" "another EtherCAT master (01:01:01:01:01:01)" \
+    "${M[@]}" "$ECDC" scan --iface ecm0
+kill -TERM "$OTHER_PID" 2>/dev/null
+wait "$OTHER_PID" 2>/dev/null
 
 [ "$FAILED" = 0 ] || fail "see the lines marked FAIL above"
 echo "PASS: netns integration test"

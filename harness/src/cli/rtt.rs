@@ -8,7 +8,7 @@
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
-use ecdc_core::wire::{Address, Command, FrameBuilder, MASTER_MAC};
+use ecdc_core::wire::{Address, Command, FrameBuilder};
 
 use super::link_args::{LinkArgs, RtArgs};
 use crate::runtime::clock;
@@ -37,15 +37,37 @@ pub struct Args {
     /// Reply timeout for back-to-back frames, us.
     #[arg(long, default_value_t = 100_000)]
     pub timeout_us: u64,
+    /// Source MAC of the probe frames (first octet must have bits 0x01 and 0x02 clear); e.g.
+    /// to play a second master and check that `ecdc run` refuses to share the segment.
+    #[arg(long, value_parser = parse_mac, default_value = "10:10:10:10:10:10")]
+    pub source_mac: [u8; 6],
     /// Print a JSON summary on stdout instead of text.
     #[arg(long)]
     pub json: bool,
 }
 
-/// Writes the probe frame with first datagram index `idx`; returns its length.
-fn probe(buf: &mut [u8], idx: u8) -> ecdc_core::wire::Result<usize> {
+/// Parses `aa:bb:cc:dd:ee:ff` into a unicast MAC whose "processed" bit is clear.
+fn parse_mac(s: &str) -> Result<[u8; 6], String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let mut mac = [0u8; 6];
+    if parts.len() != 6 {
+        return Err("expected six hex octets separated by ':'".into());
+    }
+    for (m, p) in mac.iter_mut().zip(parts) {
+        *m = u8::from_str_radix(p, 16).map_err(|e| format!("{p:?}: {e}"))?;
+    }
+    if mac[0] & 0x02 != 0 {
+        return Err(
+            "bit 0x02 of the first octet must be clear (slaves set it on processed frames)".into(),
+        );
+    }
+    Ok(mac)
+}
+
+/// Writes the probe frame from `mac` with first datagram index `idx`; returns its length.
+fn probe(buf: &mut [u8], mac: [u8; 6], idx: u8) -> ecdc_core::wire::Result<usize> {
     let mut b = FrameBuilder::new(buf)?;
-    b.set_source(MASTER_MAC);
+    b.set_source(mac);
     b.push(Command::Brd, idx, Address::broadcast(0x0130), &[0, 0])?;
     b.push(
         Command::Frmw,
@@ -64,11 +86,11 @@ struct BackToBack {
 }
 
 /// The in-cycle probe task: one probe per cycle, WKC of the BRD must be non-zero.
-struct ProbeTask;
+struct ProbeTask([u8; 6]);
 
 impl CycleTask for ProbeTask {
     fn build(&mut self, cycle: u64, _deadline: u64, _now: u64, buf: &mut [u8]) -> Option<usize> {
-        probe(buf, ((cycle % 128) * 2) as u8).ok()
+        probe(buf, self.0, ((cycle % 128) * 2) as u8).ok()
     }
     fn complete(&mut self, _cycle: u64, reply: Option<(&[u8], &Reply)>) -> CycleReport {
         // Lost frames are counted by the loop; a WKC error is a reply nobody processed.
@@ -105,7 +127,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let sock = args.link.open(60, true).map_err(anyhow::Error::new)?;
     let info = sock.info().clone();
     let rt = args.rt.apply();
-    let mut transport = Transport::new(sock, MASTER_MAC);
+    let mut transport = Transport::new(sock, args.source_mac);
 
     let back_to_back = if args.count > 0 {
         Some(back_to_back(&mut transport, args, stop)?)
@@ -126,11 +148,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         transport.reset_counters();
         let mut cfg = CycleConfig::new(args.cycle_us.max(1) * 1000);
         cfg.max_cycles = Some(args.cycles);
-        let summary = cyclic::run(&mut transport, &mut ProbeTask, &cfg, stop, |line| {
-            if !args.json {
-                eprintln!("{line}");
-            }
-        })?;
+        let summary = cyclic::run(
+            &mut transport,
+            &mut ProbeTask(args.source_mac),
+            &cfg,
+            stop,
+            |line| {
+                if !args.json {
+                    eprintln!("{line}");
+                }
+            },
+        )?;
         Some(summary)
     } else {
         None
@@ -183,7 +211,7 @@ fn back_to_back(
         if stop.load(std::sync::atomic::Ordering::Relaxed) {
             break;
         }
-        let len = probe(&mut tx, ((i % 128) * 2) as u8)
+        let len = probe(&mut tx, args.source_mac, ((i % 128) * 2) as u8)
             .map_err(|e| anyhow::anyhow!("building probe: {e}"))?;
         let deadline = clock::now_ns().saturating_add(args.timeout_us * 1000);
         transport

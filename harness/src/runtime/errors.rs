@@ -171,12 +171,6 @@ impl fmt::Display for RuntimeError {
     }
 }
 
-impl std::error::Error for RuntimeError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            RuntimeError::InterfaceDown { cause, .. } => Some(cause),
-            RuntimeError::Io { source, .. } => Some(source),
-            _ => None,
-        }
-    }
-}
+/// The `Display` text already contains the OS error, so no `source()` chain: `{:#}` in the
+/// CLI would otherwise print it twice.
+impl std::error::Error for RuntimeError {}
