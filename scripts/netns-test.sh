@@ -113,7 +113,8 @@ check "emulator answered every frame the master sent (2500)" \
 
 echo "== part 2: DC bring-up and cyclic run on emulated ESCs"
 if start_emulator esc; then
-    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 3 --json >"$WORK/run.json" 2>"$WORK/run.err"
+    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 3 --json --pcap "$WORK/run.pcap" \
+        >"$WORK/run.json" 2>"$WORK/run.err"
     RUN_RC=$?
     stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
     if [ "$RUN_RC" -ne 0 ]; then
@@ -133,6 +134,15 @@ if start_emulator esc; then
             '.frames | (.foreign + .other_master + .own_unprocessed + .truncated + .mismatched) == 0' "$R"
         check "emulator received and answered every frame the master sent" \
             '.frames.received == $run[0].frames.sent and .frames.answered == $run[0].frames.sent' "$E" --slurpfile run "$R"
+        check "pcap holds every frame sent and received" '.pcap_frames == (.frames.sent + .frames.received)' "$R"
+        if command -v tshark >/dev/null 2>&1; then
+            n_pcap=$(tshark -r "$WORK/run.pcap" 2>/dev/null | wc -l)
+            n_bad=$(tshark -r "$WORK/run.pcap" -Y '_ws.malformed || !ecat' 2>/dev/null | wc -l)
+            check "tshark reads all $n_pcap frames as EtherCAT, none malformed ($n_bad bad)" \
+                ".pcap_frames == $n_pcap and $n_bad == 0" "$R"
+        else
+            echo "  skip tshark check of the pcap (tshark not installed)"
+        fi
     fi
 else
     echo "  FAIL emulator (esc) did not start:"
