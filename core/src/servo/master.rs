@@ -181,19 +181,27 @@ impl MasterServo {
         self.servo.integrator_q32() >> 32
     }
 
-    /// (app − ref) − target as a signed ns value, wrap-safe in the configured width.
-    fn raw_error(&self, app: u64, reference: u64) -> i64 {
+    /// REQ-SERVO-100: θ = fold((app − ref) − target), the app-time correction that removes the
+    /// whole periods of raw − θ, and whether |raw| ≥ P. The difference is wrap-safe in the
+    /// configured width; raw is exact (i128), so no saturation can break "multiple of P".
+    fn measure(&self, app: u64, reference: u64) -> (i64, i64, bool) {
         let d = if self.ref_32bit {
             i64::from(wrapping_diff::<u32>(low32(app), low32(reference)))
         } else {
             wrapping_diff::<u64>(app, reference)
         };
-        d.saturating_sub(self.target)
+        let p = u64::from(self.period);
+        // |fold(d)| ≤ P/2 and |target| ≤ P ≤ 2^29: the inner difference cannot overflow, and
+        // it is ≡ raw (mod P), so folding it again gives fold(raw).
+        let theta = fold::<u64>(fold::<u64>(d, p).wrapping_sub(self.target), p);
+        let raw = i128::from(d).wrapping_sub(i128::from(self.target));
+        let correction = fit_multiple(i128::from(theta).wrapping_sub(raw), i128::from(p));
+        (theta, correction, raw.unsigned_abs() >= u128::from(p))
     }
 
     /// REQ-SERVO-100..105: process one cycle.
     pub fn update(&mut self, input: MasterInput) -> MasterOutput {
-        let (local_ns, raw) = match input {
+        let (local_ns, (theta, correction, beyond)) = match input {
             MasterInput::Lost => {
                 let out = self.servo.update(Input::Missing);
                 return self.finish(out, 0, 0);
@@ -202,30 +210,25 @@ impl MasterServo {
                 local_ns,
                 app_ns,
                 ref_ns,
-            } => (local_ns, self.raw_error(app_ns, ref_ns)),
+            } => (local_ns, self.measure(app_ns, ref_ns)),
         };
-        let p = u64::from(self.period);
-        let theta = fold::<u64>(raw, p);
-        // raw ≡ θ (mod P) and |θ| ≤ P/2, so `whole` is a multiple of P; saturating ops only
-        // matter for |raw| near 2^63, where the step is still a multiple of P up to saturation.
-        let whole = raw.saturating_sub(theta);
         let mut app_step = 0i64;
-        if whole == 0 {
+        if correction == 0 {
             self.whole_run = 0;
         } else if !self.started {
             // First sample: align app time to DC at once (nothing is running on it yet).
-            app_step = whole.saturating_neg();
-        } else if raw.unsigned_abs() >= p {
+            app_step = correction;
+        } else if beyond {
             // Later: only a confirmed offset of a period or more (jitter near ±P/2 must not
             // make the app time flip between neighbouring periods).
-            if self.whole_run > 0 && whole == self.whole_last {
+            if self.whole_run > 0 && correction == self.whole_last {
                 self.whole_run = self.whole_run.saturating_add(1);
             } else {
                 self.whole_run = 1;
-                self.whole_last = whole;
+                self.whole_last = correction;
             }
             if self.whole_run >= self.servo.config().step_confirm {
-                app_step = whole.saturating_neg();
+                app_step = correction;
                 self.whole_run = 0;
             }
         }
@@ -250,6 +253,34 @@ impl MasterServo {
             engine: out,
         }
     }
+}
+
+/// The multiple of `p` nearest to `v` toward zero that fits in i64 (`v` itself when it fits).
+/// `v` is a multiple of `p` with |v| < 2^64; `p` in [1000, 2^29].
+fn fit_multiple(v: i128, p: i128) -> i64 {
+    let max = i128::from(i64::MAX);
+    let min = i128::from(i64::MIN);
+    let excess = if v > max {
+        v.wrapping_sub(max)
+    } else if v < min {
+        v.wrapping_sub(min)
+    } else {
+        0
+    };
+    // Round the excess away from zero to whole periods and remove it.
+    let k = excess
+        .unsigned_abs()
+        .checked_add(p.unsigned_abs().saturating_sub(1))
+        .and_then(|e| e.checked_div(p.unsigned_abs()))
+        .unwrap_or(0);
+    let k = i128::try_from(k).unwrap_or(0);
+    let adj = k.wrapping_mul(p);
+    let v = if excess > 0 {
+        v.wrapping_sub(adj)
+    } else {
+        v.wrapping_add(adj)
+    };
+    i64::try_from(v).unwrap_or(0)
 }
 
 /// Low 32 bits (a 32-bit DC keeps only these).
@@ -320,6 +351,32 @@ mod tests {
         assert_eq!(out.engine.verdict, Verdict::Missing);
         assert_eq!(out.engine.mode, Mode::Holdover);
         assert_eq!(out.app_time_step_ns, 0);
+    }
+
+    #[test]
+    fn extreme_differences_still_step_whole_periods() {
+        for &(app, reference, target) in &[
+            (0u64, 1u64 << 63, 999_999i64),
+            (1u64 << 63, 0, -1_000_000),
+            (u64::MAX, (1 << 63) - 1, 1),
+        ] {
+            let mut cfg = MasterConfig::for_period(1_000_000).unwrap();
+            cfg.target_ns = target;
+            let mut m = MasterServo::new(cfg).unwrap();
+            let out = m.update(MasterInput::Sample {
+                local_ns: 0,
+                app_ns: app,
+                ref_ns: reference,
+            });
+            assert_eq!(out.app_time_step_ns % 1_000_000, 0);
+            assert!(out.app_time_step_ns != 0);
+            let raw = i128::from(app.wrapping_sub(reference) as i64) - i128::from(target);
+            let theta = i128::from(out.phase_error_ns);
+            assert_eq!((raw - theta).rem_euclid(1_000_000), 0);
+            assert!(2 * theta <= 1_000_000 && 2 * theta > -1_000_000);
+        }
+        assert_eq!(fit_multiple((1i128 << 63) + 192, 1000), i64::MAX - 807);
+        assert_eq!(fit_multiple(-(1i128 << 63) - 192, 1000), i64::MIN + 808);
     }
 
     #[test]
