@@ -17,6 +17,26 @@
 //!   DC time agree to within P/2 (REQ-SERVO-102). Whole periods never move the wake-up phase,
 //!   so this is how a large offset is absorbed without disturbing the cycle (linuxcnc-ethercat
 //!   PR #502: resync by whole periods only, the remainder is left to the controller).
+//!
+//! Per cycle (the runtime / simulator side):
+//! ```
+//! use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+//! let period = 1_000_000u32; // 1 ms
+//! let mut servo = MasterServo::new(MasterConfig::for_period(period).unwrap()).unwrap();
+//! let (mut app_base, mut deadline) = (5_000_000_000u64, 0u64);
+//! for cycle in 0..3u64 {
+//!     let app = app_base + cycle * u64::from(period); // nominal DC time of this cycle
+//!     let reference = app - 250; // what the FRMW on 0x0910 returned (here: master 250 ns ahead)
+//!     let out = servo.update(MasterInput::Sample { local_ns: deadline, app_ns: app, ref_ns: reference });
+//!     // (on a lost frame: servo.update(MasterInput::Lost))
+//!     app_base = app_base.wrapping_add_signed(out.app_time_step_ns); // whole periods only
+//!     deadline = deadline
+//!         .wrapping_add(u64::from(period))
+//!         .wrapping_add_signed(out.deadline_correction_ns); // wake later when ahead
+//!     assert!(out.deadline_correction_ns > 0);
+//! }
+//! assert!(!servo.is_locked()); // lock needs 32 cycles within P/50
+//! ```
 
 use super::carry::Carry;
 use super::engine::{ConfigError, Counters, Input, Mode, Output, Servo, ServoConfig, Verdict};
