@@ -81,6 +81,7 @@ pub fn script_config() -> Config {
     c.drift.consecutive = 1;
     c.drift.max_frames = 4;
     c.drift.check = DriftCheck::Both;
+    c.drift.check_pause_ns = 5_000;
     c.monitor.lock_cycles = 1;
     c.monitor.unlock_cycles = 1;
     c.monitor.lock_timeout_cycles = 3;

@@ -58,7 +58,7 @@ fn modelled_script_reaches_cyclic() {
         // AL states, model size byte (3 -> 4 slaves), then transmit + modelled reply, repeated.
         let mut s = vec![al, al, al, al, 3];
         for _ in 0..200 {
-            s.extend_from_slice(&[1, 3, 0, 0x80]);
+            s.extend_from_slice(&[1, 3, 0, 0x80, 0, 100, 0]);
         }
         let o: Outcome = run_script(&s).expect("no violation");
         assert!(o.reached_cyclic, "{o:?}");

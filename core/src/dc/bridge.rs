@@ -20,10 +20,7 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn accumulate_round(&mut self) -> Result<(), Error> {
         let count = usize::from(self.count);
         let mut samples = [SlaveSample::default(); N];
-        for (pos, (s, out)) in (0u16..)
-            .zip(self.slaves.iter().zip(samples.iter_mut()))
-            .take(count)
-        {
+        for (s, out) in self.slaves.iter().zip(samples.iter_mut()).take(count) {
             let open = PortSet::from_dl_status(s.dl_status);
             let mut ports = open;
             let latches = if s.dc.has_latches() {
@@ -44,11 +41,10 @@ impl<const N: usize> Machine<N> {
             } else {
                 None
             };
-            let _ = pos;
             *out = SlaveSample {
                 ports,
                 latches,
-                t_diff: 0,
+                t_diff: self.cfg.t_diff_ns,
             };
         }
         let samples = samples.get(..count).unwrap_or(&[]);

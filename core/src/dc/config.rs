@@ -19,27 +19,36 @@ pub struct DriftConfig {
     /// FRMW frames per burst between two 0x092C checks. ecdc choice: 100 keeps the check overhead
     /// near 1 % while bounding overshoot past convergence to 100 frames.
     pub burst_frames: u16,
-    /// Convergence threshold on |0x092C| in ns. ecdc choice: 1 µs, ten times stricter than IgH's
-    /// 10 µs gate (`EC_DC_MAX_SYNC_DIFF_NS`), because the offsets already fold the delay in.
+    /// Convergence threshold on |0x092C| in ns. ecdc choice: 100 ns, the "< 100 ns" DC accuracy
+    /// Beckhoff states (EL6685 docs) and CherryECAT's `EC_DC_MAX_SYNC_DIFF_NS`; 100× stricter
+    /// than IgH's 10 µs gate, affordable because the offsets already fold the delay in.
     pub threshold_ns: u32,
-    /// Consecutive checks that must all be below the threshold (K). ecdc choice: 3, so a single
-    /// lucky sample of the filtered difference does not end the burst.
+    /// Consecutive checks that must all be below the threshold (K). After the first passing
+    /// check, the remaining ones are one cycle-paced FRMW each, so K also is the number of
+    /// cycles the network must stay below the threshold at the cyclic sample rate. ecdc choice:
+    /// 20 (20 ms at 1 ms).
     pub consecutive: u8,
     /// Upper bound of FRMW frames before giving up with a per-slave report. 30 000 = twice the
     /// ~15 000 frames quoted by KickCAT/CherryECAT and seed 000 §2.3.
     pub max_frames: u32,
     /// What to read at each check.
     pub check: DriftCheck,
+    /// Free-running pause before the last FRMW of every burst, ns. The check then reads the
+    /// Δt that one pause accumulated, so the gate passes only once the loops have learned the
+    /// clock *rate*, not just the phase (back-to-back frames hide a rate error). ecdc choice:
+    /// 1 ms, the default cycle; 0 disables the pause.
+    pub check_pause_ns: u64,
 }
 
 impl Default for DriftConfig {
     fn default() -> Self {
         DriftConfig {
             burst_frames: 100,
-            threshold_ns: 1_000,
-            consecutive: 3,
+            threshold_ns: 100,
+            consecutive: 20,
             max_frames: 30_000,
             check: DriftCheck::Both,
+            check_pause_ns: 1_000_000,
         }
     }
 }
@@ -83,10 +92,11 @@ pub struct MonitorConfig {
     /// overhead at 8 × 16 bytes while sweeping 100 slaves in 13 cycles.
     pub slaves_per_cycle: u8,
     /// Lock when the BRD 0x092C upper bound stays ≤ this for `lock_cycles` cycles. ecdc choice:
-    /// 1 µs (the static-drift threshold).
+    /// 200 ns: the bound is a bitwise OR of magnitudes, at most twice the worst slave, so this
+    /// certifies every slave within 200 ns.
     pub lock_ns: u32,
     /// Unlock when the bound stays > this for `unlock_cycles` cycles (hysteresis). ecdc choice:
-    /// 5 µs, half of IgH's 10 µs gate.
+    /// 1 µs, five times the lock threshold and ten times below IgH's 10 µs gate.
     pub unlock_ns: u32,
     /// Consecutive good cycles to declare lock. ecdc choice: 10.
     pub lock_cycles: u16,
@@ -107,8 +117,8 @@ impl Default for MonitorConfig {
         MonitorConfig {
             cycle_ns: 1_000_000,
             slaves_per_cycle: 8,
-            lock_ns: 1_000,
-            unlock_ns: 5_000,
+            lock_ns: 200,
+            unlock_ns: 1_000,
             lock_cycles: 10,
             unlock_cycles: 3,
             lock_timeout_cycles: 5_000,
@@ -140,6 +150,10 @@ pub struct Config {
     /// Latch measurements (BWR 0x0900) averaged into the propagation delays. ecdc choice: 4
     /// halves the 10 ns stamp quantisation noise.
     pub latch_rounds: u8,
+    /// `t_Diff = t_P − t_F` of the ESCs (processing minus forwarding delay), ns, from the ESI
+    /// or the ESC datasheet (DS S1-73); used for every slave by the delay maths. 0 when
+    /// unknown: then each hop's delay is off by t_Diff/2 (seed 000 eq. 13).
+    pub t_diff_ns: i32,
     /// Largest plausible propagation delay from the reference to any slave, ns; a larger
     /// computed delay is rejected as out of range instead of being written. ecdc choice: 1 ms
     /// (≈ 1 000 hops at the 1 µs per hop of DS S1-88).
@@ -171,6 +185,7 @@ impl Default for Config {
             response_timeout_ns: 10_000_000,
             retries: 3,
             latch_rounds: 4,
+            t_diff_ns: 0,
             max_delay_ns: 1_000_000,
             filter_depths: 0x0C00,
             speed_counter_start: 0x1000,

@@ -12,6 +12,29 @@ use crate::dc::state::State;
 use crate::wire::register::{reg, SystemTimeDifference};
 
 impl<const N: usize> Machine<N> {
+    /// Frames of the current burst: `burst_frames` back to back while the gate has not passed
+    /// yet; once a check passed, single paused frames, so the remaining `consecutive − 1` checks
+    /// watch the loops at the cyclic sample rate they will run at (a loop held tight by
+    /// back-to-back samples can drift off once samples come only every cycle).
+    pub(crate) fn burst_len(&self) -> u16 {
+        if self.drift_ok > 0 {
+            1
+        } else {
+            self.cfg.drift.burst_frames
+        }
+    }
+
+    /// Earliest master time the next item of the current step may go out: the last FRMW of a
+    /// burst waits `check_pause_ns` after the previous frame (REQ-DC-104).
+    pub(crate) fn pace_until(&self) -> u64 {
+        let last_of_burst = self.burst_len().saturating_sub(1);
+        if self.state == State::DriftBurst && self.cursor == last_of_burst {
+            self.last_sent.saturating_add(self.cfg.drift.check_pause_ns)
+        } else {
+            0
+        }
+    }
+
     pub(crate) fn drift_item(&self, now: u64, i: u16) -> Item {
         match self.state {
             State::DriftBurst => Item::Send(self.frmw_op(now)),

@@ -85,6 +85,8 @@ pub struct Machine<const N: usize> {
     pub(crate) stats: Stats,
     pub(crate) next_index: u8,
     pub(crate) wake_at: u64,
+    /// Master time of the last transmission of a request step.
+    pub(crate) last_sent: u64,
     pub(crate) frames_at_start: u64,
     pub(crate) latch_round: u8,
     /// Master time sampled just before sending the latch trigger (REQ-DC-102).
@@ -117,6 +119,7 @@ impl<const N: usize> Machine<N> {
             stats: Stats::default(),
             next_index: cfg.index_first,
             wake_at: 0,
+            last_sent: 0,
             frames_at_start: 0,
             latch_round: 0,
             latch_time: 0,
@@ -212,8 +215,10 @@ impl<const N: usize> Machine<N> {
         }
         match self.state {
             State::RestartWait => min(self.wake_at),
-            State::Cyclic if !self.busy => min(self.cyc.next_due),
             State::Cyclic => min(self.cyc.next_due),
+            s if s.is_request_step() && !self.busy && self.pace_until() > self.last_sent => {
+                min(self.pace_until())
+            }
             _ => {}
         }
         t.map(SystemTime)
@@ -439,17 +444,12 @@ impl<const N: usize> Machine<N> {
         if !self.state.is_request_step() {
             return false;
         }
+        if now < self.pace_until() {
+            return false;
+        }
         let before = b.datagram_count();
         self.chunk_start = self.cursor;
         self.inflight.clear();
-        if let Some(op) = self.prefix(now) {
-            if !self.push_op(b, op, Tag::Frmw) {
-                if before == 0 {
-                    self.push_event(Event::Error(Error::BufferTooSmall));
-                }
-                return false;
-            }
-        }
         let count = self.item_count();
         let max = self.max_per_frame();
         let mut sent = 0usize;
@@ -474,6 +474,7 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         self.busy = true;
+        self.last_sent = now;
         self.inflight.deadline = now.saturating_add(self.cfg.response_timeout_ns);
         self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
         true
@@ -483,11 +484,6 @@ impl<const N: usize> Machine<N> {
         match p.tag {
             Tag::Item(i) if self.state.is_request_step() => {
                 if let Err(e) = self.on_item(now, i, p, wkc, data) {
-                    self.step_error.get_or_insert(e);
-                }
-            }
-            Tag::Frmw if self.state.is_request_step() => {
-                if let Err(e) = self.check_frmw(p, wkc) {
                     self.step_error.get_or_insert(e);
                 }
             }

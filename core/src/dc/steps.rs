@@ -22,7 +22,7 @@ impl<const N: usize> Machine<N> {
             | State::ActivateSync => n,
             State::ReadInfo | State::WriteOffsets | State::ResetLoops => n.saturating_mul(2),
             State::ProgramSync => n.saturating_mul(3),
-            State::DriftBurst => self.cfg.drift.burst_frames,
+            State::DriftBurst => self.burst_len(),
             State::DriftCheck => n.saturating_add(1),
             State::Idle | State::Cyclic | State::RestartWait | State::Failed => 0,
         }
@@ -33,14 +33,6 @@ impl<const N: usize> Machine<N> {
         match self.state {
             State::DriftBurst => 1,
             _ => usize::MAX,
-        }
-    }
-
-    /// Datagram sent in front of every frame of the step.
-    pub(crate) fn prefix(&self, now: u64) -> Option<Op> {
-        match self.state {
-            State::DriftCheck => Some(self.frmw_op(now)),
-            _ => None,
         }
     }
 
@@ -82,12 +74,11 @@ impl<const N: usize> Machine<N> {
             // REQ-DC-102: master time sampled *before* the latching BWR leaves.
             self.latch_time = now;
         }
-        if self.state == State::DriftBurst || self.state == State::DriftCheck {
-            // One loop sample per frame: count the frame at its first item.
-            self.drift_frames = self
-                .drift_frames
-                .saturating_add(u32::from(i == self.chunk_start));
+        if self.state == State::DriftBurst {
+            // One FRMW per burst frame: one loop sample in every slave.
+            self.drift_frames = self.drift_frames.saturating_add(1);
         }
+        let _ = i;
     }
 
     pub(crate) fn on_item(

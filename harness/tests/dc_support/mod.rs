@@ -1,0 +1,156 @@
+//! Shared helpers of the DC end-to-end tests (`harness/tests/dc_*.rs`): configuration matching
+//! the emulator, bring-up to lock, steady-state measurement.
+#![allow(dead_code)]
+
+use ecdc_core::dc::{Config, Event, Machine};
+use ecdc_harness::emu::{EscKind, Network, Scenario, SlaveSpec};
+use ecdc_harness::sim::Sim;
+
+/// The machine's default configuration plus the emulator's t_Diff (t_P 540 − t_F 460 ns, the
+/// emulator's model defaults): what a user would take from the ESI.
+pub fn config() -> Config {
+    Config {
+        t_diff_ns: 80,
+        ..Config::default()
+    }
+}
+
+/// A machine and the emulator for `sc`, started.
+pub fn sim<const N: usize>(sc: &Scenario, cfg: Config) -> Sim<N> {
+    let net = Network::new(sc).expect("scenario");
+    let m: Machine<N> = Machine::new(cfg).expect("config");
+    let mut s = Sim::new(m, net);
+    s.start();
+    s
+}
+
+/// Drives until the first `Locked` event; panics with the event log on an error or time limit.
+/// Returns (frames to lock, true time of lock).
+pub fn lock<const N: usize>(s: &mut Sim<N>, limit_ns: u64) -> (u64, u64) {
+    match s.drive_until(limit_ns, |e| matches!(e, Event::Locked { .. })) {
+        Ok(Event::Locked { frames, .. }) => (frames, s.now()),
+        other => {
+            for (t, e) in s.events() {
+                eprintln!("{t:>12} {e:?}");
+            }
+            panic!("no lock: {other:?}, stats {:?}", s.machine.stats());
+        }
+    }
+}
+
+/// Steady-state figures over a window of cyclic operation.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Steady {
+    /// Largest |0x092C| any slave reported (per-slave FPRD, as read by the machine), ns.
+    pub max_abs_diff: i64,
+    /// Mean of the per-slave |0x092C| samples, ns.
+    pub mean_abs_diff: f64,
+    /// Largest BRD 0x092C upper bound, ns.
+    pub max_bound: u32,
+    /// Largest true |system time − reference system time| (emulator observer), ns.
+    pub max_true_err: i64,
+    /// Cycles observed.
+    pub cycles: u64,
+}
+
+/// Runs `window_ns` of cyclic operation after lock and collects [`Steady`]. `kinds` says which
+/// emulator slaves have a system time and whether it is 64-bit.
+pub fn steady<const N: usize>(s: &mut Sim<N>, window_ns: u64, kinds: &[EscKind]) -> Steady {
+    let reference = kinds
+        .iter()
+        .position(|k| k.has_system_time())
+        .expect("a DC slave");
+    let clocks: Vec<(usize, bool)> = kinds
+        .iter()
+        .enumerate()
+        .filter(|(_, k)| k.has_system_time())
+        .map(|(i, k)| (i, k.is_64bit()))
+        .collect();
+    let mut out = Steady::default();
+    let mut sum = 0f64;
+    let mut n = 0u64;
+    let end = s.now() + window_ns;
+    let cycle = s.machine.config().monitor.cycle_ns;
+    let mut next_true = s.now();
+    let cycles0 = s.machine.stats().cycles;
+    while s.now() < end {
+        let t = s.now() + cycle;
+        s.run_until(t).expect("sim");
+        for sl in s.machine.slaves() {
+            if let Some(d) = sl.last_diff_ns {
+                out.max_abs_diff = out.max_abs_diff.max(d.abs());
+                sum += d.abs() as f64;
+                n += 1;
+            }
+        }
+        out.max_bound = out.max_bound.max(s.machine.diff_bound_ns().unwrap_or(0));
+        if s.now() >= next_true {
+            next_true = s.now() + 10 * cycle;
+            let e = s
+                .true_sync_error(reference, &clocks)
+                .expect("sim")
+                .unwrap_or(0);
+            out.max_true_err = out.max_true_err.max(e);
+        }
+    }
+    out.cycles = s.machine.stats().cycles - cycles0;
+    out.mean_abs_diff = if n > 0 { sum / n as f64 } else { 0.0 };
+    out
+}
+
+/// A 100-slave tree in processing (auto-increment) order: 10 groups, each a junction followed by
+/// its branches; even groups use 3-port junctions (branch of 9 on port 1), odd groups 4-port
+/// junctions (branch of 2 on port 3, branch of 7 on port 1); the next junction hangs on port 2.
+pub fn tree_100() -> Scenario {
+    let mut sc = Scenario {
+        seed: 7,
+        ..Scenario::default()
+    };
+    let mut junction_prev: Option<usize> = None;
+    let mut i = 0usize;
+    for g in 0..10 {
+        let four = g % 2 == 1;
+        let j = i;
+        sc.slaves.push(SlaveSpec {
+            ports: Some(if four { 4 } else { 3 }),
+            parent: junction_prev,
+            port: junction_prev.map(|_| 2),
+            ..SlaveSpec::default()
+        });
+        i += 1;
+        if four {
+            sc.slaves.push(SlaveSpec {
+                repeat: 2,
+                parent: Some(j),
+                port: Some(3),
+                ..SlaveSpec::default()
+            });
+            i += 2;
+            sc.slaves.push(SlaveSpec {
+                repeat: 7,
+                parent: Some(j),
+                port: Some(1),
+                ..SlaveSpec::default()
+            });
+            i += 7;
+        } else {
+            sc.slaves.push(SlaveSpec {
+                repeat: 9,
+                parent: Some(j),
+                port: Some(1),
+                ..SlaveSpec::default()
+            });
+            i += 9;
+        }
+        junction_prev = Some(j);
+    }
+    assert_eq!(i, 100);
+    sc
+}
+
+/// Prints the event log (for `--nocapture` runs and failure analysis).
+pub fn print_events<const N: usize>(s: &Sim<N>) {
+    for (t, e) in s.events() {
+        println!("{t:>12} {e:?}");
+    }
+}
