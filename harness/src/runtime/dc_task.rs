@@ -6,7 +6,9 @@
 //! App time: the master's nominal DC time of each cycle, advancing exactly one period per
 //! cycle (servo.md §3: the IgH/SOEM model). It is what the FRMW carries and what the machine
 //! gets as `now`; the servo moves the *wake-ups* so that app time and the reference clock agree,
-//! and absorbs large offsets by whole periods (`app_time_step_ns`).
+//! and absorbs large offsets by whole periods (`app_time_step_ns`). A cycle that woke more than
+//! P/4 late is given to the servo as a missing sample (holdover): it measures an OS stall, not
+//! the clocks.
 
 use ecdc_core::dc::{Event, Machine, State};
 use ecdc_core::servo::master::{MasterInput, MasterServo};
@@ -26,6 +28,7 @@ pub struct DcTask<'a, const N: usize, F: FnMut(u64, &Event)> {
     app_base: Option<u64>,
     app_now: u64,
     woke: u64,
+    late: bool,
     last_ref: Option<u64>,
     on_event: F,
 }
@@ -48,6 +51,7 @@ impl<'a, const N: usize, F: FnMut(u64, &Event)> DcTask<'a, N, F> {
             app_base: None,
             app_now: 0,
             woke: 0,
+            late: false,
             last_ref,
             on_event,
         }
@@ -91,6 +95,8 @@ impl<const N: usize, F: FnMut(u64, &Event)> CycleTask for DcTask<'_, N, F> {
         let base = *self.app_base.get_or_insert(self.dc.at(deadline));
         self.app_now = base.wrapping_add(period.wrapping_mul(self.period));
         self.woke = now;
+        // A wake-up this late measures an OS stall, not the clocks: keep it out of the servo.
+        self.late = now.saturating_sub(deadline) > self.period / 4;
         let mut b = FrameBuilder::new(buf).ok()?;
         if !self
             .machine
@@ -111,11 +117,13 @@ impl<const N: usize, F: FnMut(u64, &Event)> CycleTask for DcTask<'_, N, F> {
         }
         let reference = self.machine.reference_time().map(|t| t.0);
         let input = match reference {
-            Some(r) if reply.is_some() && Some(r) != self.last_ref => MasterInput::Sample {
-                local_ns: self.woke,
-                app_ns: self.app_now,
-                ref_ns: r,
-            },
+            Some(r) if reply.is_some() && !self.late && Some(r) != self.last_ref => {
+                MasterInput::Sample {
+                    local_ns: self.woke,
+                    app_ns: self.app_now,
+                    ref_ns: r,
+                }
+            }
             _ => MasterInput::Lost,
         };
         self.last_ref = reference;
