@@ -374,25 +374,6 @@ impl<'a> FrameBuilder<'a> {
     }
 }
 
-impl<'a> Datagram<&'a mut [u8]> {
-    /// The data bytes, borrowing the underlying buffer rather than the view.
-    pub fn data_mut_owned(self) -> &'a mut [u8] {
-        let end = usize::from(self.data_len()).wrapping_add(dfield::DATA);
-        self.into_inner()
-            .get_mut(dfield::DATA..end)
-            .unwrap_or(&mut [])
-    }
-}
-
-impl<'a> Datagram<&'a [u8]> {
-    /// The data bytes, borrowing the underlying buffer rather than the view.
-    pub fn data_ref(&self) -> &'a [u8] {
-        let end = usize::from(self.data_len()).wrapping_add(dfield::DATA);
-        let buf: &'a [u8] = self.into_inner();
-        buf.get(dfield::DATA..end).unwrap_or(&[])
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,6 +13,7 @@
 //! ```
 
 use super::{get_u16_le, get_u32_le, put, Address, Command, Error, Result, MAX_DATAGRAM_DATA};
+use core::fmt;
 
 /// Byte layout of a datagram. Every length constant is derived from it.
 pub(crate) mod field {
@@ -328,6 +329,25 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> Datagram<T> {
     }
 }
 
+impl<'a> Datagram<&'a mut [u8]> {
+    /// The data bytes, borrowing the underlying buffer rather than the view.
+    pub fn data_mut_owned(self) -> &'a mut [u8] {
+        let end = usize::from(self.data_len()).wrapping_add(field::DATA);
+        self.into_inner()
+            .get_mut(field::DATA..end)
+            .unwrap_or(&mut [])
+    }
+}
+
+impl<'a> Datagram<&'a [u8]> {
+    /// The data bytes, borrowing the underlying buffer rather than the view.
+    pub fn data_ref(&self) -> &'a [u8] {
+        let end = usize::from(self.data_len()).wrapping_add(field::DATA);
+        let buf: &'a [u8] = self.into_inner();
+        buf.get(field::DATA..end).unwrap_or(&[])
+    }
+}
+
 /// A parsed datagram header: everything but the data bytes and the M bit (which belongs to the
 /// frame structure and is set by the builder). REQ-WIRE-030
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -403,6 +423,32 @@ impl DatagramRepr {
     }
 }
 
+/// One line: `FRMW idx 0x02 adp 0x1001 ado 0x0910 len 8 -- irq 0x0000 wkc 3` (or
+/// `logical 0x…` for Lxx); fields as on the wire, never panics.
+impl<T: AsRef<[u8]>> fmt::Display for Datagram<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.command() {
+            Ok(c) => write!(f, "{c}")?,
+            Err(_) => write!(f, "cmd?{}", self.command_raw())?,
+        }
+        write!(f, " idx {:#04x}", self.index())?;
+        if self.command().map(|c| c.addressing()) == Ok(super::Addressing::Logical) {
+            write!(f, " logical {:#010x}", self.logical_address())?;
+        } else {
+            write!(f, " adp {:#06x} ado {:#06x}", self.adp(), self.ado())?;
+        }
+        write!(
+            f,
+            " len {} {}{} irq {:#06x} wkc {}",
+            self.data_len(),
+            if self.circulating() { 'C' } else { '-' },
+            if self.more() { 'M' } else { '-' },
+            self.irq(),
+            self.wkc()
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -466,6 +512,17 @@ mod tests {
             DatagramRepr::parse(&Datagram::new_unchecked(&buf[..])),
             Ok(repr)
         );
+    }
+
+    #[test]
+    fn display() {
+        use std::string::ToString;
+        let d = Datagram::new_unchecked(&FRMW[..]);
+        assert_eq!(
+            d.to_string(),
+            "FRMW idx 0x02 adp 0x1001 ado 0x0910 len 8 -- irq 0x0000 wkc 3"
+        );
+        let _ = Datagram::new_unchecked(&[0xffu8; 3][..]).to_string();
     }
 
     /// Bytes after the WKC are ignored.

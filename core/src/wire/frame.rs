@@ -234,6 +234,31 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> EcatFrame<T> {
     /// in place while walking. Validation is the same as [`EcatFrame::iter`]; the walk reads
     /// each datagram's length and M bit *before* yielding it, so changing them through the view
     /// does not derail the walk (but does invalidate the frame for later parses).
+    ///
+    /// ```
+    /// use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
+    /// let mut buf = [0u8; 64];
+    /// let mut b = FrameBuilder::new(&mut buf).unwrap();
+    /// b.push(Command::Brd, 7, Address::broadcast(0x0130), &[0, 0]).unwrap();
+    /// let n = b.finish().unwrap();
+    /// // What one emulated ESC does to a passing frame:
+    /// let mut eth = EthernetFrame::new_checked(&mut buf[..n]).unwrap();
+    /// eth.mark_processed_by_slave();
+    /// let mut frame = eth.ecat_frame_mut().unwrap();
+    /// for d in frame.iter_mut() {
+    ///     let mut d = d.unwrap();
+    ///     let cmd = d.command().unwrap();
+    ///     if cmd.increments_adp() {
+    ///         d.set_adp(d.adp().wrapping_add(1));
+    ///     }
+    ///     d.data_mut().copy_from_slice(&[0x08, 0x00]); // BRD: data_in OR register
+    ///     d.add_wkc(cmd.wkc_increment(true, false));
+    /// }
+    /// let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
+    /// assert!(eth.processed_by_slave());
+    /// let d = eth.ecat_frame().unwrap().iter().next().unwrap().unwrap();
+    /// assert_eq!((d.adp(), d.wkc(), d.data()), (1, 1, &[0x08, 0x00][..]));
+    /// ```
     pub fn iter_mut(&mut self) -> DatagramsMut<'_> {
         let buf = self.buffer.as_mut();
         let end = usize::from(get_u16_le(buf, 0) & field::LEN_MASK).wrapping_add(field::HEADER_LEN);
@@ -249,6 +274,27 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> EcatFrame<T> {
                 first_error: Some(e),
             },
         }
+    }
+}
+
+/// Header line then one indented line per datagram; an invalid frame prints the datagrams
+/// before the error and then `(error: …)`. Never panics.
+impl<T: AsRef<[u8]>> core::fmt::Display for EcatFrame<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "EtherCAT len {} type {}{}",
+            self.length(),
+            self.frame_type(),
+            if self.reserved() { " R" } else { "" }
+        )?;
+        for d in self.iter() {
+            match d {
+                Ok(d) => write!(f, "\n  {d}")?,
+                Err(e) => write!(f, "\n  (error: {e})")?,
+            }
+        }
+        Ok(())
     }
 }
 
