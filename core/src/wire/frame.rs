@@ -184,19 +184,7 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
     /// the first `Err` the iterator ends. Every yielded view spans exactly one datagram inside
     /// the buffer.
     pub fn iter(&self) -> Datagrams<'_> {
-        let buf = self.buffer.as_ref();
-        match Walk::start(buf) {
-            Ok(walk) => Datagrams {
-                region: buf.get(field::DATAGRAMS..self.ecat_len()).unwrap_or(&[]),
-                walk,
-                first_error: None,
-            },
-            Err(e) => Datagrams {
-                region: &[],
-                walk: Walk::finished(),
-                first_error: Some(e),
-            },
-        }
+        Datagrams::new(self.buffer.as_ref())
     }
 
     /// Like [`EcatFrame::iter`] but yields `(start, len)` of each datagram, `start` counted
@@ -256,7 +244,7 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> EcatFrame<T> {
     /// }
     /// let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
     /// assert!(eth.processed_by_slave());
-    /// let d = eth.ecat_frame().unwrap().iter().next().unwrap().unwrap();
+    /// let d = eth.into_ecat_frame().unwrap().into_iter().next().unwrap().unwrap();
     /// assert_eq!((d.adp(), d.wkc(), d.data()), (1, 1, &[0x08, 0x00][..]));
     /// ```
     pub fn iter_mut(&mut self) -> DatagramsMut<'_> {
@@ -274,6 +262,17 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> EcatFrame<T> {
                 first_error: Some(e),
             },
         }
+    }
+}
+
+/// Iterating a frame view over a borrowed slice yields datagrams borrowing that slice (not the
+/// view), so they outlive a temporary view.
+impl<'a> IntoIterator for EcatFrame<&'a [u8]> {
+    type Item = Result<Datagram<&'a [u8]>>;
+    type IntoIter = Datagrams<'a>;
+
+    fn into_iter(self) -> Datagrams<'a> {
+        Datagrams::new(self.buffer)
     }
 }
 
@@ -422,6 +421,25 @@ pub struct Datagrams<'a> {
 }
 
 impl<'a> Datagrams<'a> {
+    /// Walk over the EtherCAT payload `buf` (header first).
+    fn new(buf: &'a [u8]) -> Datagrams<'a> {
+        match Walk::start(buf) {
+            Ok(walk) => {
+                let end = usize::from(walk.length).wrapping_add(field::HEADER_LEN);
+                Datagrams {
+                    region: buf.get(field::DATAGRAMS..end).unwrap_or(&[]),
+                    walk,
+                    first_error: None,
+                }
+            }
+            Err(e) => Datagrams {
+                region: &[],
+                walk: Walk::finished(),
+                first_error: Some(e),
+            },
+        }
+    }
+
     fn next_span(&mut self) -> Option<Result<(usize, usize)>> {
         if let Some(e) = self.first_error.take() {
             return Some(Err(e));
