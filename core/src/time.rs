@@ -171,6 +171,7 @@ impl PortTime {
 mod tests {
     use super::*;
 
+    /// REQ-TIME-002.
     #[test]
     fn epoch_conversion() {
         // 2000-01-01T00:00:00Z is Unix 946684800 s.
@@ -183,6 +184,7 @@ mod tests {
         assert_eq!(SystemTime(u64::MAX).to_unix_nanos(), None);
     }
 
+    /// REQ-TIME-001 (distinct wrapping types), REQ-TIME-003/004/013.
     #[test]
     fn system_time_wrap() {
         let t = SystemTime(u64::MAX - 1);

@@ -1,0 +1,266 @@
+//! Full-width statements of the kernel requirements, as `(precondition, claim)` pairs over z3
+//! terms. Each runs the real kernel on [`Sym`] inputs and states the requirement over wider
+//! bit-vectors where "true" (unwrapped) values are needed, so the statement cannot share the
+//! kernel's wrap-around. Proved by `proofs/tests/smt.rs` at N = 32 and N = 64.
+
+use super::{ctx, Sym, SymBool};
+use ecdc_core::num::{self as k, Word};
+use z3::ast::{Ast, Bool, BV};
+
+/// `(precondition, claim)`.
+pub type Goal = (Bool<'static>, Bool<'static>);
+
+fn t() -> Bool<'static> {
+    Bool::from_bool(ctx(), true)
+}
+fn and(xs: &[&Bool<'static>]) -> Bool<'static> {
+    Bool::and(ctx(), xs)
+}
+fn int(v: i128, size: u32) -> BV<'static> {
+    // Two's complement bits of v at `size` (≤ 128) bits, built from two 64-bit halves.
+    let lo = BV::from_u64(ctx(), (v as u128 & u128::from(u64::MAX)) as u64, 64);
+    let hi = BV::from_u64(ctx(), ((v as u128) >> 64) as u64, 64);
+    hi.concat(&lo).extract(size - 1, 0)
+}
+fn abs(x: &BV<'static>) -> BV<'static> {
+    x.bvslt(&int(0, x.get_size())).ite(&x.bvneg(), x)
+}
+
+/// P2 / REQ-TIME-003/004: for true times A, B (2N-bit, non-negative) with |A − B| < 2^(N−1),
+/// the kernels on the low N bits give wrapping_diff = A − B, is_after ⇔ A > B, distance = |A − B|.
+pub fn wrapping_diff_true<const N: u32>() -> Goal {
+    let w = 2 * N;
+    let (ta, tb) = (BV::new_const(ctx(), "A", w), BV::new_const(ctx(), "B", w));
+    let d = ta.bvsub(&tb);
+    let h = 1i128 << (N - 1);
+    let pre = and(&[
+        &ta.bvslt(&int(0, w)).not(),
+        &tb.bvslt(&int(0, w)).not(),
+        &d.bvsgt(&int(-h, w)),
+        &d.bvslt(&int(h, w)),
+    ]);
+    let a = Sym::<N>::of(ta.extract(N - 1, 0));
+    let b = Sym::<N>::of(tb.extract(N - 1, 0));
+    let claim = and(&[
+        &k::wrapping_diff(a, b).bv().sign_ext(N)._eq(&d),
+        &k::is_after(a, b).b()._eq(&d.bvsgt(&int(0, w))),
+        &k::wrapping_distance(a, b).bv().zero_ext(N)._eq(&abs(&d)),
+    ]);
+    (pre, claim)
+}
+
+/// P2 / REQ-TIME-005: P port times base + o_i with every o_i < 2^(N−1) (so the true times span
+/// less than half the circle, wherever the wrap falls) and any activity mask: `found` ⇔ some
+/// port is active, and the chosen index is active, has the least true time, and is the first
+/// such.
+pub fn earliest_true_min<const N: u32, const P: usize>() -> Goal {
+    let base = Sym::<N>::var("base");
+    let offs: [Sym<N>; P] = core::array::from_fn(|i| Sym::var(&format!("o{i}")));
+    let act: [SymBool; P] =
+        core::array::from_fn(|i| SymBool::of(Bool::new_const(ctx(), format!("act{i}"))));
+    let half = int(1i128 << (N - 1), N);
+    let pre_terms: Vec<Bool<'static>> = offs.iter().map(|o| o.bv().bvult(&half)).collect();
+    let pre = Bool::and(ctx(), &pre_terms.iter().collect::<Vec<_>>());
+    let times: [Sym<N>; P] = core::array::from_fn(|i| base.wrapping_add(offs[i]));
+    let (found, idx) = k::earliest(&times, &act);
+    let any: Vec<&Bool<'static>> = act.iter().map(|a| a.b()).collect();
+    let mut claims = vec![found.b()._eq(&Bool::or(ctx(), &any))];
+    let mut in_range = Vec::new();
+    for i in 0..P {
+        let is_i = idx.bv()._eq(&int(i as i128, N));
+        in_range.push(is_i.clone());
+        let mut ok = vec![act[i].b().clone()];
+        for j in 0..P {
+            let le = if j < i {
+                offs[i].bv().bvult(offs[j].bv())
+            } else {
+                offs[i].bv().bvule(offs[j].bv())
+            };
+            ok.push(act[j].b().implies(&le));
+        }
+        let ok = Bool::and(ctx(), &ok.iter().collect::<Vec<_>>());
+        claims.push(Bool::and(ctx(), &[found.b(), &is_i]).implies(&ok));
+    }
+    claims.push(
+        found
+            .b()
+            .implies(&Bool::or(ctx(), &in_range.iter().collect::<Vec<_>>())),
+    );
+    (pre, Bool::and(ctx(), &claims.iter().collect::<Vec<_>>()))
+}
+
+/// REQ-TIME-006: r = extend_near(low, ref, kb) keeps the low kb bits of `low` and lies in
+/// [−2^(kb−1), 2^(kb−1)) of `ref`, for 0 < kb < N.
+pub fn extend_near<const N: u32>(kb: u32) -> Goal {
+    let (low, r0) = (Sym::<N>::var("low"), Sym::<N>::var("ref"));
+    let r = k::extend_near(low, r0, kb);
+    let d = r.bv().bvsub(r0.bv());
+    let h = 1i128 << (kb - 1);
+    let claim = and(&[
+        &r.bv().extract(kb - 1, 0)._eq(&low.bv().extract(kb - 1, 0)),
+        &d.bvsge(&int(-h, N)),
+        &d.bvslt(&int(h, N)),
+    ]);
+    (t(), claim)
+}
+
+/// P2 / REQ-TIME-008 with the divider bit-blasted: for every x and every p > 0,
+/// −p < 2·fold(x, p) ≤ p and p divides x − fold(x, p), at N + 2 bits so nothing wraps.
+/// Practical at small N only (a 32-bit divider does not finish in minutes); see [`fold`].
+pub fn fold_bitblasted<const N: u32>() -> Goal {
+    let (x, p) = (Sym::<N>::var("x"), Sym::<N>::var("p"));
+    let f = k::fold::<Sym<N>>(x, p);
+    let (xw, fw, pw) = (x.bv().sign_ext(2), f.bv().sign_ext(2), p.bv().zero_ext(2));
+    let f2 = fw.bvadd(&fw);
+    let pre = p.bv()._eq(&int(0, N)).not();
+    let claim = and(&[
+        &pw.bvneg().bvslt(&f2),
+        &f2.bvsle(&pw),
+        &xw.bvsub(&fw).bvsrem(&pw)._eq(&int(0, N + 2)),
+    ]);
+    (pre, claim)
+}
+
+/// P2 / REQ-TIME-008 at full width, with `urem` abstracted (see `smt::with_abstract_urem`):
+/// the kernel's single remainder m = urem(u, p) is a free value, and the proof assumes only
+/// the two facts of unsigned remainder it needs: m < p, and u − m is a multiple of p (so it
+/// states x − fold(x, p) as ±(u − m) + c·p with c ∈ {−1, 0, 1}, and that u = |x|). Then
+///   −p < 2·fold(x, p) ≤ p   and   x − fold(x, p) ≡ 0 (mod p)
+/// follow for every x and p > 0. Everything except the divider itself is the kernel's own
+/// code; the divider is SMT-LIB `bvurem`/Rust `%`, checked exhaustively at 8/16 bits.
+pub fn fold<const N: u32>() -> Goal {
+    let (x, p) = (Sym::<N>::var("x"), Sym::<N>::var("p"));
+    let (f, recs) = super::with_abstract_urem(|| k::fold::<Sym<N>>(x, p));
+    assert_eq!(
+        recs.len(),
+        1,
+        "fold is expected to take exactly one remainder"
+    );
+    let (u, d, m) = recs[0];
+    let w = N + 2;
+    let (xw, fw, pw) = (x.bv().sign_ext(2), f.bv().sign_ext(2), p.bv().zero_ext(2));
+    let (uw, mw) = (u.zero_ext(2), m.zero_ext(2));
+    let kw = uw.bvsub(&mw); // a multiple of p, by the remainder's definition
+    let xneg = xw.bvslt(&int(0, w));
+    let sk = xneg.ite(&kw.bvneg(), &kw); // ±(u − m), a multiple of p
+    let diff = xw.bvsub(&fw).bvsub(&sk);
+    let f2 = fw.bvadd(&fw);
+    let pre = and(&[&p.bv()._eq(&int(0, N)).not(), &m.bvult(p.bv())]);
+    let claim = and(&[
+        &d._eq(p.bv()),
+        &uw._eq(&abs(&xw)),
+        &pw.bvneg().bvslt(&f2),
+        &f2.bvsle(&pw),
+        &Bool::or(
+            ctx(),
+            &[
+                &diff._eq(&int(0, w)),
+                &diff._eq(&pw),
+                &diff._eq(&pw.bvneg()),
+            ],
+        ),
+    ]);
+    (pre, claim)
+}
+
+/// REQ-TIME-009: clamp(x, lo, hi) for lo ≤ hi lies in [lo, hi], is x when x is inside and the
+/// violated bound otherwise; for lo > hi it is hi.
+pub fn clamp<const N: u32>() -> Goal {
+    let (x, lo, hi) = (Sym::<N>::var("x"), Sym::<N>::var("lo"), Sym::<N>::var("hi"));
+    let c = k::clamp::<Sym<N>>(x, lo, hi);
+    let (x, lo, hi, c) = (x.bv(), lo.bv(), hi.bv(), c.bv());
+    let ordered = lo.bvsle(hi);
+    let inside = and(&[&lo.bvsle(x), &x.bvsle(hi)]);
+    let good = and(&[
+        &lo.bvsle(c),
+        &c.bvsle(hi),
+        &inside.implies(&c._eq(x)),
+        &x.bvslt(lo).implies(&c._eq(lo)),
+        &hi.bvslt(x).implies(&c._eq(hi)),
+    ]);
+    let claim = ordered.ite(&good, &c._eq(hi));
+    (t(), claim)
+}
+
+/// REQ-TIME-009: clamp_magnitude(x, m) lies in [−m', m'] with m' = min(m, 2^(N−1) − 1), is x
+/// when |x| ≤ m', and the nearer bound otherwise.
+pub fn clamp_magnitude<const N: u32>() -> Goal {
+    let (x, m) = (Sym::<N>::var("x"), Sym::<N>::var("m"));
+    let c = k::clamp_magnitude::<Sym<N>>(x, m);
+    let smax = int((1i128 << (N - 1)) - 1, N);
+    let lim = m.bv().bvugt(&smax).ite(&smax, m.bv());
+    let nlim = lim.bvneg();
+    let (x, c) = (x.bv(), c.bv());
+    let claim = and(&[
+        &nlim.bvsle(c),
+        &c.bvsle(&lim),
+        &and(&[&nlim.bvsle(x), &x.bvsle(&lim)]).implies(&c._eq(x)),
+        &x.bvsgt(&lim).implies(&c._eq(&lim)),
+        &x.bvslt(&nlim).implies(&c._eq(&nlim)),
+    ]);
+    (t(), claim)
+}
+
+/// REQ-TIME-010: saturating add/sub equal the exact (N + 1)-bit result clamped to the signed
+/// N-bit range.
+pub fn saturating<const N: u32>() -> Goal {
+    let (a, b) = (Sym::<N>::var("a"), Sym::<N>::var("b"));
+    let (aw, bw) = (a.bv().sign_ext(1), b.bv().sign_ext(1));
+    let h = 1i128 << (N - 1);
+    let (lo, hi) = (int(-h, N + 1), int(h - 1, N + 1));
+    let sat = |e: BV<'static>| e.bvslt(&lo).ite(&lo, &e.bvsgt(&hi).ite(&hi, &e));
+    let claim = and(&[
+        &k::saturating_add::<Sym<N>>(a, b)
+            .bv()
+            .sign_ext(1)
+            ._eq(&sat(aw.bvadd(&bw))),
+        &k::saturating_sub::<Sym<N>>(a, b)
+            .bv()
+            .sign_ext(1)
+            ._eq(&sat(aw.bvsub(&bw))),
+    ]);
+    (t(), claim)
+}
+
+/// REQ-TIME-011: half_toward_zero(x) equals SMT-LIB `bvsdiv x 2` (truncating division).
+pub fn half<const N: u32>() -> Goal {
+    let x = Sym::<N>::var("x");
+    let claim = k::half_toward_zero::<Sym<N>>(x)
+        .bv()
+        ._eq(&x.bv().bvsdiv(&int(2, N)));
+    (t(), claim)
+}
+
+/// REQ-TIME-012: sign-magnitude encode (magnitude = min(|x|, 2^(N−1) − 1) computed at N + 1
+/// bits, sign bit ⇔ x < 0), decode∘encode = max(x, −(2^(N−1) − 1)), decode of any word has
+/// |value| = its magnitude bits and is negative iff the sign bit is set with a non-zero
+/// magnitude, and encode∘decode = identity except on "negative zero".
+pub fn sign_magnitude<const N: u32>() -> Goal {
+    let (x, v) = (Sym::<N>::var("x"), Sym::<N>::var("v"));
+    let smax = int((1i128 << (N - 1)) - 1, N);
+    let sign = int(1i128 << (N - 1), N);
+    let e = k::sign_magnitude_encode::<Sym<N>>(x);
+    let ax = abs(&x.bv().sign_ext(1));
+    let smax1 = smax.zero_ext(1);
+    let mag = ax.bvugt(&smax1).ite(&smax1, &ax);
+    let xneg = x.bv().bvslt(&int(0, N));
+    let one = BV::from_u64(ctx(), 1, 1);
+    let dv = k::sign_magnitude_decode::<Sym<N>>(v);
+    let vmag = v.bv().extract(N - 2, 0).zero_ext(1);
+    let vneg = v.bv().extract(N - 1, N - 1)._eq(&one);
+    let nonzero = vmag._eq(&int(0, N)).not();
+    let claim = and(&[
+        &e.bv().extract(N - 2, 0).zero_ext(2)._eq(&mag),
+        &e.bv().extract(N - 1, N - 1)._eq(&one)._eq(&xneg),
+        &k::sign_magnitude_decode::<Sym<N>>(e)
+            .bv()
+            ._eq(&x.bv()._eq(&sign).ite(&smax.bvneg(), x.bv())),
+        &abs(dv.bv())._eq(&vmag),
+        &dv.bv().bvslt(&int(0, N))._eq(&and(&[&vneg, &nonzero])),
+        &v.bv()
+            ._eq(&sign)
+            .not()
+            .implies(&k::sign_magnitude_encode::<Sym<N>>(dv).bv()._eq(v.bv())),
+    ]);
+    (t(), claim)
+}
