@@ -242,6 +242,46 @@ pub fn len_flags_word(w: u16) {
     }
 }
 
+/// REQ-WIRE-005, 012..015: the EtherCAT header word `w` in front of one empty NOP datagram
+/// (12 bytes, M clear) and zero padding is classified exactly as the documented check order
+/// says. Domain: all 2^16 words (exhaustive test).
+pub fn ecat_header_word(w: u16) {
+    let mut buf = [0u8; 2 + 2047];
+    buf[..2].copy_from_slice(&w.to_le_bytes());
+    // bytes 2..14: NOP, idx 0, address 0, len 0, M 0, irq 0, wkc 0 (all zero already)
+    let f = EcatFrame::new_unchecked(&buf[..]);
+    let (len, reserved, ty) = (w & 0x07FF, w & 0x0800 != 0, (w >> 12) as u8);
+    assert_eq!(
+        (f.length(), f.reserved(), f.frame_type()),
+        (len, reserved, ty)
+    );
+    let expected = if ty != 1 {
+        Err(Error::NotDlpdu { frame_type: ty })
+    } else if reserved {
+        Err(Error::HeaderReservedBit)
+    } else if usize::from(len) > MAX_ECAT_PAYLOAD {
+        Err(Error::FrameTooLong {
+            len: usize::from(len),
+        })
+    } else if len == 0 {
+        Err(Error::NoDatagram)
+    } else if len < 12 {
+        Err(Error::LengthMismatch {
+            header: len,
+            walked: 12,
+        })
+    } else if len > 12 {
+        Err(Error::TrailingData)
+    } else {
+        Ok(1)
+    };
+    assert_eq!(
+        EcatFrame::new_checked(&buf[..]).map(|f| f.datagram_count().unwrap_or(0)),
+        expected,
+        "header word {w:#06x}"
+    );
+}
+
 /// REQ-WIRE-072: DL status decode for word `w` agrees with the bit layout (link 4+p, loop 8+2p,
 /// communication 9+2p) and re-encodes to the same word. Domain: all 2^16 words.
 pub fn dl_status_word(w: u16) {
@@ -340,6 +380,13 @@ mod harness {
     #[kani::unwind(2)]
     fn len_flags_every_word() {
         len_flags_word(kani::any());
+    }
+
+    /// REQ-WIRE-005, 012..015 for every EtherCAT header word.
+    #[kani::proof]
+    #[kani::unwind(4)]
+    fn ecat_header_every_word() {
+        ecat_header_word(kani::any());
     }
 
     /// REQ-WIRE-073 for every raw word and every i64.

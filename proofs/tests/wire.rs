@@ -105,6 +105,14 @@ fn exhaustive_len_flags_words() {
     }
 }
 
+/// REQ-WIRE-005, 012..015: exhaustive over all 2^16 EtherCAT header words.
+#[test]
+fn exhaustive_ecat_header_words() {
+    for w in 0..=u16::MAX {
+        wire::ecat_header_word(w);
+    }
+}
+
 /// REQ-WIRE-072: exhaustive over all 2^16 DL status words.
 #[test]
 fn exhaustive_dl_status_words() {
