@@ -65,7 +65,7 @@ fn bench_wire(c: &mut Criterion) {
         let mut buf = [0u8; 1514];
         let n = build(&mut buf, f);
         let frame = buf[..n].to_vec();
-        assert_eq!(parse(&frame) > 0 || name == "full", true);
+        assert!(parse(&frame) > 0, "{name} parses");
 
         let mut g = c.benchmark_group(format!("wire/{name}"));
         g.throughput(Throughput::Bytes(n as u64));
