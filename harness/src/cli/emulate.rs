@@ -112,8 +112,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     } else {
         let f = &summary.frames;
         println!(
-            "emulate: received {} answered {} already-processed {} dropped {} truncated {} send-errors {}; turnaround {}",
-            f.received, f.answered, f.already_processed, f.dropped, f.truncated, f.send_errors, summary.turnaround
+            "emulate: received {} answered {} (kernel-stamped {}) already-processed {} dropped {} truncated {} \
+             send-errors {}; turnaround from arrival {}",
+            f.received,
+            f.answered,
+            f.stamped,
+            f.already_processed,
+            f.dropped,
+            f.truncated,
+            f.send_errors,
+            summary.turnaround
         );
     }
     Ok(())

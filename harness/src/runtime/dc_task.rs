@@ -8,7 +8,8 @@
 //! gets as `now`; the servo moves the *wake-ups* so that app time and the reference clock agree,
 //! and absorbs large offsets by whole periods (`app_time_step_ns`). A cycle that woke more than
 //! P/4 late is given to the servo as a missing sample (holdover): it measures an OS stall, not
-//! the clocks.
+//! the clocks. Other samples are corrected by the measured delay from the deadline to the
+//! `send` call, so the servo sees the timer's phase rather than each cycle's wake-up jitter.
 
 use ecdc_core::dc::{Event, Machine, State};
 use ecdc_core::servo::master::{MasterInput, MasterServo};
@@ -28,6 +29,7 @@ pub struct DcTask<'a, const N: usize, F: FnMut(u64, &Event)> {
     app_base: Option<u64>,
     app_now: u64,
     woke: u64,
+    deadline: u64,
     late: bool,
     last_ref: Option<u64>,
     on_event: F,
@@ -51,6 +53,7 @@ impl<'a, const N: usize, F: FnMut(u64, &Event)> DcTask<'a, N, F> {
             app_base: None,
             app_now: 0,
             woke: 0,
+            deadline: 0,
             late: false,
             last_ref,
             on_event,
@@ -95,6 +98,7 @@ impl<const N: usize, F: FnMut(u64, &Event)> CycleTask for DcTask<'_, N, F> {
         let base = *self.app_base.get_or_insert(self.dc.at(deadline));
         self.app_now = base.wrapping_add(period.wrapping_mul(self.period));
         self.woke = now;
+        self.deadline = deadline;
         // A wake-up this late measures an OS stall, not the clocks: keep it out of the servo.
         self.late = now.saturating_sub(deadline) > self.period / 4;
         let mut b = FrameBuilder::new(buf).ok()?;
@@ -117,13 +121,20 @@ impl<const N: usize, F: FnMut(u64, &Event)> CycleTask for DcTask<'_, N, F> {
         }
         let reference = self.machine.reference_time().map(|t| t.0);
         let input = match reference {
-            Some(r) if reply.is_some() && !self.late && Some(r) != self.last_ref => {
-                MasterInput::Sample {
+            Some(r) if !self.late && Some(r) != self.last_ref => match reply {
+                // The frame left `sent_at - deadline` after the nominal instant; the reference
+                // stamped it that much later. Adding the measured delay to the app time makes
+                // the sample measure the timer's phase, not this cycle's OS jitter (which no
+                // correction of future deadlines could remove).
+                Some((_, rep)) => MasterInput::Sample {
                     local_ns: self.woke,
-                    app_ns: self.app_now,
+                    app_ns: self
+                        .app_now
+                        .wrapping_add(rep.sent_at.saturating_sub(self.deadline)),
                     ref_ns: r,
-                }
-            }
+                },
+                None => MasterInput::Lost,
+            },
             _ => MasterInput::Lost,
         };
         self.last_ref = reference;

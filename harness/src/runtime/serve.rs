@@ -63,6 +63,8 @@ pub struct ServeCounters {
     pub truncated: u64,
     /// Failed sends.
     pub send_errors: u64,
+    /// Answered frames whose true time came from a kernel receive stamp.
+    pub stamped: u64,
 }
 
 /// Serving results.
@@ -70,7 +72,8 @@ pub struct ServeCounters {
 pub struct ServeSummary {
     /// Frame accounting.
     pub frames: ServeCounters,
-    /// Time from reading a frame to handing its reply to the kernel, ns.
+    /// Time from the frame's arrival (kernel stamp, else the read) to handing its reply to the
+    /// kernel, ns.
     pub turnaround: Summary,
 }
 
@@ -107,7 +110,13 @@ pub fn serve<L: Link, R: Responder>(
         let Some(full) = link.recv(&mut buf, wait_until)? else {
             continue;
         };
-        let received_at = clock::now_ns();
+        let read_at = clock::now_ns();
+        // The frame's arrival at the interface (kernel stamp) is the emulated wire's true
+        // time; the process may have been scheduled much later.
+        let received_at = link
+            .last_rx_time()
+            .filter(|t| *t <= read_at)
+            .unwrap_or(read_at);
         c.received += 1;
         if full > buf.len() {
             c.truncated += 1;
@@ -129,6 +138,7 @@ pub fn serve<L: Link, R: Responder>(
             Ok(()) => {
                 c.answered += 1;
                 turnaround.record(clock::now_ns().saturating_sub(received_at));
+                c.stamped += u64::from(received_at != read_at);
             }
             Err(_) => c.send_errors += 1,
         }

@@ -30,6 +30,13 @@ pub trait Link {
     /// at most. `Ok(None)` means the deadline passed with nothing received. A frame longer than
     /// `buf` is reported with its true length (`> buf.len()`), its tail cut off.
     fn recv(&mut self, buf: &mut [u8], deadline_ns: u64) -> io::Result<Option<usize>>;
+
+    /// Kernel receive time of the frame the last `recv` returned, as `CLOCK_MONOTONIC` ns,
+    /// if the link records one (the raw socket with `SO_TIMESTAMPNS`). It excludes the time the
+    /// process took to be scheduled and read the frame.
+    fn last_rx_time(&self) -> Option<u64> {
+        None
+    }
 }
 
 /// How to wait for a reply.
@@ -101,6 +108,8 @@ pub struct RawSocket {
     fd: OwnedFd,
     info: InterfaceInfo,
     wait: WaitMode,
+    stamped: bool,
+    last_rx: Option<u64>,
 }
 
 const IFF_UP: u32 = libc::IFF_UP as u32;
@@ -227,6 +236,17 @@ impl RawSocket {
                 )),
             }
         }
+        // Kernel receive stamps: cheap, and they let `emulate` use the frame's arrival time
+        // rather than the time the process got round to reading it.
+        let stamped = match sys::enable_rx_timestamps(&fd) {
+            Ok(()) => true,
+            Err(e) => {
+                warnings.push(format!(
+                    "SO_TIMESTAMPNS refused ({e}); using user-space receive times"
+                ));
+                false
+            }
+        };
         // Throw away anything queued between socket() and bind() (frames from any interface).
         let mut scratch = [0u8; 64];
         while let Ok(Some(_)) = sys::recv(&fd, &mut scratch) {}
@@ -244,6 +264,8 @@ impl RawSocket {
                 warnings,
             },
             wait: opts.wait,
+            stamped,
+            last_rx: None,
         })
     }
 
@@ -280,7 +302,18 @@ impl Link for RawSocket {
 
     fn recv(&mut self, buf: &mut [u8], deadline_ns: u64) -> io::Result<Option<usize>> {
         loop {
-            if let Some((_copied, full)) = sys::recv(&self.fd, buf)? {
+            let got = if self.stamped {
+                sys::recv_stamped(&self.fd, buf)?
+            } else {
+                sys::recv(&self.fd, buf)?.map(|(c, f)| (c, f, None))
+            };
+            if let Some((_copied, full, stamp)) = got {
+                // Realtime -> monotonic with the offset sampled now: robust to clock steps
+                // (NTP slewing moves both clocks alike).
+                self.last_rx = stamp.map(|rt| {
+                    let offset = sys::realtime_ns().saturating_sub(clock::now_ns());
+                    rt.saturating_sub(offset)
+                });
                 return Ok(Some(full));
             }
             let now = clock::now_ns();
@@ -294,5 +327,9 @@ impl Link for RawSocket {
                 }
             }
         }
+    }
+
+    fn last_rx_time(&self) -> Option<u64> {
+        self.last_rx
     }
 }

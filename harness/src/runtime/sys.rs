@@ -207,6 +207,84 @@ pub fn recv(fd: &OwnedFd, buf: &mut [u8]) -> io::Result<Option<(usize, usize)>> 
     }
 }
 
+/// Asks the kernel to stamp every received frame (`SO_TIMESTAMPNS`, `CLOCK_REALTIME` in ns),
+/// read back with [`recv_stamped`].
+pub fn enable_rx_timestamps(fd: &OwnedFd) -> io::Result<()> {
+    set_int_option(fd, libc::SOL_SOCKET, libc::SO_TIMESTAMPNS, 1)
+}
+
+/// Like [`recv`], plus the kernel receive time (`CLOCK_REALTIME` ns) when the socket has
+/// [`enable_rx_timestamps`] set and the kernel attached one.
+pub fn recv_stamped(
+    fd: &OwnedFd,
+    buf: &mut [u8],
+) -> io::Result<Option<(usize, usize, Option<u64>)>> {
+    // Room for one timespec control message (CMSG_SPACE(16) = 32 on 64-bit), u64-aligned.
+    let mut control = [0u64; 8];
+    let mut iov = libc::iovec {
+        iov_base: buf.as_mut_ptr().cast::<libc::c_void>(),
+        iov_len: buf.len(),
+    };
+    // SAFETY: msghdr is plain data; zeroed is valid (null name, no flags).
+    let mut msg: libc::msghdr = unsafe { std::mem::zeroed() };
+    msg.msg_iov = &mut iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control.as_mut_ptr().cast::<libc::c_void>();
+    msg.msg_controllen = std::mem::size_of_val(&control);
+    // SAFETY: `msg` points at one live iovec describing the exclusively borrowed `buf` and at
+    // the live `control` array with its exact size; the kernel writes within those bounds.
+    let ret = unsafe {
+        libc::recvmsg(
+            fd.as_raw_fd(),
+            &mut msg,
+            libc::MSG_DONTWAIT | libc::MSG_TRUNC,
+        )
+    };
+    let full = match cvt_size(ret) {
+        Ok(n) => n,
+        Err(e)
+            if e.kind() == io::ErrorKind::WouldBlock || e.kind() == io::ErrorKind::Interrupted =>
+        {
+            return Ok(None)
+        }
+        Err(e) => return Err(e),
+    };
+    let mut stamp = None;
+    // SAFETY: CMSG_FIRSTHDR/CMSG_NXTHDR walk the control buffer the kernel filled, using
+    // msg_controllen it set (never more than our buffer); each header is checked for level,
+    // type and length before its 16-byte timespec payload is copied out unaligned.
+    unsafe {
+        let mut cmsg = libc::CMSG_FIRSTHDR(&msg);
+        while !cmsg.is_null() {
+            let c = &*cmsg;
+            if c.cmsg_level == libc::SOL_SOCKET
+                && c.cmsg_type == libc::SCM_TIMESTAMPNS
+                && c.cmsg_len as usize
+                    >= libc::CMSG_LEN(std::mem::size_of::<libc::timespec>() as u32) as usize
+            {
+                let ts: libc::timespec =
+                    std::ptr::read_unaligned(libc::CMSG_DATA(cmsg).cast::<libc::timespec>());
+                let secs = u64::try_from(ts.tv_sec).unwrap_or(0);
+                let nanos = u64::try_from(ts.tv_nsec).unwrap_or(0);
+                stamp = Some(secs.saturating_mul(1_000_000_000).saturating_add(nanos));
+            }
+            cmsg = libc::CMSG_NXTHDR(&msg, cmsg);
+        }
+    }
+    Ok(Some((full.min(buf.len()), full, stamp)))
+}
+
+/// `CLOCK_REALTIME` in nanoseconds (only to convert kernel receive stamps).
+pub fn realtime_ns() -> u64 {
+    // SAFETY: timespec is plain data; clock_gettime writes it.
+    let mut ts: libc::timespec = unsafe { std::mem::zeroed() };
+    // SAFETY: `ts` is a live, exclusively borrowed timespec.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    let secs = u64::try_from(ts.tv_sec).unwrap_or(0);
+    let nanos = u64::try_from(ts.tv_nsec).unwrap_or(0);
+    secs.saturating_mul(1_000_000_000).saturating_add(nanos)
+}
+
 /// Waits until `fd` is readable or `timeout_ns` passes (`ppoll`, nanosecond timeout).
 /// Returns whether it became readable. EINTR counts as "not readable yet".
 pub fn wait_readable(fd: RawFd, timeout_ns: u64) -> io::Result<bool> {
