@@ -283,22 +283,23 @@ impl<const N: usize> Sim<N> {
             .map(|r| r.frame))
     }
 
-    /// Greatest |system time of slave i − system time of the reference| over the given slaves
-    /// at the current true time (ns), from the emulator's true-time observers; `None` if the
-    /// reference has no system time. 32-bit slaves are compared on the low 32 bits.
+    /// Greatest |system time of slave i − system time of the reference| over the given
+    /// `(slave, is_64_bit)` pairs at the current true time (ns), from the emulator's true-time
+    /// observers; `None` if the reference has no system time. Whenever the reference or the
+    /// slave is a 32-bit DC, only the low 32 bits are compared (that is all a 32-bit slave keeps).
     pub fn true_sync_error(
         &mut self,
-        reference: usize,
+        reference: (usize, bool),
         slaves: &[(usize, bool)],
     ) -> Result<Option<i64>, SimError> {
         let t = self.now;
-        let Some(r) = self.net.clock(reference, t)?.system_time else {
+        let Some(r) = self.net.clock(reference.0, t)?.system_time else {
             return Ok(None);
         };
         let mut worst = 0i64;
         for &(i, is64) in slaves {
             if let Some(s) = self.net.clock(i, t)?.system_time {
-                let d = if is64 {
+                let d = if is64 && reference.1 {
                     s.wrapping_sub(r) as i64
                 } else {
                     i64::from(s.wrapping_sub(r) as u32 as i32)

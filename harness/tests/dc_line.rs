@@ -102,7 +102,8 @@ fn sync0_start_on_grid_and_fires() {
     }
     println!(
         "true err now {:?} spreads {:?}",
-        s.true_sync_error(0, &[(1, true), (2, true)]).unwrap(),
+        s.true_sync_error((0, true), &[(1, true), (2, true)])
+            .unwrap(),
         spreads.iter().step_by(20).collect::<Vec<_>>()
     );
     let first_half = spreads[..spreads.len() / 2]

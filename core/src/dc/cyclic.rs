@@ -48,6 +48,7 @@ pub(crate) struct CyclicState {
     // Results of the cycle in flight.
     pub(crate) frmw_wkc: Option<u16>,
     pub(crate) bound_wkc: Option<u16>,
+    pub(crate) topo_wkc: Option<u16>,
     pub(crate) lost_station: Option<u16>,
     pub(crate) sent_at: u64,
     // Delay re-measurement.
@@ -90,6 +91,7 @@ impl<const N: usize> Machine<N> {
         self.inflight.clear();
         self.cyc.frmw_wkc = None;
         self.cyc.bound_wkc = None;
+        self.cyc.topo_wkc = None;
         self.cyc.lost_station = None;
         if !self.push_op(b, self.frmw_op(now), Tag::Frmw) {
             if before == 0 {
@@ -98,6 +100,7 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         let _ = self.push_op(b, Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4), Tag::CycBound);
+        let _ = self.push_op(b, Op::brd(reg::AL_STATUS, 2), Tag::CycTopology);
         // Round robin over the slaves with a system time.
         let mut budget = self.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
@@ -149,12 +152,13 @@ impl<const N: usize> Machine<N> {
             }
             Tag::CycBound => {
                 self.cyc.bound_wkc = Some(wkc);
-                if wkc == self.count {
+                if wkc == self.sys_count {
                     if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
                         self.cyc.bound_ns = Some(SystemTimeDifference::from_raw(raw).magnitude());
                     }
                 }
             }
+            Tag::CycTopology => self.cyc.topo_wkc = Some(wkc),
             Tag::CycDiff(pos) => {
                 if wkc != 1 {
                     self.cyc.lost_station.get_or_insert(p.station);
@@ -174,6 +178,41 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn cyclic_complete(&mut self, now: u64) {
         self.cyc.lost_streak = 0;
         let max_wkc = self.cfg.monitor.max_wkc_errors;
+        // Every slave counts the BRD of 0x0130, every slave with a system time the BRD of
+        // 0x092C: either count changing means slaves appeared or disappeared.
+        let topo = match (self.cyc.topo_wkc, self.cyc.bound_wkc) {
+            (Some(w), _) if w != self.count => Some(w),
+            (_, Some(w)) if w != self.sys_count => {
+                Some(self.count.saturating_sub(self.sys_count).saturating_add(w))
+            }
+            _ => None,
+        };
+        match topo {
+            // A slave gone from its address in the same cycle as the count changed: the
+            // topology changed, no need to wait for confirmation.
+            Some(found) if self.cyc.lost_station.is_some() => {
+                return self.fault(
+                    now,
+                    Error::TopologyChanged {
+                        expected: self.count,
+                        found,
+                    },
+                );
+            }
+            Some(found) => {
+                self.cyc.topo_streak = self.cyc.topo_streak.saturating_add(1);
+                if self.cyc.topo_streak >= max_wkc {
+                    return self.fault(
+                        now,
+                        Error::TopologyChanged {
+                            expected: self.count,
+                            found,
+                        },
+                    );
+                }
+            }
+            None => self.cyc.topo_streak = 0,
+        }
         // A reset or lost reference no longer reads the FRMW; slaves behind a break no longer
         // write it.
         match self.cyc.frmw_wkc {
@@ -194,21 +233,6 @@ impl<const N: usize> Machine<N> {
                 }
             }
             _ => self.cyc.wkc_streak = 0,
-        }
-        match self.cyc.bound_wkc {
-            Some(w) if w != self.count => {
-                self.cyc.topo_streak = self.cyc.topo_streak.saturating_add(1);
-                if self.cyc.topo_streak >= max_wkc {
-                    return self.fault(
-                        now,
-                        Error::TopologyChanged {
-                            expected: self.count,
-                            found: w,
-                        },
-                    );
-                }
-            }
-            _ => self.cyc.topo_streak = 0,
         }
         if let Some(station) = self.cyc.lost_station {
             // A power-cycled ESC has lost its station address; a broken link drops it too.

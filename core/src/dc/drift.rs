@@ -70,7 +70,8 @@ impl<const N: usize> Machine<N> {
         match self.state {
             State::DriftBurst => self.check_frmw(p, wkc),
             State::DriftCheck => {
-                let expected = if i == 0 { self.count } else { 1 };
+                // BRD 0x092C: only ESCs with a system time have the register.
+                let expected = if i == 0 { self.sys_count } else { 1 };
                 self.expect_wkc(p, expected, wkc)?;
                 let raw =
                     le(data, 4)

@@ -119,8 +119,10 @@ pub enum Tag {
     Item(u16),
     /// The FRMW that leads every drift-check frame and every cyclic frame.
     Frmw,
-    /// Cyclic BRD 0x092C (upper bound, and the topology check by its WKC).
+    /// Cyclic BRD 0x092C (upper bound; WKC = slaves with a system time).
     CycBound,
+    /// Cyclic BRD 0x0130 (AL status): its WKC counts every slave, the topology check.
+    CycTopology,
     /// Cyclic FPRD 0x092C of the slave at this table position.
     CycDiff(u16),
     /// Cyclic delay re-measurement item.

@@ -87,7 +87,7 @@ pub fn steady<const N: usize>(s: &mut Sim<N>, window_ns: u64, kinds: &[EscKind])
         if s.now() >= next_true {
             next_true = s.now() + 10 * cycle;
             let e = s
-                .true_sync_error(reference, &clocks)
+                .true_sync_error((reference, kinds[reference].is_64bit()), &clocks)
                 .expect("sim")
                 .unwrap_or(0);
             out.max_true_err = out.max_true_err.max(e);
