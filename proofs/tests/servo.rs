@@ -225,7 +225,9 @@ fn simulate(
 }
 
 /// Closed-loop convergence, noise-free: ±100 ppm at 1 ms, any start offset within ±1 s; locks
-/// within 600 cycles and then holds |θ| ≤ 1 ns (type-2 loop: zero error to a constant drift).
+/// within 1000 cycles (a sub-period offset is slewed at ≤ P/1000 per cycle: up to 500 µs takes
+/// ~560 cycles against 100 ppm) and then holds |θ| ≤ 1 ns (type-2 loop: zero error to a constant
+/// drift). The wake-up is never stepped: only whole periods of app time are.
 #[test]
 fn master_loop_converges_noise_free() {
     for &(ppb, init) in &[
@@ -234,16 +236,16 @@ fn master_loop_converges_noise_free() {
         (100_000, -987_654),
         (-37_123, 499_999),
         (5, -500_001),
+        (-100_000, 500_000),
+        (100_000, -499_999),
     ] {
         let (m, lock, worst, _) = simulate(ppb, 0, init, 5000, 1000, 1);
         let lock = lock.unwrap_or_else(|| panic!("no lock at {ppb} ppb from {init}"));
-        assert!(lock <= 600, "{ppb} ppb from {init}: lock after {lock}");
+        println!("{ppb} ppb from {init} ns: lock after {lock} cycles");
+        assert!(lock <= 1000, "{ppb} ppb from {init}: lock after {lock}");
         assert!(worst <= 1, "{ppb} ppb from {init}: worst {worst}");
         assert_eq!(m.mode(), Mode::Tracking);
-        assert_eq!(
-            m.counters().steps,
-            u64::from(init.rem_euclid(1_000_000) > 10_000 && init.rem_euclid(1_000_000) < 990_000)
-        );
+        assert_eq!(m.counters().steps, 0);
     }
 }
 

@@ -12,7 +12,7 @@
 //! Outputs per cycle:
 //! - `deadline_correction_ns`: add to the next wake-up deadline (next = prev + P + this). It is
 //!   the PI command quantised with a carried remainder (exact long-run rate), plus a one-off
-//!   phase step when acquiring; |PI part| ≤ y_max_ns (REQ-SERVO-101).
+//!   phase step when acquiring if enabled (off by default); |PI part| ≤ y_max_ns (REQ-SERVO-101).
 //! - `app_time_step_ns`: a whole number of periods to add to the app-time base, so app time and
 //!   DC time agree to within P/2 (REQ-SERVO-102). Whole periods never move the wake-up phase,
 //!   so this is how a large offset is absorbed without disturbing the cycle (linuxcnc-ethercat
@@ -68,7 +68,9 @@ impl MasterConfig {
     /// Defaults for period P (ecdc choices, servo.md §3.7, §7):
     /// - acquire: double pole 0.9 (Kp 0.19, Ki 0.01), track: double pole 0.99 (noise-rejecting);
     /// - |correction| ≤ P/1000 per cycle (IgH's ±0.1 %), I_max = y_max;
-    /// - first-sample phase step when |θ| > P/100; no later phase steps (whole periods only);
+    /// - no phase steps of the wake-up at all: steps are by whole periods of app time only
+    ///   (a sub-period offset is slewed away at ≤ P/1000 per cycle, i.e. ≤ P/2 in 500 cycles
+    ///   plus the drift); set `servo.first_step_ns` to allow one first-sample wake-up shift;
     /// - gear to tracking after 32 cycles with |θ| < P/50, or after 2000 cycles regardless;
     /// - lock below P/50 for 32 cycles, unlock above P/20 (linuxcnc: P/10);
     /// - gate κ = 5 with floor P/100; holdover 100 cycles.
@@ -93,7 +95,7 @@ impl MasterConfig {
                 acquire,
                 track,
                 limits,
-                first_step_ns: p / 100,
+                first_step_ns: 0,
                 step_ns: 0,
                 step_confirm: 3,
                 blank: 1,
