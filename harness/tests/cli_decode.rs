@@ -51,15 +51,19 @@ fn reports_typed_error_and_fails() {
         out.contains("LengthMismatch { header: 32, walked: 34 }"),
         "{out}"
     );
-    assert!(String::from_utf8_lossy(&o.stderr).contains("1 of 1 frame(s) invalid"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("1 of 1 EtherCAT frame(s) invalid"));
     // command 15
     let bad = BASE.replacen("0e 02", "0f 02", 1);
     let out = stdout(&ecdc(&["decode", &bad]));
     assert!(out.contains("UnknownCommand { code: 15 }"), "{out}");
-    // not EtherCAT
-    let bad = BASE.replacen("88a4", "0800", 1);
-    let out = stdout(&ecdc(&["decode", &bad]));
-    assert!(out.contains("NotEtherCat { ethertype: 2048 }"), "{out}");
+    // not EtherCAT: skipped, and with no EtherCAT frame at all the command fails
+    let other = BASE.replacen("88a4", "0806", 1);
+    let o = ecdc(&["decode", &other]);
+    let out = stdout(&o);
+    assert!(out.contains("skipped: EtherType 0x0806"), "{out}");
+    assert!(out.contains("NotEtherCat { ethertype: 2054 }"), "{out}");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no EtherCAT frame found"));
 }
 
 #[test]
@@ -91,10 +95,17 @@ fn decodes_pcap_file() {
     cut.truncate(30);
     let dir = std::env::temp_dir().join(format!("ecdc-cli-decode-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("two.pcap");
+    let mut arp = vec![0xffu8; 6];
+    arp.extend_from_slice(&[0x02, 0, 0, 0, 0, 1, 0x08, 0x06]);
+    arp.resize(60, 0);
+    let path = dir.join("three.pcap");
     pcap::write_file(
         &path,
-        [(1_000_000_123, &good[..]), (2_000_000_000, &cut[..])],
+        [
+            (1_000_000_123, &good[..]),
+            (1_500_000_000, &arp[..]),
+            (2_000_000_000, &cut[..]),
+        ],
     )
     .unwrap();
     let o = ecdc(&["decode", path.to_str().unwrap(), "--full"]);
@@ -106,8 +117,17 @@ fn decodes_pcap_file() {
         out.contains(&["ee"; 20].join(" ")),
         "--full prints all data: {out}"
     );
-    assert!(out.contains("frame 2"), "{out}");
+    assert!(
+        out.contains("skipped: EtherType 0x0806"),
+        "ARP is skipped: {out}"
+    );
+    assert!(out.contains("frame 3"), "{out}");
     assert!(out.contains("error: buffer truncated (Truncated)"), "{out}");
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("1 of 2 EtherCAT frame(s) invalid"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

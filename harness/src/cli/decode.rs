@@ -3,7 +3,9 @@
 //!
 //! Frames may be EtherCAT over Ethernet (EtherType 0x88A4, one 802.1Q tag tolerated) or over
 //! UDP port 0x88A4. Datagrams before the first error are still shown, so a broken frame can be
-//! diagnosed. The command fails (exit status 1) if any frame is invalid.
+//! diagnosed. Frames that are not EtherCAT at all (ARP, IP traffic in a mixed capture) are
+//! listed as skipped. The command fails (exit status 1) if any EtherCAT frame is invalid or if
+//! no EtherCAT frame was found.
 
 use crate::capture::{pcap, udp};
 use anyhow::{bail, Context};
@@ -30,15 +32,21 @@ pub struct Args {
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let frames = load(args)?;
     let mut out = String::new();
-    let mut bad = 0usize;
+    let (mut bad, mut skipped) = (0usize, 0usize);
     for (i, (ts, bytes)) in frames.iter().enumerate() {
-        if !render_frame(&mut out, i + 1, *ts, bytes, args.payload, args.full) {
-            bad += 1;
+        match render_frame(&mut out, i + 1, *ts, bytes, args.payload, args.full) {
+            Outcome::Valid => {}
+            Outcome::Invalid => bad += 1,
+            Outcome::NotEtherCat => skipped += 1,
         }
     }
     print!("{out}");
+    let ecat = frames.len() - skipped;
     if bad > 0 {
-        bail!("{bad} of {} frame(s) invalid", frames.len());
+        bail!("{bad} of {ecat} EtherCAT frame(s) invalid");
+    }
+    if ecat == 0 {
+        bail!("no EtherCAT frame found ({skipped} other frame(s) skipped)");
     }
     Ok(())
 }
@@ -120,7 +128,18 @@ fn hex(bytes: &[u8], full: bool) -> String {
     s
 }
 
-/// Appends the description of one frame to `out`; returns false if the frame is invalid.
+/// What [`render_frame`] found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// A valid EtherCAT frame.
+    Valid,
+    /// An EtherCAT frame (or a frame cut before its EtherType) that fails validation.
+    Invalid,
+    /// Not EtherCAT (other EtherType, or IP traffic not on port 34980): skipped.
+    NotEtherCat,
+}
+
+/// Appends the description of one frame to `out`.
 pub fn render_frame(
     out: &mut String,
     number: usize,
@@ -128,7 +147,7 @@ pub fn render_frame(
     bytes: &[u8],
     bare_payload: bool,
     full: bool,
-) -> bool {
+) -> Outcome {
     let _ = write!(out, "frame {number}");
     if let Some(ts) = ts_ns {
         let _ = write!(out, "  t={}.{:09}", ts / 1_000_000_000, ts % 1_000_000_000);
@@ -142,7 +161,7 @@ pub fn render_frame(
             Ok(e) => e,
             Err(e) => {
                 let _ = writeln!(out, "\n  error: Ethernet header: {e} ({e:?})");
-                return false;
+                return Outcome::Invalid;
             }
         };
         let who = if eth.processed_by_slave() {
@@ -165,11 +184,15 @@ pub fn render_frame(
             let e = ecdc_core::wire::Error::NotEtherCat {
                 ethertype: eth.ethertype(),
             };
-            let _ = writeln!(out, "\n  error: {e} ({e:?})");
-            return false;
+            let _ = writeln!(out, "\n  skipped: {e} ({e:?})");
+            return Outcome::NotEtherCat;
         }
     };
-    render_ecat(out, payload, full)
+    if render_ecat(out, payload, full) {
+        Outcome::Valid
+    } else {
+        Outcome::Invalid
+    }
 }
 
 fn render_ecat(out: &mut String, payload: &[u8], full: bool) -> bool {
@@ -265,14 +288,20 @@ mod tests {
             00000000000000000000";
         let bytes = parse_hex(hex_frame).unwrap();
         let mut out = String::new();
-        assert!(render_frame(&mut out, 1, None, &bytes, false, false));
+        assert_eq!(
+            render_frame(&mut out, 1, None, &bytes, false, false),
+            Outcome::Valid
+        );
         assert!(out.contains("BRD"), "{out}");
         assert!(out.contains("FRMW"), "{out}");
         assert!(out.contains("station 0x1001 ado 0x0910"), "{out}");
         let mut bad = bytes.clone();
         bad[14] = 32; // header length 32: FRMW ends past it
         let mut out = String::new();
-        assert!(!render_frame(&mut out, 1, None, &bad, false, false));
+        assert_eq!(
+            render_frame(&mut out, 1, None, &bad, false, false),
+            Outcome::Invalid
+        );
         assert!(
             out.contains("LengthMismatch { header: 32, walked: 34 }"),
             "{out}"
