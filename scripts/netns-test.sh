@@ -7,11 +7,19 @@
 #
 # Part 1 (transport): `emulate --engine reflect` + `rtt`: every frame answered, accounting exact.
 # Part 2 (DC): `emulate` (ESC emulator) + `run --duration`: lock reached, frame accounting.
+# Part 3: the errors a user can act on.
 #
 # Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
 # Usage: scripts/netns-test.sh [path/to/ecdc]   (default: builds it with cargo)
+#        scripts/netns-test.sh --bench [path/to/ecdc]   round-trip matrix (release build) as in
+#        docs/runtime.md instead of the test
 set -uo pipefail
 cd "$(dirname "$0")/.."
+BENCH=0
+if [ "${1:-}" = "--bench" ]; then
+    BENCH=1
+    shift
+fi
 
 skip() { echo "SKIP: $*"; exit 77; }
 fail() { echo "FAIL: $*"; exit 1; }
@@ -48,7 +56,10 @@ ip -n "$NS_S" link set ecs0 up || fail "bringing ecs0 up"
 # ecm0 is deliberately left down: `ecdc` must bring it up itself (the usable-state check).
 
 ECDC="${1:-}"
-if [ -z "$ECDC" ]; then
+if [ -z "$ECDC" ] && [ "$BENCH" = 1 ]; then
+    cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build --release"
+    ECDC="${CARGO_TARGET_DIR:-target}/release/ecdc"
+elif [ -z "$ECDC" ]; then
     cargo build -q -p ecdc-harness --bin ecdc || fail "cargo build"
     ECDC="${CARGO_TARGET_DIR:-target}/debug/ecdc"
 fi
@@ -90,6 +101,35 @@ check() { # check DESCRIPTION JQ-EXPRESSION FILE [extra jq args]
     fi
 }
 FAILED=0
+
+if [ "$BENCH" = 1 ]; then
+    # bench LABEL "EMULATE ARGS" "RTT ARGS": 10000 back-to-back probes, then 5000 1-ms cycles.
+    bench() {
+        # shellcheck disable=SC2086
+        ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --engine reflect $2 \
+            >"$WORK/emu-bench.json" 2>"$WORK/emu-bench.err" &
+        EMU_PID=$!
+        PIDS+=("$EMU_PID")
+        sleep 0.3
+        # shellcheck disable=SC2086
+        ip netns exec "$NS_M" "$ECDC" rtt --iface ecm0 --count 10000 --cycles 5000 $3 --json \
+            >"$WORK/bench.json" 2>"$WORK/bench.err" || { cat "$WORK/bench.err"; fail "ecdc rtt"; }
+        stop_emulator
+        echo "== $1 (load average $(cut -d' ' -f1 /proc/loadavg))"
+        jq -r '
+          def us: . / 1000 | . * 10 | round / 10;
+          "back-to-back RTT   median \(.back_to_back.rtt.median|us) p90 \(.back_to_back.rtt.p90|us) p99 \(.back_to_back.rtt.p99|us) p99.9 \(.back_to_back.rtt.p999|us) max \(.back_to_back.rtt.max|us)  lost \(.back_to_back.frames.lost)",
+          "kernel RX -> user  median \(.back_to_back.kernel_to_user.median|us) p99 \(.back_to_back.kernel_to_user.p99|us)",
+          "1 ms cycle RTT     median \(.cyclic.rtt.median|us) p99 \(.cyclic.rtt.p99|us) max \(.cyclic.rtt.max|us)  lost \(.cyclic.frames.lost)",
+          "1 ms cycle wake    median \(.cyclic.wake.median|us) p99 \(.cyclic.wake.p99|us) p99.9 \(.cyclic.wake.p999|us) max \(.cyclic.wake.max|us)  overruns \(.cyclic.overruns)  [\(.rt)]"' \
+          "$WORK/bench.json"
+    }
+    bench "SCHED_OTHER, unpinned, poll" "" ""
+    bench "FIFO 80, master cpu0 / slave cpu1, poll, mlock, cpu_dma_latency 0" "--rt --cpu 1" "--rt --cpu 0"
+    bench "FIFO 80, master cpu0 / slave cpu1, both spinning" "--rt --cpu 1 --wait spin" "--rt --cpu 0 --wait spin"
+    bench "FIFO 80, master and slave on cpu1, poll" "--rt --cpu 1" "--rt --cpu 1"
+    exit 0
+fi
 
 echo "== part 1: transport over veth (reflecting slave)"
 start_emulator reflect || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect) did not start"; }

@@ -82,6 +82,8 @@ fn probe(buf: &mut [u8], mac: [u8; 6], idx: u8) -> ecdc_core::wire::Result<usize
 #[derive(Debug, serde::Serialize)]
 struct BackToBack {
     rtt: Summary,
+    /// Kernel receive stamp to user space (the wake-up and read cost), when stamped.
+    kernel_to_user: Summary,
     frames: Counters,
 }
 
@@ -184,6 +186,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 "back-to-back RTT: {}  (lost {}, stale {})",
                 b.rtt, b.frames.lost, b.frames.stale
             );
+            if b.kernel_to_user.count > 0 {
+                println!("back-to-back kernel RX stamp -> user: {}", b.kernel_to_user);
+            }
         }
         if let Some(c) = &report.cyclic {
             println!(
@@ -207,6 +212,7 @@ fn back_to_back(
     let mut tx = [0u8; 128];
     let mut rx = vec![0u8; cyclic::RX_BUF];
     let mut hist = Histogram::new();
+    let mut k2u = Histogram::new();
     for i in 0..args.count {
         if stop.load(std::sync::atomic::Ordering::Relaxed) {
             break;
@@ -218,7 +224,12 @@ fn back_to_back(
             .send(tx.get(..len).unwrap_or_default(), deadline)
             .map_err(|e| anyhow::anyhow!("{e}"))?;
         match transport.recv(&mut rx, deadline)? {
-            Some(r) => hist.record(r.rtt_ns()),
+            Some(r) => {
+                hist.record(r.rtt_ns());
+                if let Some(k) = r.rx_stamp {
+                    k2u.record(r.received_at.saturating_sub(k));
+                }
+            }
             None => {
                 transport.abandon_all();
                 // Nobody there: give up early instead of waiting count * timeout.
@@ -230,6 +241,7 @@ fn back_to_back(
     }
     Ok(BackToBack {
         rtt: hist.summary(),
+        kernel_to_user: k2u.summary(),
         frames: *transport.counters(),
     })
 }

@@ -134,6 +134,8 @@ pub struct Reply {
     pub sent_at: u64,
     /// Monotonic time the reply was read.
     pub received_at: u64,
+    /// Monotonic time the kernel received it (socket timestamp), when the link records one.
+    pub rx_stamp: Option<u64>,
 }
 
 impl Reply {
@@ -312,11 +314,13 @@ impl<L: Link> Transport<L> {
                         Some(s) => {
                             s.used = false;
                             self.counters.matched += 1;
+                            let rx_stamp = self.link.last_rx_time().filter(|t| *t <= received_at);
                             return Ok(Some(Reply {
                                 len: full,
                                 index,
                                 sent_at: s.sent_at,
                                 received_at,
+                                rx_stamp,
                             }));
                         }
                     }
