@@ -28,6 +28,8 @@ pub mod request;
 pub mod slave;
 pub mod state;
 mod steps;
+#[cfg(test)]
+mod tests;
 
 pub use config::{Config, ConfigError, DriftCheck, DriftConfig, MonitorConfig, SyncConfig};
 pub use error::Error;

@@ -1,0 +1,241 @@
+//! Unit tests of the machine's engine: transmission, reply matching, retries, timeouts,
+//! foreign input. End-to-end behaviour is tested against the emulator in
+//! `harness/tests/dc_*.rs`; the P6 property in `proofs/src/machine.rs`.
+
+use crate::dc::{Config, ConfigError, Error, Event, Machine, State};
+use crate::time::SystemTime;
+use crate::wire::{Address, Command, EthernetFrame, FrameBuilder};
+
+const T0: u64 = 800_000_000_000_000_000;
+
+fn machine() -> Machine<4> {
+    Machine::new(Config::default()).unwrap()
+}
+
+/// The reply an ESC chain would return: processed MAC, every datagram's WKC set to `wkc`.
+fn reply(frame: &[u8], wkc: u16) -> std::vec::Vec<u8> {
+    let mut out = frame.to_vec();
+    let mut eth = EthernetFrame::new_unchecked(&mut out[..]);
+    eth.mark_processed_by_slave();
+    let mut ecat = eth.ecat_frame_mut().unwrap();
+    for d in ecat.iter_mut() {
+        d.unwrap().set_wkc(wkc);
+    }
+    out
+}
+
+fn datagrams(frame: &[u8]) -> std::vec::Vec<(Command, u8, u16, u16)> {
+    let eth = EthernetFrame::new_checked(frame).unwrap();
+    let f = eth.ecat_frame().unwrap();
+    f.iter()
+        .map(|d| {
+            let d = d.unwrap();
+            (d.command().unwrap(), d.index(), d.ado(), d.data_len())
+        })
+        .collect()
+}
+
+fn events(m: &mut Machine<4>) -> std::vec::Vec<Event> {
+    core::iter::from_fn(|| m.poll_event()).collect()
+}
+
+#[test]
+fn config_validation() {
+    let ok = Config::default();
+    assert!(ok.validate(4).is_ok());
+    let c = Config {
+        index_count: 10,
+        ..ok
+    };
+    assert_eq!(Machine::<4>::new(c).err(), Some(ConfigError::TooFewIndices));
+    let c = Config {
+        station_base: 0xFFFE,
+        ..ok
+    };
+    assert_eq!(Machine::<4>::new(c).err(), Some(ConfigError::StationRange));
+    let c = Config {
+        speed_counter_start: 0x4000,
+        ..ok
+    };
+    assert_eq!(
+        Machine::<4>::new(c).err(),
+        Some(ConfigError::SpeedCounterStart)
+    );
+    let mut c = ok;
+    c.monitor.lock_ns = 2_000;
+    assert_eq!(Machine::<4>::new(c).err(), Some(ConfigError::Hysteresis));
+    let mut c = ok;
+    c.sync = Some(crate::dc::SyncConfig {
+        shift_ns: 1_000_000,
+        ..Default::default()
+    });
+    assert_eq!(Machine::<4>::new(c).err(), Some(ConfigError::SyncCycle));
+}
+
+#[test]
+fn idle_sends_nothing_start_counts() {
+    let mut m = machine();
+    let mut buf = [0u8; 1514];
+    assert_eq!(m.poll_transmit(SystemTime(T0), &mut buf), None);
+    assert_eq!(m.poll_timeout(), None);
+    m.start(SystemTime(T0));
+    let n = m.poll_transmit(SystemTime(T0), &mut buf).unwrap();
+    assert_eq!(n, 60);
+    let sent = buf[..n].to_vec();
+    let d = datagrams(&sent);
+    assert_eq!(d.len(), 1);
+    assert_eq!((d[0].0, d[0].2, d[0].3), (Command::Brd, 0x0000, 2));
+    assert!(d[0].1 >= 0x80);
+    // Waiting for the reply: nothing more to send, a deadline is set.
+    assert_eq!(m.poll_transmit(SystemTime(T0), &mut buf), None);
+    assert_eq!(m.poll_timeout(), Some(SystemTime(T0 + 10_000_000)));
+    // The reply (3 slaves) moves the machine on.
+    let r = reply(&sent, 3);
+    m.handle_frame(SystemTime(T0 + 1_000), &r);
+    assert_eq!(m.slaves().len(), 3);
+    let n = m.poll_transmit(SystemTime(T0 + 1_000), &mut buf).unwrap();
+    assert_eq!(m.state(), State::AssignAddresses);
+    let d = datagrams(&buf[..n]);
+    assert_eq!(d.len(), 3);
+    assert!(d
+        .iter()
+        .all(|x| x.0 == Command::Apwr && x.2 == 0x0010 && x.3 == 2));
+}
+
+#[test]
+fn foreign_and_garbage_frames_are_counted_not_used() {
+    let mut m = machine();
+    let mut buf = [0u8; 1514];
+    m.start(SystemTime(T0));
+    let n = m.poll_transmit(SystemTime(T0), &mut buf).unwrap();
+    let sent = buf[..n].to_vec();
+    // Garbage.
+    m.handle_frame(SystemTime(T0), &[0xFF; 7]);
+    m.handle_frame(SystemTime(T0), &[]);
+    // Our own frame seen again (not processed by any ESC).
+    m.handle_frame(SystemTime(T0), &sent);
+    // A processed frame whose datagram has another index.
+    let mut other = reply(&sent, 3);
+    {
+        let mut eth = EthernetFrame::new_unchecked(&mut other[..]);
+        let mut f = eth.ecat_frame_mut().unwrap();
+        let mut d = f.iter_mut().next().unwrap().unwrap();
+        d.set_index(0x05);
+    }
+    m.handle_frame(SystemTime(T0), &other);
+    // Right index, wrong register.
+    let mut wrong = reply(&sent, 3);
+    {
+        let mut eth = EthernetFrame::new_unchecked(&mut wrong[..]);
+        let mut f = eth.ecat_frame_mut().unwrap();
+        let mut d = f.iter_mut().next().unwrap().unwrap();
+        d.set_ado(0x0130);
+    }
+    m.handle_frame(SystemTime(T0), &wrong);
+    assert_eq!(m.stats().foreign_frames, 5);
+    assert_eq!(m.state(), State::CountSlaves);
+    assert!(m.slaves().is_empty());
+    // The real reply still works afterwards.
+    m.handle_frame(SystemTime(T0), &reply(&sent, 2));
+    assert_eq!(m.slaves().len(), 2);
+}
+
+#[test]
+fn no_slaves_is_a_typed_error_then_restart() {
+    let mut m = machine();
+    let mut buf = [0u8; 1514];
+    m.start(SystemTime(T0));
+    let n = m.poll_transmit(SystemTime(T0), &mut buf).unwrap();
+    m.handle_frame(SystemTime(T0 + 1_000), &reply(&buf[..n], 0));
+    let ev = events(&mut m);
+    // Not retried in place (an empty network is not a lost frame): the restart pause is the
+    // retry.
+    assert_eq!(ev, [Event::Error(Error::NoSlaves), Event::Restarting]);
+    assert_eq!(m.state(), State::RestartWait);
+    assert_eq!(m.stats().retries, 0);
+    // After the pause it counts again.
+    let wake = m.poll_timeout().unwrap();
+    assert_eq!(
+        m.poll_transmit(wake, &mut buf)
+            .map(|n| datagrams(&buf[..n])[0].0),
+        Some(Command::Brd)
+    );
+}
+
+#[test]
+fn timeouts_retry_then_fail() {
+    let mut c = Config {
+        auto_restart: false,
+        ..Config::default()
+    };
+    c.retries = 2;
+    let mut m: Machine<4> = Machine::new(c).unwrap();
+    let mut buf = [0u8; 1514];
+    m.start(SystemTime(T0));
+    let mut t = T0;
+    for _ in 0..3 {
+        assert!(m.poll_transmit(SystemTime(t), &mut buf).is_some());
+        t = m.poll_timeout().unwrap().as_nanos();
+        m.handle_timeout(SystemTime(t));
+    }
+    assert_eq!(
+        events(&mut m),
+        [Event::Error(Error::Timeout {
+            state: State::CountSlaves
+        })]
+    );
+    assert_eq!(m.state(), State::Failed);
+    assert_eq!(m.poll_transmit(SystemTime(t), &mut buf), None);
+    assert_eq!(m.stats().timeouts, 3);
+}
+
+#[test]
+fn appends_into_caller_frame_and_matches_mixed_reply() {
+    let mut m = machine();
+    m.start(SystemTime(T0));
+    let mut buf = [0u8; 1514];
+    let mut b = FrameBuilder::new(&mut buf).unwrap();
+    b.push(Command::Lrw, 0x01, Address::logical(0x1000), &[1, 2, 3, 4])
+        .unwrap();
+    assert!(m.poll_transmit_into(SystemTime(T0), &mut b));
+    let n = b.finish().unwrap();
+    let d = datagrams(&buf[..n]);
+    assert_eq!(d.len(), 2);
+    assert_eq!(d[0].0, Command::Lrw);
+    assert_eq!(d[1].0, Command::Brd);
+    m.handle_frame(SystemTime(T0 + 1_000), &reply(&buf[..n], 2));
+    assert_eq!(m.slaves().len(), 2);
+    assert_eq!(m.stats().foreign_datagrams, 1);
+    assert_eq!(m.stats().foreign_frames, 0);
+}
+
+#[test]
+fn tiny_buffer_is_a_typed_error() {
+    let mut m = machine();
+    m.start(SystemTime(T0));
+    let mut small = [0u8; 20];
+    assert_eq!(m.poll_transmit(SystemTime(T0), &mut small), None);
+    assert!(events(&mut m).contains(&Event::Error(Error::BufferTooSmall)));
+    // Nothing was left in flight: a proper buffer works.
+    let mut buf = [0u8; 1514];
+    assert!(m.poll_transmit(SystemTime(T0), &mut buf).is_some());
+}
+
+#[test]
+fn too_many_slaves_is_a_typed_error() {
+    let mut m = machine();
+    let mut buf = [0u8; 1514];
+    m.start(SystemTime(T0));
+    let n = m.poll_transmit(SystemTime(T0), &mut buf).unwrap();
+    m.handle_frame(SystemTime(T0 + 1), &reply(&buf[..n], 9));
+    assert_eq!(
+        events(&mut m),
+        [
+            Event::Error(Error::TooManySlaves {
+                found: 9,
+                capacity: 4
+            }),
+            Event::Restarting
+        ]
+    );
+}
