@@ -50,6 +50,10 @@ pub struct Args {
     /// this long after the master's nominal cycle time (negative = before).
     #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
     pub target_ns: i64,
+    /// Consecutive lost cycles before the DC machine re-initialises (raise it on a machine
+    /// without real-time scheduling, where the peer can stall for milliseconds).
+    #[arg(long, default_value_t = 5)]
+    pub max_lost_cycles: u16,
     /// Sleep until this long before each deadline, then spin (us; 0 = pure sleep).
     #[arg(long, default_value_t = 0)]
     pub spin_us: u64,
@@ -69,6 +73,9 @@ struct RunSummary {
     drift_frames: Option<u32>,
     drift_max_diff_ns: Option<u32>,
     restarts: u32,
+    /// Cyclic cycles over all segments (a re-initialisation starts a new segment).
+    cyclic_cycles_total: u64,
+    /// Statistics of the last cyclic segment (since the last re-initialisation).
     cyclic: Option<LoopSummary>,
     servo_drift_ns_per_cycle: Option<i64>,
     machine_frames_sent: u64,
@@ -192,6 +199,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 
     let mut cfg = Config::default();
     cfg.monitor.cycle_ns = cycle_ns;
+    cfg.monitor.max_lost_cycles = args.max_lost_cycles.max(1);
     cfg.sync = if args.no_sync {
         None
     } else {
@@ -321,6 +329,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         drift_frames: drift.map(|d| d.0),
         drift_max_diff_ns: drift.map(|d| d.1),
         restarts,
+        cyclic_cycles_total: done_cycles,
         cyclic: cyclic_summary,
         servo_drift_ns_per_cycle: servo_drift,
         machine_frames_sent: stats.frames_sent,
@@ -368,6 +377,12 @@ fn print_summary(s: &RunSummary, elapsed_ns: u64) {
         }
     );
     if let Some(c) = &s.cyclic {
+        if s.restarts > 0 {
+            println!(
+                "  {} cyclic cycles in total; the figures below cover the last segment",
+                s.cyclic_cycles_total
+            );
+        }
         println!(
             "  cyclic: {} cycles, DC lock at end: {}, locked cycles {}; servo lock at end: {}, locked cycles {}",
             c.cycles,
