@@ -11,5 +11,7 @@
 pub mod capture;
 pub mod cli;
 pub mod emu;
+pub mod report;
 pub mod runtime;
+pub mod schemes;
 pub mod sim;

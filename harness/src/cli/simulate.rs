@@ -1,10 +1,269 @@
-//! `ecdc simulate`.
+//! `ecdc simulate`: runs ecdc, the seed 000 scheme and no compensation on three copies of the
+//! same emulated network (one [`Scenario`], same seed) and reports lock, SYNC0 skew and the
+//! seed 000 Table 2 quantities (text on stdout, JSON and SVG files). Definitions:
+//! docs/simulate.md and [`crate::schemes::measure`].
 
-/// Arguments of `ecdc simulate`.
-#[derive(Debug, clap::Args)]
-pub struct Args {}
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+
+use crate::emu::{Network, PpmSpec, Scenario, SlaveSpec};
+use crate::report::{self, Report, Setup};
+use crate::schemes::ecdc::{self, Ecdc};
+use crate::schemes::measure::summarize;
+use crate::schemes::run::{run_scheme, Record, RunOpts};
+use crate::schemes::seed000::Seed000;
+use crate::schemes::uncompensated::Uncompensated;
+use crate::schemes::Scheme;
+
+/// Topologies the command can build without a scenario file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Topology {
+    /// Every slave on port 1 of the previous one.
+    Line,
+    /// Slave 1 is a 4-port junction; the others form three branches on ports 3, 1 and 2
+    /// (listed in processing order).
+    Tree,
+}
+
+/// Arguments of `ecdc simulate`. Without `--scenario` the default is seed 000's setup: 6 slaves
+/// in a line, 1 ms cycle, ±50 ppm crystals.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    /// Scenario file (TOML or JSON, the emulator's format); flags given explicitly override it.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Number of slaves [default: 6].
+    #[arg(long)]
+    pub slaves: Option<usize>,
+    /// Topology [default: line].
+    #[arg(long, value_enum)]
+    pub topology: Option<Topology>,
+    /// SYNC0 / cyclic period, ns.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub cycle_ns: u32,
+    /// Simulated duration, ms.
+    #[arg(long, default_value_t = 10_000)]
+    pub duration_ms: u64,
+    /// Crystal errors uniform in ±PPM [default: 50].
+    #[arg(long)]
+    pub ppm: Option<f64>,
+    /// Frame loss probability [default: 0].
+    #[arg(long)]
+    pub loss: Option<f64>,
+    /// Emulator seed [default: 0].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Directory for the default output files.
+    #[arg(long, default_value = ".")]
+    pub out_dir: PathBuf,
+    /// SVG path [default: OUT_DIR/ecdc-simulate.svg].
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// JSON path [default: OUT_DIR/ecdc-simulate.json].
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Never show the progress bar.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+impl Default for Args {
+    fn default() -> Self {
+        Args {
+            scenario: None,
+            slaves: None,
+            topology: None,
+            cycle_ns: 1_000_000,
+            duration_ms: 10_000,
+            ppm: None,
+            loss: None,
+            seed: None,
+            out_dir: PathBuf::from("."),
+            svg: None,
+            json: None,
+            no_progress: true,
+        }
+    }
+}
+
+fn slaves_for(topology: Topology, n: usize) -> Vec<SlaveSpec> {
+    match topology {
+        Topology::Line => Scenario::line(n).slaves,
+        Topology::Tree => {
+            let mut v = vec![SlaveSpec {
+                ports: Some(4),
+                ..SlaveSpec::default()
+            }];
+            let rest = n.saturating_sub(1);
+            let sizes = [
+                rest.div_ceil(3),
+                rest / 3,
+                rest - rest.div_ceil(3) - rest / 3,
+            ];
+            for (port, size) in [3u8, 1, 2].into_iter().zip(sizes) {
+                if size > 0 {
+                    v.push(SlaveSpec {
+                        repeat: size,
+                        parent: Some(0),
+                        port: Some(port),
+                        ..SlaveSpec::default()
+                    });
+                }
+            }
+            v
+        }
+    }
+}
+
+/// The scenario the arguments describe.
+pub fn scenario(args: &Args) -> anyhow::Result<(Scenario, String)> {
+    let mut sc = match &args.scenario {
+        Some(p) => Scenario::load(p).map_err(|e| anyhow::anyhow!("{e}"))?,
+        None => Scenario::line(6),
+    };
+    let mut topo = match &args.scenario {
+        Some(p) => format!("from {}", p.display()),
+        None => "line".to_string(),
+    };
+    if args.slaves.is_some() || args.topology.is_some() {
+        let t = args.topology.unwrap_or(Topology::Line);
+        let n = args.slaves.unwrap_or(6);
+        sc.slaves = slaves_for(t, n);
+        topo = format!("{t:?}").to_lowercase();
+    }
+    if let Some(p) = args.ppm {
+        sc.defaults.ppm = PpmSpec::Uniform { min: -p, max: p };
+    }
+    if let Some(l) = args.loss {
+        sc.frame_loss_rate = l;
+    }
+    if let Some(s) = args.seed {
+        sc.seed = s;
+    }
+    sc.resolve().map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((sc, topo))
+}
+
+/// A progress bar on stderr, shown only on a terminal and only once a run has taken > 1 s.
+struct Progress {
+    start: Instant,
+    total: u64,
+    enabled: bool,
+    shown: bool,
+    last: Instant,
+}
+
+impl Progress {
+    fn new(total: u64, enabled: bool) -> Self {
+        Progress {
+            start: Instant::now(),
+            total: total.max(1),
+            enabled: enabled && std::io::stderr().is_terminal(),
+            shown: false,
+            last: Instant::now(),
+        }
+    }
+
+    fn update(&mut self, done: u64, label: &str) {
+        if !self.enabled || self.start.elapsed().as_millis() < 1000 {
+            return;
+        }
+        if self.shown && self.last.elapsed().as_millis() < 100 {
+            return;
+        }
+        self.shown = true;
+        self.last = Instant::now();
+        let frac = (done as f64 / self.total as f64).clamp(0.0, 1.0);
+        let filled = (frac * 40.0) as usize;
+        let mut e = std::io::stderr().lock();
+        let _ = write!(
+            e,
+            "\r[{}{}] {:>3.0}% {label:<14} {:.1} s",
+            "#".repeat(filled),
+            ".".repeat(40 - filled),
+            frac * 100.0,
+            self.start.elapsed().as_secs_f64()
+        );
+        let _ = e.flush();
+    }
+
+    fn finish(&self) {
+        if self.shown {
+            eprintln!();
+        }
+    }
+}
+
+/// Runs the three schemes and builds the report (no files written). `progress` shows the bar.
+pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
+    let (sc, topology) = scenario(args)?;
+    let t_diff = i64::try_from(sc.defaults.t_p_ns)? - i64::try_from(sc.defaults.t_f_ns)?;
+    let duration_ns = args.duration_ms.saturating_mul(1_000_000);
+    let cycle = args.cycle_ns;
+    anyhow::ensure!(cycle > 0, "--cycle-ns must be > 0");
+    let opts = RunOpts {
+        duration_ns,
+        sample_ns: (u64::from(cycle) / 10).clamp(1_000, 100_000),
+        cycle_ns: u64::from(cycle),
+    };
+    let net = || Network::new(&sc).map_err(|e| anyhow::anyhow!("{e}"));
+    let probe = net()?;
+    let crystal_ppm: Vec<f64> = (0..probe.slave_count())
+        .filter_map(|i| probe.slave_info(i).map(|s| s.ppm))
+        .collect();
+    let mut schemes: Vec<Box<dyn Scheme>> = vec![
+        Box::new(Ecdc::new(
+            net()?,
+            ecdc::config(i32::try_from(t_diff)?, cycle),
+        )?),
+        Box::new(Seed000::new(net()?, t_diff, cycle)),
+        Box::new(Uncompensated::new(net()?, cycle)),
+    ];
+    let mut bar = Progress::new(duration_ns * schemes.len() as u64, !args.no_progress);
+    let mut records = Vec::new();
+    for (k, s) in schemes.iter_mut().enumerate() {
+        let base = duration_ns * k as u64;
+        let name = s.name();
+        let rec = run_scheme(s.as_mut(), opts, &mut |t| bar.update(base + t, name))
+            .with_context(|| format!("scheme {name}"))?;
+        records.push(rec);
+    }
+    bar.finish();
+    let setup = Setup {
+        slaves: crystal_ppm.len(),
+        topology,
+        cycle_ns: cycle,
+        duration_ns,
+        crystal_ppm,
+        frame_loss_rate: sc.frame_loss_rate,
+        seed: sc.seed,
+        t_diff_ns: t_diff,
+        sample_ns: opts.sample_ns,
+    };
+    let report = Report::new(setup, records.iter().map(summarize).collect());
+    Ok((report, records))
+}
 
 /// Runs `ecdc simulate`.
-pub fn run(_args: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("simulate: not implemented yet")
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let (report, records) = simulate(args)?;
+    let svg_path = args
+        .svg
+        .clone()
+        .unwrap_or_else(|| args.out_dir.join("ecdc-simulate.svg"));
+    let json_path = args
+        .json
+        .clone()
+        .unwrap_or_else(|| args.out_dir.join("ecdc-simulate.json"));
+    let refs: Vec<&Record> = records.iter().collect();
+    std::fs::write(&svg_path, report::svg::render(&refs))
+        .with_context(|| format!("writing {}", svg_path.display()))?;
+    std::fs::write(&json_path, report.to_json()?)
+        .with_context(|| format!("writing {}", json_path.display()))?;
+    print!("{}", report::table::render(&report));
+    println!("\nwrote {} and {}", json_path.display(), svg_path.display());
+    Ok(())
 }

@@ -1,0 +1,199 @@
+//! Hand-written SVG of per-slave clock error against time: one panel per scheme (ecdc and
+//! seed 000 like seed 000 Fig. 10, uncompensated like Fig. 9). Each series is reduced to a
+//! min/max envelope per pixel column, so the file stays small for long runs; the compensated
+//! panels clip their y-axis (stated on the panel) so the steady state stays readable.
+
+use std::fmt::Write;
+
+use crate::schemes::run::Record;
+
+const W: f64 = 900.0;
+const PANEL_H: f64 = 260.0;
+const LEFT: f64 = 80.0;
+const RIGHT: f64 = 140.0;
+const TOP: f64 = 40.0;
+const GAP: f64 = 70.0;
+const COLORS: [&str; 10] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf",
+];
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// First cycle sample from which every slave's error is below 100 µs (offsets written).
+fn plot_start(r: &Record) -> usize {
+    (0..r.cyc_t.len())
+        .find(|&k| {
+            r.cyc_err.iter().all(|v| {
+                v.get(k)
+                    .copied()
+                    .flatten()
+                    .is_some_and(|e| e.abs() < 100_000)
+            })
+        })
+        .unwrap_or(0)
+}
+
+/// Symmetric y-range: the compensated panels show ±max(200 ns, 1.5 × the largest |error| in
+/// the last half of the samples); the uncompensated panel shows everything.
+fn y_range(r: &Record, from: usize, clip: bool) -> f64 {
+    let n = r.cyc_t.len();
+    let start = if clip { from + (n - from) / 2 } else { from };
+    let m = r
+        .cyc_err
+        .iter()
+        .flat_map(|v| v.iter().skip(start).flatten())
+        .map(|e| e.unsigned_abs())
+        .max()
+        .unwrap_or(0) as f64;
+    if clip {
+        (m * 1.5).max(200.0)
+    } else {
+        m.max(100.0) * 1.05
+    }
+}
+
+fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
+    let from = plot_start(r);
+    let n = r.cyc_t.len();
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">{}</text>"#,
+        y0 - 10.0,
+        esc(title)
+    );
+    let _ = writeln!(
+        out,
+        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    );
+    if from >= n {
+        return;
+    }
+    let t0 = r.cyc_t[from] as f64;
+    let t1 = (r.cyc_t[n - 1] as f64).max(t0 + 1.0);
+    let yr = y_range(r, from, clip);
+    let (unit, div) = if yr >= 5_000.0 {
+        ("µs", 1000.0)
+    } else {
+        ("ns", 1.0)
+    };
+    let x = |t: f64| LEFT + (t - t0) / (t1 - t0) * pw;
+    let y = |e: f64| y0 + ph / 2.0 - (e.clamp(-yr, yr) / yr) * (ph / 2.0);
+    // Axes: zero line, y ticks, x ticks.
+    let _ = writeln!(
+        out,
+        r##"<line x1="{LEFT}" y1="{0}" x2="{1}" y2="{0}" stroke="#bbb" stroke-dasharray="4 3"/>"##,
+        y(0.0),
+        LEFT + pw
+    );
+    for k in -2..=2 {
+        let v = yr * f64::from(k) / 2.0;
+        let _ = writeln!(
+            out,
+            r#"<text x="{}" y="{}" font-size="11" text-anchor="end">{:.0} {unit}</text>"#,
+            LEFT - 6.0,
+            y(v) + 4.0,
+            v / div
+        );
+    }
+    for k in 0..=5 {
+        let t = t0 + (t1 - t0) * f64::from(k) / 5.0;
+        let _ = writeln!(
+            out,
+            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.2} s</text>"#,
+            x(t),
+            y0 + ph + 16.0,
+            t / 1e9
+        );
+    }
+    if clip {
+        let _ = writeln!(
+            out,
+            r##"<text x="{}" y="{}" font-size="11" text-anchor="end" fill="#666">y clipped at ±{:.0} ns</text>"##,
+            LEFT + pw,
+            y0 - 10.0,
+            yr
+        );
+    }
+    // Series: min/max envelope per pixel column.
+    let cols = pw as usize;
+    let mut legend = 0usize;
+    for (s, errs) in r.cyc_err.iter().enumerate() {
+        if s == r.reference {
+            continue;
+        }
+        let mut pts = String::new();
+        let mut k = from;
+        for c in 0..cols {
+            let end = from + (n - from) * (c + 1) / cols;
+            let mut lo: Option<i64> = None;
+            let mut hi: Option<i64> = None;
+            let mut tk = 0f64;
+            while k < end.min(n) {
+                if let Some(e) = errs.get(k).copied().flatten() {
+                    lo = Some(lo.map_or(e, |l| l.min(e)));
+                    hi = Some(hi.map_or(e, |h| h.max(e)));
+                    tk = r.cyc_t[k] as f64;
+                }
+                k += 1;
+            }
+            if let (Some(l), Some(h)) = (lo, hi) {
+                let _ = write!(pts, "{:.1},{:.1} ", x(tk), y(l as f64));
+                if h != l {
+                    let _ = write!(pts, "{:.1},{:.1} ", x(tk), y(h as f64));
+                }
+            }
+        }
+        let color = COLORS[s % COLORS.len()];
+        let _ = writeln!(
+            out,
+            r#"<polyline fill="none" stroke="{color}" stroke-width="1" points="{pts}"/>"#
+        );
+        let ly = y0 + 14.0 + 16.0 * legend as f64;
+        let _ = writeln!(
+            out,
+            r#"<line x1="{0}" y1="{ly}" x2="{1}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{2}" y="{3}" font-size="12">slave {4}</text>"#,
+            LEFT + pw + 12.0,
+            LEFT + pw + 32.0,
+            LEFT + pw + 38.0,
+            ly + 4.0,
+            s + 1
+        );
+        legend += 1;
+    }
+}
+
+/// The SVG document for the given records (in panel order).
+pub fn render(records: &[&Record]) -> String {
+    let h = TOP + records.len() as f64 * (PANEL_H + GAP) + 10.0;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="20" font-size="13">Clock error (slave system time − reference system time, true time), one sample per cycle</text>"#
+    );
+    for (i, r) in records.iter().enumerate() {
+        let y0 = TOP + 30.0 + i as f64 * (PANEL_H + GAP);
+        let clip = r.name != "uncompensated";
+        let title = match r.name {
+            "ecdc" => "ecdc (cf. seed 000 Fig. 10)".to_string(),
+            "seed000" => "seed 000 scheme: eq. 23 as printed, eq. 24, 15 000-frame burst (Fig. 10)"
+                .to_string(),
+            "uncompensated" => "no compensation: offsets only (cf. seed 000 Fig. 9)".to_string(),
+            other => other.to_string(),
+        };
+        panel(&mut out, r, &title, y0, clip);
+    }
+    out.push_str("</svg>\n");
+    out
+}

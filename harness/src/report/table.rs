@@ -1,0 +1,164 @@
+//! Text output of `ecdc simulate`: the per-slave table in the form of seed 000 Table 2 (one
+//! column per non-reference slave, one row per quantity), the lock and skew comparison, and
+//! the targets.
+
+use std::fmt::Write;
+
+use super::Report;
+use crate::schemes::measure::{SlaveRow, Summary};
+
+fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
+    v.map_or("-".to_string(), |v| v.to_string())
+}
+
+fn optf(v: Option<f64>, prec: usize) -> String {
+    v.map_or("-".to_string(), |v| format!("{v:.prec$}"))
+}
+
+/// Formats one cell of a row.
+type Cell = Box<dyn Fn(&SlaveRow) -> String>;
+
+/// Table 2 of one scheme: rows = quantities, columns = non-reference slaves.
+pub fn slave_table(s: &Summary) -> String {
+    let cols: Vec<&SlaveRow> = s.slaves.iter().filter(|r| !r.reference).collect();
+    let rows: [(&str, Cell); 8] = [
+        ("offset compensation 0x0920", Box::new(|r| opt(r.offset_ns))),
+        ("delay compensation 0x0928", Box::new(|r| opt(r.delay_ns))),
+        (
+            "drift comp. mean 0x092C",
+            Box::new(|r| optf(r.drift_mean_ns, 1)),
+        ),
+        ("drift comp. max", Box::new(|r| opt(r.drift_max_ns))),
+        ("drift comp. min", Box::new(|r| opt(r.drift_min_ns))),
+        (
+            "clock error mean",
+            Box::new(|r| optf(r.clock_error_mean_ns, 1)),
+        ),
+        (
+            "clock error max |.|",
+            Box::new(|r| opt(r.clock_error_max_abs_ns)),
+        ),
+        ("SYNC0 skew mean |.|", Box::new(|r| optf(r.skew_mean_ns, 1))),
+    ];
+    let w0 = 28;
+    let mut widths: Vec<usize> = cols
+        .iter()
+        .map(|r| format!("slave {}", r.slave).len())
+        .collect();
+    for (_, f) in &rows {
+        for (k, r) in cols.iter().enumerate() {
+            widths[k] = widths[k].max(f(r).len());
+        }
+    }
+    let mut out = String::new();
+    let _ = write!(out, "{:<w0$}", "ns");
+    for (k, r) in cols.iter().enumerate() {
+        let _ = write!(out, "  {:>w$}", format!("slave {}", r.slave), w = widths[k]);
+    }
+    out.push('\n');
+    for (name, f) in &rows {
+        let _ = write!(out, "{name:<w0$}");
+        for (k, r) in cols.iter().enumerate() {
+            let _ = write!(out, "  {:>w$}", f(r), w = widths[k]);
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// The whole text report.
+pub fn render(r: &Report) -> String {
+    let mut out = String::new();
+    let su = &r.setup;
+    let _ = writeln!(
+        out,
+        "ecdc simulate: {} slaves ({}), cycle {} ns, {:.3} s, seed {}, loss {}, t_DIFF {} ns",
+        su.slaves,
+        su.topology,
+        su.cycle_ns,
+        su.duration_ns as f64 / 1e9,
+        su.seed,
+        su.frame_loss_rate,
+        su.t_diff_ns
+    );
+    let ppm: Vec<String> = su.crystal_ppm.iter().map(|p| format!("{p:+.1}")).collect();
+    let _ = writeln!(out, "crystals (ppm): {}", ppm.join(" "));
+    for name in ["ecdc", "seed000", "uncompensated"] {
+        let Some(s) = r.schemes.get(name) else {
+            continue;
+        };
+        let _ = writeln!(out, "\n[{name}] per-slave table (seed 000 Table 2 form; steady-state window {}..{} ms; reference = slave {})",
+            optf(s.window_start_ns.map(|v| v as f64 / 1e6), 1),
+            format_args!("{:.1}", s.window_end_ns as f64 / 1e6),
+            s.slaves.iter().find(|x| x.reference).map_or(0, |x| x.slave));
+        if let Some(e) = &s.error {
+            let _ = writeln!(out, "  stopped early: {e}");
+        }
+        out.push_str(&slave_table(s));
+    }
+    let _ = writeln!(
+        out,
+        "\nlock (every slave within 100 ns of the reference, true time, for the rest of the run)"
+    );
+    let _ = writeln!(
+        out,
+        "{:<15} {:>12} {:>10} {:>14}",
+        "scheme", "lock frames", "lock ms", "static drift"
+    );
+    for name in ["ecdc", "seed000", "uncompensated"] {
+        if let Some(s) = r.schemes.get(name) {
+            let _ = writeln!(
+                out,
+                "{:<15} {:>12} {:>10} {:>14}",
+                name,
+                opt(s.lock_frames),
+                optf(s.lock_ms, 1),
+                opt(s.static_drift_frames)
+            );
+        }
+    }
+    let _ = writeln!(
+        out,
+        "\nsteady-state SYNC0 skew vs the reference (true time, ns)"
+    );
+    let _ = writeln!(
+        out,
+        "{:<15} {:>10} {:>10} {:>10} {:>12} {:>9}",
+        "scheme", "mean|.|", "p99|.|", "max|.|", "signed mean", "pairs"
+    );
+    for name in ["ecdc", "seed000", "uncompensated"] {
+        if let Some(s) = r.schemes.get(name) {
+            let _ = writeln!(
+                out,
+                "{:<15} {:>10} {:>10} {:>10} {:>12} {:>9}",
+                name,
+                optf(s.skew_mean_ns, 1),
+                opt(s.skew_p99_ns),
+                opt(s.skew_max_ns),
+                optf(s.skew_signed_mean_ns, 1),
+                s.skew_samples
+            );
+        }
+    }
+    let ratio = |k: &str| optf(r.ratios.get(k).copied().flatten(), 3);
+    let _ = writeln!(
+        out,
+        "ecdc / seed000: skew mean {}, p99 {}, max {}, lock frames {}",
+        ratio("skew_mean"),
+        ratio("skew_p99"),
+        ratio("skew_max"),
+        ratio("lock_frames")
+    );
+    let _ = writeln!(out, "\ntargets");
+    for t in &r.targets {
+        let _ = writeln!(
+            out,
+            "  [{}] {}: {} (measured {})",
+            if t.met { "met" } else { "MISSED" },
+            t.name,
+            t.target,
+            t.measured
+        );
+    }
+    out
+}

@@ -1,0 +1,119 @@
+//! A tiny blocking master over the emulator, for the comparison schemes: send a frame of
+//! datagrams at a true time, wait for it to come back, parse the replies with `core::wire`.
+//!
+//! The comparison schemes are deliberately *not* built on ecdc's state machine (they must be
+//! independent reproductions), so they talk to the [`Network`] through this one helper. Frames
+//! are sent back to back: the next frame leaves `gap_ns` after the previous one came back, the
+//! way a simple master polling in a loop would.
+
+use anyhow::{anyhow, bail, Context};
+use ecdc_core::wire::{Address, Command, EcatFrame, EthernetFrame, FrameBuilder};
+
+use crate::emu::{Delivery, Network, TrueTime};
+
+/// One datagram of a reply.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Reply {
+    /// Data as returned.
+    pub data: Vec<u8>,
+    /// Working counter.
+    pub wkc: u16,
+}
+
+/// The network plus the master's send cursor (true time).
+#[derive(Debug)]
+pub struct Link {
+    /// The emulated chain.
+    pub net: Network,
+    /// Earliest true time the next frame may leave.
+    pub now: TrueTime,
+    /// Pause after a reply before the next frame (master software turnaround).
+    pub gap_ns: u64,
+    /// Frames sent.
+    pub frames: u64,
+    buf: Vec<u8>,
+}
+
+impl Link {
+    /// A link at true time 0 with a 2 µs turnaround.
+    pub fn new(net: Network) -> Self {
+        Link {
+            now: net.now(),
+            net,
+            gap_ns: 2_000,
+            frames: 0,
+            buf: vec![0u8; 1514],
+        }
+    }
+
+    /// Sends one frame with `dgs` at `self.now` and returns the replies in order. A lost frame
+    /// is an error (the schemes run on loss-free links unless the scenario says otherwise; a
+    /// loss then ends that scheme's bring-up with this error, which the report shows).
+    pub fn txn(&mut self, dgs: &[(Command, Address, &[u8])]) -> anyhow::Result<Vec<Reply>> {
+        let n = {
+            let mut b = FrameBuilder::new(&mut self.buf).map_err(|e| anyhow!("{e:?}"))?;
+            for (i, (c, a, d)) in dgs.iter().enumerate() {
+                let idx = u8::try_from(i).unwrap_or(u8::MAX);
+                b.push(*c, idx, *a, d).map_err(|e| anyhow!("{e:?}"))?;
+            }
+            b.finish().map_err(|e| anyhow!("{e:?}"))?
+        };
+        self.frames += 1;
+        // Observers (clock samples) may have moved the network's time past our cursor.
+        self.now = self.now.max(self.net.now());
+        let frame = self.buf[..n].to_vec();
+        let r = match self.net.transact(&frame, self.now).context("emulator")? {
+            Delivery::Returned(r) => r,
+            Delivery::Lost(why) => bail!("frame lost at {} ns: {why:?}", self.now),
+        };
+        self.now = r.arrival + self.gap_ns;
+        let eth = EthernetFrame::new_checked(&r.frame[..]).map_err(|e| anyhow!("{e:?}"))?;
+        let ecat = EcatFrame::new_checked(eth.payload()).map_err(|e| anyhow!("{e:?}"))?;
+        let mut out = Vec::with_capacity(dgs.len());
+        for d in ecat.iter() {
+            let d = d.map_err(|e| anyhow!("{e:?}"))?;
+            out.push(Reply {
+                data: d.data().to_vec(),
+                wkc: d.wkc(),
+            });
+        }
+        if out.len() != dgs.len() {
+            bail!("reply has {} datagrams, sent {}", out.len(), dgs.len());
+        }
+        Ok(out)
+    }
+
+    /// One datagram; checks the working counter.
+    pub fn one(
+        &mut self,
+        c: Command,
+        a: Address,
+        data: &[u8],
+        want_wkc: u16,
+    ) -> anyhow::Result<Vec<u8>> {
+        let r = self.txn(&[(c, a, data)])?.remove(0);
+        if r.wkc != want_wkc {
+            bail!(
+                "{c:?} {a:?}: working counter {} (expected {want_wkc})",
+                r.wkc
+            );
+        }
+        Ok(r.data)
+    }
+}
+
+/// Little-endian u32 from the first 4 bytes (0 if shorter).
+pub fn le_u32(d: &[u8]) -> u32 {
+    d.get(..4)
+        .and_then(|b| b.try_into().ok())
+        .map(u32::from_le_bytes)
+        .unwrap_or(0)
+}
+
+/// Little-endian u64 from the first 8 bytes (0 if shorter).
+pub fn le_u64(d: &[u8]) -> u64 {
+    d.get(..8)
+        .and_then(|b| b.try_into().ok())
+        .map(u64::from_le_bytes)
+        .unwrap_or(0)
+}
