@@ -98,3 +98,14 @@ fn modelled_random_scripts() {
     }
     assert!(cyclic > 20, "only {cyclic} of 200 scripts reached Cyclic");
 }
+
+/// The Kani harness body under the shim (random 8-byte scripts; a random test, not a proof).
+#[test]
+fn kani_harness_under_shim() {
+    let r = ecdc_proofs::kani_shim::run(
+        0xECDC_0600,
+        5_000,
+        ecdc_proofs::machine::kani_machine_script,
+    );
+    assert!(r.passed > 4_000, "{r:?}");
+}
