@@ -431,3 +431,123 @@ impl Servo {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::gains::Pole;
+    use super::*;
+
+    fn cfg() -> ServoConfig {
+        let g = PiGains::double_pole(Pole::from_micro(500_000).unwrap()).unwrap();
+        ServoConfig {
+            interval_ns: 1000,
+            acquire: g,
+            track: g,
+            limits: PiLimits::from_ns(100, 100).unwrap(),
+            first_step_ns: 10_000,
+            step_ns: 50_000,
+            step_confirm: 3,
+            blank: 2,
+            gear_ns: 50,
+            gear_count: 4,
+            acquire_max: 0,
+            gate: GateConfig::with_floor(100),
+            lock: LockConfig {
+                low_ns: 50,
+                high_ns: 200,
+                count: 4,
+            },
+            holdover_max: 3,
+        }
+    }
+
+    fn sample(t: u64, theta: i64) -> Input {
+        Input::Sample {
+            local_ns: t,
+            theta_ns: theta,
+        }
+    }
+
+    #[test]
+    fn time_sanity_rejects_backwards_and_bad_intervals() {
+        let mut s = Servo::new(cfg()).unwrap();
+        assert_eq!(s.update(sample(10_000, 5)).verdict, Verdict::Accepted);
+        let i = s.integrator_q32();
+        // Same time, backwards, too short (< h0/2), too long (> 4 h0): all held, I untouched.
+        for t in [10_000, 9_000, 10_400, 15_000] {
+            let o = s.update(sample(t, 5));
+            assert_eq!(o.verdict, Verdict::BadInterval, "t={t}");
+            assert_eq!(s.integrator_q32(), i);
+        }
+        // 15_000 became the anchor (it was after the previous one): 16_000 is fine again.
+        assert_eq!(s.update(sample(16_000, 5)).verdict, Verdict::Accepted);
+    }
+
+    #[test]
+    fn first_step_then_blanking_then_confirmed_step() {
+        let mut s = Servo::new(cfg()).unwrap();
+        let o = s.update(sample(0, 30_000));
+        assert_eq!((o.verdict, o.step_ns), (Verdict::Stepped, 30_000));
+        assert_eq!(s.update(sample(1000, 7)).verdict, Verdict::Blanked);
+        assert_eq!(s.update(sample(2000, 7)).verdict, Verdict::Blanked);
+        assert_eq!(s.update(sample(3000, 7)).verdict, Verdict::Accepted);
+        // Over step_ns: two pending, the third (same side) steps; an opposite side restarts.
+        assert_eq!(s.update(sample(4000, 60_000)).verdict, Verdict::StepPending);
+        assert_eq!(
+            s.update(sample(5000, -60_000)).verdict,
+            Verdict::StepPending
+        );
+        assert_eq!(
+            s.update(sample(6000, -60_000)).verdict,
+            Verdict::StepPending
+        );
+        let i = s.integrator_q32();
+        let o = s.update(sample(7000, -61_000));
+        assert_eq!((o.verdict, o.step_ns), (Verdict::Stepped, -61_000));
+        assert_eq!(s.integrator_q32(), i);
+        assert_eq!(s.counters().steps, 2);
+    }
+
+    #[test]
+    fn holdover_then_reacquire_keeping_frequency() {
+        let mut s = Servo::new(cfg()).unwrap().with_integrator(40 << 32);
+        assert_eq!(s.update(sample(0, 0)).verdict, Verdict::Accepted);
+        for _ in 0..3 {
+            let o = s.update(Input::Missing);
+            assert_eq!((o.mode, o.verdict), (Mode::Holdover, Verdict::Missing));
+            assert_eq!(o.command_q32, s.integrator_q32());
+        }
+        // The 4th missing sample exceeds holdover_max = 3: re-acquire, I kept.
+        let i = s.integrator_q32();
+        assert_eq!(s.update(Input::Missing).mode, Mode::Holdover);
+        assert_eq!(s.counters().reacquired, 1);
+        assert_eq!(s.integrator_q32(), i);
+        // Next sample: a first step is allowed again, time anchor was dropped.
+        let o = s.update(sample(999_999_999, 20_000));
+        assert_eq!((o.verdict, o.mode), (Verdict::Stepped, Mode::Acquire));
+    }
+
+    #[test]
+    fn gear_shift_and_lock() {
+        let mut s = Servo::new(cfg()).unwrap();
+        let mut t = 0;
+        for _ in 0..4 {
+            s.update(sample(t, 10));
+            t += 1000;
+        }
+        assert_eq!(s.mode(), Mode::Tracking);
+        assert!(s.is_locked());
+        // Outlier rejected once the gate is armed (8 samples in the window).
+        for _ in 0..8 {
+            s.update(sample(t, 10));
+            t += 1000;
+        }
+        assert_eq!(s.update(sample(t, 5_000)).verdict, Verdict::Rejected);
+        assert!(s.is_locked());
+        assert!(Servo::new(ServoConfig {
+            interval_ns: 0,
+            ..cfg()
+        })
+        .is_err());
+    }
+}
