@@ -57,6 +57,24 @@ pub fn parse_any(bytes: &[u8]) {
     }
 }
 
+/// REQ-WIRE-020: the `Display` impls (frame, datagrams, errors) never panic on any bytes, and a
+/// valid frame prints one line per datagram. Not a Kani harness (formatting is too heavy for
+/// the model checker); run by proptest and the `wire_parse` fuzz target.
+pub fn display_any(bytes: &[u8]) {
+    let frame = EcatFrame::new_unchecked(bytes);
+    let text = frame.to_string();
+    if let Ok(n) = frame.datagram_count() {
+        assert_eq!(text.lines().count(), 1 + n, "{text}");
+    }
+    for d in frame.iter() {
+        match d {
+            Ok(d) => assert!(!d.to_string().is_empty()),
+            Err(e) => assert!(!e.to_string().is_empty()),
+        }
+    }
+    let _ = Datagram::new_unchecked(bytes).to_string();
+}
+
 fn check_ecat_payload(bytes: &[u8]) {
     let frame = EcatFrame::new_unchecked(bytes);
     let _ = (frame.length(), frame.reserved(), frame.frame_type());

@@ -74,6 +74,7 @@ proptest! {
     #[test]
     fn arbitrary_bytes_parse_safely(bytes in proptest::collection::vec(any::<u8>(), 0..1600)) {
         wire::parse_any(&bytes);
+        wire::display_any(&bytes);
         // and the same bytes behind an EtherCAT Ethernet header
         let mut f = vec![0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x88, 0xa4];
         f.extend_from_slice(&bytes);
@@ -87,6 +88,7 @@ proptest! {
         wire::parse_any(&bytes);
         if bytes.len() > 14 {
             wire::parse_any(&bytes[14..]);
+            wire::display_any(&bytes[14..]);
         }
     }
 
