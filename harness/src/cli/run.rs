@@ -100,21 +100,27 @@ impl ProgressBar {
             return;
         }
         let now = clock::now_ns();
+        let drifting = matches!(p.state, State::DriftBurst | State::DriftCheck);
         if !self.tty && now < self.last_line + clock::NS_PER_S {
+            return;
+        }
+        // On a terminal, redraw at most every 20 ms.
+        if self.tty && !drifting && now < self.last_line + 20_000_000 {
             return;
         }
         self.last_line = now;
         let diff = p.max_diff_ns.map_or("-".to_owned(), |d| format!("{d} ns"));
-        let line = if matches!(p.state, State::DriftBurst | State::DriftCheck) {
+        let line = if drifting {
             let width = 30usize;
             let filled = ((p.drift_frames.min(u64::from(p.drift_max)) as f64
                 / f64::from(p.drift_max.max(1)))
                 * width as f64) as usize;
             format!(
-                "static drift compensation [{}{}] {} FRMW frames, max |0x092C| {diff}",
+                "static drift compensation [{}{}] {} FRMW frames (give up at {}), max |0x092C| {diff}",
                 "#".repeat(filled),
                 ".".repeat(width - filled),
-                p.drift_frames
+                p.drift_frames,
+                p.drift_max
             )
         } else {
             format!("bring-up: {:?}, {} frames", p.state, p.frames)

@@ -29,7 +29,7 @@ pub enum Until {
     Cyclic,
 }
 
-/// Bring-up progress, reported about ten times a second.
+/// Bring-up progress, reported ten times a second and on every state change.
 #[derive(Debug, Clone, Copy)]
 pub struct Progress {
     /// Machine state.
@@ -142,6 +142,7 @@ pub fn bring_up<L: Link, const N: usize>(
     let started = clock::now_ns();
     let give_up = started.saturating_add(limits.timeout_ns);
     let mut next_progress = started;
+    let mut last_state = m.state();
     let mut restarts = 0u32;
     let mut last_error: Option<DcError> = None;
     let mut drift_start: Option<u64> = None;
@@ -218,7 +219,10 @@ pub fn bring_up<L: Link, const N: usize>(
             _ => {}
         }
 
-        if mono >= next_progress {
+        // Report every 100 ms and on every state change (the drift phase alternates burst and
+        // check every `burst_frames` frames, so the bar moves even when it lasts 50 ms).
+        if mono >= next_progress || m.state() != last_state {
+            last_state = m.state();
             let max_diff_ns = m
                 .slaves()
                 .iter()
