@@ -6,7 +6,8 @@
 #   ecdc rtt / ecdc run            ecdc emulate
 #
 # Part 1 (transport): `emulate --engine reflect` + `rtt`: every frame answered, accounting exact.
-# Part 2 (DC): `emulate` (ESC emulator) + `run --duration`: lock reached, frame accounting.
+# Part 2 (DC): `emulate` (ESC emulator) + `run --duration`: lock reached, frame accounting,
+#   the --pcap capture read back by tshark; 2b: `scan` of a tree scenario.
 # Part 3: the errors a user can act on.
 #
 # Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
@@ -66,10 +67,12 @@ fi
 [ -x "$ECDC" ] || fail "no ecdc binary at $ECDC"
 ECDC="$(cd "$(dirname "$ECDC")" && pwd)/$(basename "$ECDC")"
 
-# start_emulator ENGINE: runs `ecdc emulate` in the slave namespace, waits until it serves.
+# start_emulator ENGINE [ARGS...]: runs `ecdc emulate` in the slave namespace, waits until it
+# serves. Its JSON summary lands in $WORK/emu-ENGINE.json when it is stopped.
 start_emulator() {
     local engine="$1"
-    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --engine "$engine" --json \
+    shift
+    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --engine "$engine" --json "$@" \
         >"$WORK/emu-$engine.json" 2>"$WORK/emu-$engine.err" &
     EMU_PID=$!
     PIDS+=("$EMU_PID")
@@ -186,6 +189,38 @@ if start_emulator esc; then
     fi
 else
     echo "  FAIL emulator (esc) did not start:"
+    sed 's/^/    /' "$WORK/emu-esc.err"
+    FAILED=1
+fi
+
+echo "== part 2b: scan of a tree (coupler with a line on port 1 and a branch on port 2)"
+cat >"$WORK/tree.toml" <<'TOML'
+seed = 7
+[[slaves]]
+name = "coupler"
+ports = 3
+[[slaves]]
+name = "line"
+repeat = 2
+[[slaves]]
+name = "branch"
+parent = 0
+port = 2
+TOML
+if start_emulator esc --scenario "$WORK/tree.toml"; then
+    ip netns exec "$NS_M" "$ECDC" scan --iface ecm0 --json >"$WORK/scan.json" 2>"$WORK/scan.err" \
+        || { cat "$WORK/scan.err"; echo "  FAIL ecdc scan failed"; FAILED=1; }
+    stop_emulator || true
+    S="$WORK/scan.json"
+    jq -c '[.slaves[] | {pos: .position, station, dc, parent, delay_ns}]' "$S"
+    check "4 slaves with stations 0x1001.. and 64-bit DC" \
+        '[.slaves[].station] == [4097, 4098, 4099, 4100] and all(.slaves[]; .dc == "64-bit")' "$S"
+    check "tree: line on the coupler's port 1, branch on its port 2" \
+        '[.slaves[].parent] == [null, [0, 1], [1, 1], [0, 2]] and .reference == 0' "$S"
+    check "delays grow along the processing order" \
+        '.slaves[0].delay_ns == 0 and .slaves[0].delay_ns < .slaves[1].delay_ns and .slaves[1].delay_ns < .slaves[2].delay_ns and .slaves[2].delay_ns < .slaves[3].delay_ns' "$S"
+else
+    echo "  FAIL emulator (tree scenario) did not start:"
     sed 's/^/    /' "$WORK/emu-esc.err"
     FAILED=1
 fi
