@@ -181,8 +181,9 @@ fn broadcast_commands() {
         &[0x20],
     );
     assert_eq!((r.wkc, r.data[0]), (9, 0x33));
-    for i in 0..3 {
-        assert_eq!(net.peek(i, 0x1010, 1).unwrap(), vec![0x20]);
+    // BRW: each slave writes the data as it arrives (already ORed by the slaves before it).
+    for (i, v) in [0x20u8, 0x21, 0x23].iter().enumerate() {
+        assert_eq!(net.peek(i, 0x1010, 1).unwrap(), vec![*v]);
     }
 }
 
@@ -279,6 +280,8 @@ fn read_multiple_write() {
     assert_eq!(r.adp, 0xFFFFu16.wrapping_add(3));
     let sys1 = u64_of(&r.data);
     assert!(sys1 > 0);
+    // Loop samples are applied at the end of the frame at each slave.
+    net.advance_to(a).unwrap();
     // Slaves 0 and 2 took a sample: their 0x092C is no longer the reset value 0.
     assert_ne!(u32_of(&net.peek(0, 0x092C, 4).unwrap()), 0);
     assert_ne!(u32_of(&net.peek(2, 0x092C, 4).unwrap()), 0);

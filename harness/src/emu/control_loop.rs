@@ -47,7 +47,7 @@ impl Default for LoopGains {
 /// A fixed-capacity moving mean (depth 1..=255).
 #[derive(Debug, Clone)]
 struct MeanFilter {
-    buf: [i64; 256],
+    buf: Vec<i64>,
     len: usize,
     pos: usize,
     depth: usize,
@@ -57,7 +57,7 @@ struct MeanFilter {
 impl MeanFilter {
     fn new(depth: u8) -> Self {
         MeanFilter {
-            buf: [0; 256],
+            buf: vec![0; usize::from(depth.max(1))],
             len: 0,
             pos: 0,
             depth: usize::from(depth.max(1)),
@@ -73,7 +73,10 @@ impl MeanFilter {
         }
         self.buf[self.pos] = v;
         self.sum += v;
-        self.pos = (self.pos + 1) % self.depth;
+        self.pos += 1;
+        if self.pos == self.depth {
+            self.pos = 0;
+        }
         // Round half away from zero so a symmetric input gives a symmetric mean.
         let n = self.len as i64;
         if self.sum >= 0 {
@@ -88,7 +91,8 @@ impl MeanFilter {
 #[derive(Debug, Clone)]
 pub struct ControlLoop {
     s: u16,
-    gains: LoopGains,
+    kp: i64,
+    ki: i64,
     diff: MeanFilter,
     speed: MeanFilter,
     /// Rate memory: D × 2^GAIN_FRAC.
@@ -120,7 +124,8 @@ impl ControlLoop {
     pub fn new(gains: LoopGains) -> Self {
         ControlLoop {
             s: SPEED_COUNTER_START_RESET,
-            gains,
+            kp: (gains.kp * f64::from(1u32 << GAIN_FRAC)) as i64,
+            ki: (gains.ki * f64::from(1u32 << GAIN_FRAC)) as i64,
             diff: MeanFilter::new(DIFF_FILTER_DEPTH_RESET),
             speed: MeanFilter::new(SPEED_FILTER_DEPTH_RESET),
             integ: 0,
@@ -157,8 +162,8 @@ impl ControlLoop {
         let m = self.diff.push(i64::from(dt));
         self.diff_mean = m;
         let lim = i64::from(self.d_limit());
-        let kp = (self.gains.kp * f64::from(1u32 << GAIN_FRAC)) as i64;
-        let ki = (self.gains.ki * f64::from(1u32 << GAIN_FRAC)) as i64;
+        let kp = self.kp;
+        let ki = self.ki;
         // Clamp the error so products stay small; at this size the command saturates anyway.
         let e = m.clamp(-(1 << 30), 1 << 30);
         let p = e.saturating_mul(kp);

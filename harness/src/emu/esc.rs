@@ -102,6 +102,7 @@ pub struct Esc {
     pending_seq: u64,
     rng: ChaCha8Rng,
     power_ups: u64,
+    loop_ctl: u8,
 }
 
 fn fresh_regs(cfg: &EscConfig) -> RegisterFile {
@@ -143,6 +144,7 @@ impl Esc {
             pending_seq: 0,
             rng,
             power_ups: 0,
+            loop_ctl: 0,
         }
     }
 
@@ -162,6 +164,11 @@ impl Esc {
     /// Powered at the anchor.
     pub fn powered(&self) -> bool {
         self.powered
+    }
+
+    /// DL control loop bits (0x0101), cached because every frame hop asks for them.
+    pub fn loop_control(&self) -> u8 {
+        self.loop_ctl
     }
 
     /// Register file (read-only view, for observers).
@@ -203,6 +210,12 @@ impl Esc {
 
     /// Moves this ESC to true time `t`, firing everything due on the way (in time order).
     pub fn advance_to(&mut self, t: u64, edges: &mut Vec<SyncEdge>) {
+        let sched_due = matches!(self.sched.first(), Some(e) if e.0 <= t);
+        let pending_due = matches!(self.pending.first(), Some(e) if e.0 <= t);
+        if !sched_due && !pending_due {
+            self.run_until(t, edges);
+            return;
+        }
         loop {
             let ts = self.sched.first().map(|e| e.0).filter(|&x| x <= t);
             let tp = self.pending.first().map(|e| e.0).filter(|&x| x <= t);
@@ -235,11 +248,15 @@ impl Esc {
             self.osc.advance(until);
             return;
         }
-        loop {
-            let Some(sys) = self.system_time() else { break };
+        while let Some(sys) = self.system_time() {
             let Some((sig, d)) = self.sync.next_due(&self.regs, sys) else {
                 break;
             };
+            // Cheap bound first: most calls ask about a pulse well after `until`.
+            let span = until.saturating_sub(self.osc.anchor());
+            if d > self.osc.max_advance(span) && self.osc.piece_end() > until {
+                break;
+            }
             match self.osc.time_to_advance(d) {
                 Some(te) if te <= until => {
                     self.osc.advance(te);
@@ -307,6 +324,7 @@ impl Esc {
                 self.regs.set_u16(addr::STATION_ALIAS, self.cfg.alias);
                 self.lp = ControlLoop::new(self.cfg.gains);
                 self.sync = SyncUnit::default();
+                self.loop_ctl = 0;
                 self.powered = true;
             }
             Scheduled::FrequencyPpb(ppb) => {
@@ -518,6 +536,13 @@ impl Esc {
 
     fn write(&mut self, c: u8, ado: u16, data: &[u8], st: &mut Visit) -> bool {
         let kind = self.cfg.kind;
+        // Fast path for the drift-compensation sample (FRMW/ARMW/BWR to 0x0910, 4 or 8
+        // bytes): nothing is stored, only the lower 32 bits are compared.
+        if ado == addr::SYSTEM_TIME && kind.has_system_time() && (4..=8).contains(&data.len()) {
+            let received = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
+            st.sample = Some((st.sys_read as u32).wrapping_sub(received) as i32);
+            return true;
+        }
         let sync_owner_ecat = self.regs.get_u8(addr::CYCLIC_UNIT_CONTROL) & 0x01 == 0;
         let sync_active = SyncUnit::active(&self.regs);
         let old_act = self.regs.get_u8(addr::SYNC_ACTIVATION);
@@ -602,6 +627,7 @@ impl Esc {
         if touched.al_control {
             self.al_control();
         }
+        self.loop_ctl = self.regs.get_u8(addr::DL_CONTROL + 1);
         any
     }
 
@@ -646,7 +672,13 @@ impl Esc {
         let mut wrote = false;
         let dlen = data.len() as u64;
         let l0 = u64::from(laddr);
-        for f in 0..usize::from(self.regs.get_u8(addr::FMMUS_SUPPORTED).min(16)) {
+        let nf = usize::from(self.regs.get_u8(addr::FMMUS_SUPPORTED).min(16));
+        let table =
+            &self.regs.bytes()[usize::from(addr::FMMU0)..usize::from(addr::FMMU0) + 16 * nf];
+        if table.chunks_exact(16).all(|f| f[12] & 0x01 == 0) {
+            return 0;
+        }
+        for f in 0..nf {
             let base = addr::FMMU0 + 16 * f as u16;
             if self.regs.get_u8(base + 12) & 0x01 == 0 {
                 continue;
@@ -681,7 +713,10 @@ impl Esc {
                 j += 1;
             }
         }
-        u16::from(read) + 2 * u16::from(wrote)
+        match c {
+            cmd::LRW => u16::from(read) + 2 * u16::from(wrote),
+            _ => u16::from(read || wrote),
+        }
     }
 
     /// Debug read of the register file (no side effects). 0x0910 reads the local copy at the

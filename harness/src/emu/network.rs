@@ -11,7 +11,7 @@ use super::registers::EscKind;
 use super::scenario::{PpmSpec, Scenario};
 use super::topology::Topology;
 use super::{EmuError, TrueTime};
-use rand::{Rng, SeedableRng};
+use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// A frame that came back to the master.
@@ -406,7 +406,9 @@ impl Network {
             }
         }
         self.edges
-            .sort_by_key(|e| (e.true_time, e.slave, e.signal as u8));
+            // Stable: ties keep their (deterministic) insertion order; per-slave runs are
+            // already sorted, which the stable sort exploits.
+            .sort_by_key(|e| e.true_time);
         let n = self.edges.partition_point(|e| e.true_time <= now);
         let rest = self.edges.split_off(n);
         core::mem::replace(&mut self.edges, rest)
@@ -426,7 +428,8 @@ impl Network {
 
     fn jitter(&mut self, on: bool) -> u64 {
         if on && self.phy_jitter_ns > 0 {
-            self.jitter_rng.gen_range(0..=self.phy_jitter_ns)
+            // Multiply-shift mapping of a 32-bit draw onto [0, J] (bias < 2^-20 for small J).
+            (u64::from(self.jitter_rng.next_u32()) * (self.phy_jitter_ns + 1)) >> 32
         } else {
             0
         }
@@ -434,7 +437,7 @@ impl Network {
 
     fn forced_closed(&self, s: usize, port: u8) -> bool {
         // DL control 0x0101: two loop bits per port; 0b11 = always closed.
-        let v = self.escs[s].regs().get_u8(0x0101);
+        let v = self.escs[s].loop_control();
         (v >> (2 * port)) & 0x03 == 0x03
     }
 
@@ -574,6 +577,14 @@ impl Network {
         };
         let visits = core::mem::take(&mut self.visits);
         let mut first = true;
+        // DL status is only computed when some datagram can read 0x0110 (it costs a
+        // topology query per port).
+        let wants_dl = spans.iter().any(|s| {
+            let c = buf[s.start];
+            let ado = usize::from(u16::from_le_bytes([buf[s.start + 4], buf[s.start + 5]]));
+            let physical = (1..=9).contains(&c) || (13..=14).contains(&c);
+            physical && ado <= 0x0111 && ado + s.len > 0x0110
+        });
         for (k, v) in visits.iter().enumerate() {
             match *v {
                 Visit::Epu { slave, t, set_c } => {
@@ -581,7 +592,11 @@ impl Network {
                     if k >= cut {
                         continue;
                     }
-                    let dl = self.dl_status(slave, t);
+                    let dl = if wants_dl {
+                        self.dl_status(slave, t)
+                    } else {
+                        0
+                    };
                     let esc = &mut self.escs[slave];
                     esc.advance_to(t, &mut self.edges);
                     if class != FrameClass::Ecat || !esc.powered() {

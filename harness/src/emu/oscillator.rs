@@ -50,6 +50,9 @@ pub struct Oscillator {
     tick: u64,
     /// True time at which the current linear piece ends.
     piece_end: u64,
+    /// `rate` and `rate · (1 + dev)` as f64, for estimates only.
+    rate_f: f64,
+    speed_f: f64,
     base_ppb: f64,
     wander_ppb: f64,
     wander: Wander,
@@ -79,13 +82,29 @@ impl Oscillator {
             dev: 0,
             tick: tick.max(1),
             piece_end: now,
+            rate_f: 0.0,
+            speed_f: 0.0,
             base_ppb,
             wander_ppb: 0.0,
             wander,
             rng,
         };
         o.piece_end = o.next_piece_end(now);
+        o.refresh_f();
         o
+    }
+
+    fn refresh_f(&mut self) {
+        let one = ONE as f64;
+        // rate and dev are below 2^63 in fixed point: convert through i64 (cheap).
+        self.rate_f = self.rate as i64 as f64 / one;
+        self.speed_f = self.rate_f * (1.0 + self.dev as i64 as f64 / one);
+    }
+
+    /// Upper bound of local ns covered in `dt` true ns (for cheap "not yet" checks).
+    pub fn max_advance(&self, dt: u64) -> u64 {
+        let local = (dt as f64 * self.speed_f.max(0.0) * (1.0 + 1e-9)) as u64;
+        local.saturating_add(2 * self.tick + 2)
     }
 
     fn next_piece_end(&self, from: u64) -> u64 {
@@ -145,12 +164,14 @@ impl Oscillator {
         };
         self.wander_ppb = self.wander_ppb * (1.0 - revert) + n * self.wander.step_ppb;
         self.rate = rate_from_ppb(self.base_ppb + self.wander_ppb);
+        self.refresh_f();
     }
 
     /// Sets the frequency error (ppb) from the anchor on; wander continues on top of it.
     pub fn set_base_ppb(&mut self, ppb: f64) {
         self.base_ppb = ppb;
         self.rate = rate_from_ppb(self.base_ppb + self.wander_ppb);
+        self.refresh_f();
     }
 
     /// Current frequency error of the raw oscillator (base + wander), ppb.
@@ -161,52 +182,106 @@ impl Oscillator {
     /// Sets the correction rate (× 2^FRAC, correction ns per raw ns) from the anchor on.
     pub fn set_dev(&mut self, dev: i128) {
         self.dev = dev;
+        self.refresh_f();
     }
 
     /// Local time observed at the anchor: raw counter quantised to the tick, plus the integer
     /// part of the correction. Wraps modulo 2^64 like the 64-bit register.
     pub fn local(&self) -> u64 {
-        let raw_ns = self.raw >> FRAC;
-        let t = i128::from(self.tick);
-        let q = raw_ns - raw_ns.rem_euclid(t);
-        (q + (self.corr >> FRAC)) as u64
+        self.local_wide() as u64
+    }
+
+    /// Observed local time at the anchor without 64-bit wrap (raw counters start near 0 at
+    /// power-up, so the raw part fits `i64` for 292 years).
+    fn local_wide(&self) -> i128 {
+        self.quantise(self.raw, self.corr)
+    }
+
+    fn quantise(&self, raw: i128, corr: i128) -> i128 {
+        let raw_ns = (raw >> FRAC) as i64;
+        // Constant divisors for the common ticks let the compiler avoid a division.
+        let q = match self.tick {
+            10 => raw_ns - raw_ns.rem_euclid(10),
+            1 => raw_ns,
+            t => raw_ns - raw_ns.rem_euclid(t as i64),
+        };
+        i128::from(q) + (corr >> FRAC)
+    }
+
+    /// Observed local time at true time `t` (≥ anchor, inside the current piece), without
+    /// moving the anchor.
+    fn observed_at(&self, t: u64) -> i128 {
+        let dt = i128::from(t.saturating_sub(self.anchor));
+        let draw = dt * self.rate;
+        self.quantise(self.raw + draw, self.corr + ((draw * self.dev) >> FRAC))
+    }
+
+    /// True ns from `t` until the raw counter reaches its next tick boundary (≥ 1).
+    fn ns_to_next_tick(&self, t: u64) -> u64 {
+        let dt = i128::from(t.saturating_sub(self.anchor));
+        let raw = self.raw + dt * self.rate;
+        let raw_ns = (raw >> FRAC) as i64;
+        let tick = self.tick as i64;
+        let boundary = i128::from(raw_ns - raw_ns.rem_euclid(tick) + tick) << FRAC;
+        let ns = ((boundary - raw) >> 20) as i64 as f64 / (self.rate_f * f64::from(1u32 << 20));
+        (ns as u64 + 1).max(1)
     }
 
     /// True time (≥ anchor) at which the observed local time has advanced by `d` ns from its
-    /// value at the anchor, if that happens before the end of the current piece. The result is
-    /// the first tick boundary at which the counter has covered the distance (±1 ns from the
-    /// integer rounding of the correction).
+    /// value at the anchor, if that happens before the end of the current piece: the first
+    /// integer ns at which the quantised counter plus correction reaches the target.
+    ///
+    /// A floating-point estimate of the continuous crossing is refined with exact integer
+    /// evaluations (`observed_at`), so the answer is exact and needs no 128-bit division.
     pub fn time_to_advance(&self, d: u64) -> Option<u64> {
         if u128::from(d) > MAX_SOLVE_NS {
             return None;
         }
-        let local_now = i128::from(self.local_wide());
-        // Continuous value minus observed value: the part already "accrued" but not shown.
-        let accrued = self.raw + self.corr - (local_now << FRAC);
-        let need = (i128::from(d) << FRAC) - accrued;
-        if need <= 0 {
+        if d == 0 {
             return Some(self.anchor);
         }
-        // draw = need / (1 + dev), written as need - need*dev/(1+dev) to stay inside i128.
-        let draw = need - need * self.dev / (ONE + self.dev);
-        let tick_fp = i128::from(self.tick) << FRAC;
-        let target = self.raw + draw;
-        let boundary = (target + tick_fp - 1).div_euclid(tick_fp) * tick_fp;
-        let draw = boundary - self.raw;
-        let dt = (draw + self.rate - 1).div_euclid(self.rate).max(0);
-        let t = i128::from(self.anchor) + dt;
-        if t >= i128::from(self.piece_end) || t > i128::from(u64::MAX) {
-            return None;
+        let local_now = self.local_wide();
+        let target = local_now + i128::from(d);
+        // Part of the continuous value not yet shown (< tick + 1 ns): small, exact in f64.
+        let hidden = (self.raw + self.corr - (local_now << FRAC)) as i64 as f64 / ONE as f64;
+        let x = ((d as f64 - hidden) / self.speed_f).max(0.0);
+        let xi = x as u64;
+        let est = if (xi as f64) < x { xi + 1 } else { xi };
+        let mut t = self.anchor.checked_add(est)?;
+        if t >= self.piece_end {
+            // The estimate may be a hair late: check the last ns of the piece exactly.
+            let last = self.piece_end.checked_sub(1)?;
+            if last < self.anchor || self.observed_at(last) < target {
+                return None;
+            }
+            t = last;
         }
-        Some(t as u64)
-    }
-
-    /// Observed local time at the anchor without 64-bit wrap (raw counters start near 0, so
-    /// this never exceeds `i128`).
-    fn local_wide(&self) -> i128 {
-        let raw_ns = self.raw >> FRAC;
-        let t = i128::from(self.tick);
-        raw_ns - raw_ns.rem_euclid(t) + (self.corr >> FRAC)
+        if self.observed_at(t) >= target {
+            // Normally `t − 1` lies before the continuous crossing; guard the f64 rounding.
+            if t > self.anchor && self.observed_at(t - 1) >= target {
+                t -= 1;
+            }
+            return Some(t);
+        }
+        let mut guard = 0u32;
+        loop {
+            t = t.checked_add(self.ns_to_next_tick(t))?;
+            if t >= self.piece_end {
+                return None;
+            }
+            if self.observed_at(t) >= target {
+                break;
+            }
+            guard += 1;
+            if guard > 64 {
+                return None;
+            }
+        }
+        // The jump may land 1 ns after the boundary (rounding up).
+        if t > self.anchor && self.observed_at(t - 1) >= target {
+            t -= 1;
+        }
+        Some(t)
     }
 }
 
@@ -221,8 +296,10 @@ pub fn correction_rate(s: u16, d: i16) -> i128 {
     if up <= 0 || down <= 0 {
         return 0;
     }
-    let tick = i128::from(super::control_loop::NOMINAL_TICK_NS);
-    ONE / (tick * up) - ONE / (tick * down)
+    // 64-bit division is plenty: 2^40 / (10 · up) with up ≥ 1.
+    let tick = super::control_loop::NOMINAL_TICK_NS;
+    let one = 1i64 << FRAC;
+    i128::from(one / (tick * up as i64) - one / (tick * down as i64))
 }
 
 /// The same deviation as a plain fraction (for tests and docs).
@@ -289,5 +366,27 @@ mod test {
         b.advance(t - 2);
         assert!(a.local() >= start + 500_000 - 1, "{} {}", a.local(), start);
         assert!(b.local() < start + 500_000, "{} {}", b.local(), start);
+    }
+
+    /// The inversion is exact: at the returned time the counter shows the target, one ns
+    /// earlier it does not (random states, ticks 1 and 10, corrections of both signs).
+    #[test]
+    fn time_to_advance_exact_random() {
+        let mut r = ChaCha8Rng::seed_from_u64(99);
+        for i in 0..2000 {
+            let tick = if i % 2 == 0 { 10 } else { 1 };
+            let mut o = osc(r.gen_range(-200_000.0..200_000.0), tick);
+            o.set_dev(correction_rate(0x1000, r.gen_range(-3969..=3969)));
+            o.advance(r.gen_range(0..5_000_000_000));
+            let d = r.gen_range(0..3_000_000);
+            let start = o.local_wide();
+            let Some(t) = o.time_to_advance(d) else {
+                continue;
+            };
+            assert!(o.observed_at(t) >= start + i128::from(d), "case {i}");
+            if t > o.anchor() {
+                assert!(o.observed_at(t - 1) < start + i128::from(d), "case {i}");
+            }
+        }
     }
 }

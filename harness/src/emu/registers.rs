@@ -217,16 +217,33 @@ impl RegisterFile {
         }
     }
     fn get_n<const N: usize>(&self, a: u16) -> [u8; N] {
+        let a = usize::from(a);
+        if let Some(s) = self.mem.get(a..a + N) {
+            let mut out = [0u8; N];
+            out.copy_from_slice(s);
+            return out;
+        }
         let mut out = [0u8; N];
         for (i, o) in out.iter_mut().enumerate() {
-            *o = self.get_u8(a.wrapping_add(i as u16));
+            *o = self.mem.get(a + i).copied().unwrap_or(0);
         }
         out
     }
     fn set_n(&mut self, a: u16, bytes: &[u8]) {
-        for (i, b) in bytes.iter().enumerate() {
-            self.set_u8(a.wrapping_add(i as u16), *b);
+        let a = usize::from(a);
+        if let Some(s) = self.mem.get_mut(a..a + bytes.len()) {
+            s.copy_from_slice(bytes);
+            return;
         }
+        for (i, b) in bytes.iter().enumerate() {
+            if let Some(m) = self.mem.get_mut(a + i) {
+                *m = *b;
+            }
+        }
+    }
+    /// Raw memory (for fast scans such as the FMMU table).
+    pub fn bytes(&self) -> &[u8] {
+        &self.mem
     }
     pub fn get_u16(&self, a: u16) -> u16 {
         u16::from_le_bytes(self.get_n(a))

@@ -18,6 +18,8 @@ pub struct Topology {
     link_changes: Vec<Vec<(u64, bool)>>,
     /// Power changes of each slave, sorted by time.
     power_changes: Vec<Vec<(u64, bool)>>,
+    /// No change was ever scheduled: every link is up (fast path).
+    all_static: bool,
 }
 
 fn state_at(changes: &[(u64, bool)], t: u64) -> bool {
@@ -49,6 +51,7 @@ impl Topology {
             cable_ns,
             link_changes: vec![Vec::new(); n],
             power_changes: vec![Vec::new(); n],
+            all_static: true,
         }
     }
 
@@ -75,6 +78,7 @@ impl Topology {
     pub fn set_link(&mut self, link: usize, t: u64, up: bool) {
         if let Some(v) = self.link_changes.get_mut(link) {
             insert_change(v, t, up);
+            self.all_static = false;
         }
     }
 
@@ -82,6 +86,7 @@ impl Topology {
     pub fn set_power(&mut self, slave: usize, t: u64, on: bool) {
         if let Some(v) = self.power_changes.get_mut(slave) {
             insert_change(v, t, on);
+            self.all_static = false;
         }
     }
 
@@ -95,6 +100,9 @@ impl Topology {
     /// The cable into `slave`'s port 0 carries signal at `t`: cable intact and both ends
     /// powered (the master end always is).
     pub fn link_up(&self, slave: usize, t: u64) -> bool {
+        if self.all_static {
+            return slave < self.parent.len();
+        }
         let cable = self.link_changes.get(slave).is_some_and(|v| state_at(v, t));
         let parent_on = match self.parent.get(slave) {
             Some(Some((p, _))) => self.powered(*p, t),

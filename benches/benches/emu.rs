@@ -1,0 +1,116 @@
+//! Emulator speed: 100 slaves, one cyclic frame per 1 ms (FRMW 0x0910 + LRW 200 bytes + BRD
+//! AL status), SYNC0 active on every slave with a 1 ms cycle, PHY jitter and wander on.
+//! The target is ≥ 50× real time (docs/emulator.md §Speed). Criterion measures 100 simulated
+//! cycles (100 ms of true time); the ratio is 100 ms / measured time. A one-off 1 s run also
+//! prints the ratio directly.
+
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use ecdc_core::wire::{Address, Command, FrameBuilder};
+use ecdc_harness::emu::{Network, Scenario, SlaveSpec};
+use std::hint::black_box;
+use std::time::Instant;
+
+const SLAVES: usize = 100;
+const CYCLE_NS: u64 = 1_000_000;
+
+fn frame(dgs: &[(Command, Address, &[u8])]) -> Vec<u8> {
+    let mut buf = vec![0u8; 1514];
+    let mut b = FrameBuilder::new(&mut buf).expect("buffer");
+    for (i, (c, a, d)) in dgs.iter().enumerate() {
+        b.push(*c, i as u8, *a, d).expect("fits");
+    }
+    let n = b.finish().expect("finish");
+    buf.truncate(n);
+    buf
+}
+
+/// A 100-slave line, addressed, SYNC0 running at 1 ms from t = 10 ms.
+fn setup() -> (Network, u64) {
+    let mut sc = Scenario::default();
+    sc.timing.power_on_spread_ns = 0;
+    for i in 0..SLAVES {
+        sc = sc.with_slave(SlaveSpec {
+            station: 0x1000 + i as u16,
+            ..SlaveSpec::default()
+        });
+    }
+    let mut net = Network::new(&sc).expect("scenario");
+    let mut t = 0;
+    for (ado, data) in [
+        (0x09A0u16, CYCLE_NS.to_le_bytes()[..4].to_vec()),
+        (0x0990, 10_000_000u64.to_le_bytes().to_vec()),
+        (0x0981, vec![0x03]),
+        (0x0930, vec![0x00, 0x10]),
+    ] {
+        let f = frame(&[(Command::Bwr, Address::broadcast(ado), &data)]);
+        let r = net
+            .transact(&f, t)
+            .expect("time")
+            .returned()
+            .expect("returned");
+        t = r.arrival + 1_000;
+    }
+    (net, t)
+}
+
+/// `cycles` cyclic frames, one per ms; returns the time after the last.
+fn run(net: &mut Network, mut t: u64, cycles: u64) -> u64 {
+    let f = frame(&[
+        (Command::Frmw, Address::configured(0x1000, 0x0910), &[0; 8]),
+        (Command::Lrw, Address::Logical(0x10000), &[0; 200]),
+        (Command::Brd, Address::broadcast(0x0130), &[0; 2]),
+    ]);
+    for _ in 0..cycles {
+        let d = net.transact(&f, t).expect("time");
+        black_box(d);
+        t += CYCLE_NS;
+    }
+    net.advance_to(t).expect("time");
+    black_box(net.take_sync_edges());
+    t
+}
+
+/// CPU time of this thread: insensitive to other processes sharing the machine.
+fn thread_cpu_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec into the valid pointer we pass.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    assert_eq!(rc, 0);
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+fn bench(c: &mut Criterion) {
+    // One-off: 1 s of true time (SYNC edges drained every 100 ms), wall-clock ratio.
+    let (mut net, t0) = setup();
+    let cpu0 = thread_cpu_ns();
+    let start = Instant::now();
+    let mut t1 = t0;
+    for _ in 0..10 {
+        t1 = run(&mut net, t1, 100);
+    }
+    let wall = start.elapsed().as_nanos() as f64;
+    let cpu = (thread_cpu_ns() - cpu0) as f64;
+    let sim = (t1 - t0) as f64;
+    eprintln!(
+        "emu: {SLAVES} slaves @ 1 kHz: {:.3} s simulated in {:.1} ms wall ({:.0}x real time), \
+         {:.1} ms thread CPU ({:.0}x)",
+        sim / 1e9,
+        wall / 1e6,
+        sim / wall,
+        cpu / 1e6,
+        sim / cpu
+    );
+    c.bench_function("emu_100_slaves_100_cycles_1khz", |b| {
+        b.iter_batched(
+            setup,
+            |(mut net, t)| run(&mut net, t, 100),
+            BatchSize::LargeInput,
+        )
+    });
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,338 @@
+//! Oscillators and the hardware time-control loop (REQ-ESC-040..REQ-ESC-056).
+//!
+//! Offsets and delays are set from the emulator's *truth* here (not by master maths), so these
+//! tests check the slave model alone.
+
+mod emu_support;
+
+use ecdc_core::wire::{Address, Command};
+use ecdc_harness::emu::oscillator::correction_ppm;
+use ecdc_harness::emu::{Network, PpmSpec, Scenario, SlaveSpec};
+use emu_support::*;
+
+fn scenario(ppms: &[f64]) -> Scenario {
+    let mut sc = Scenario::default();
+    sc.timing.wander_interval_ns = 0;
+    sc.defaults.ppm = PpmSpec::Fixed(0.0);
+    for p in ppms {
+        sc = sc.with_slave(SlaveSpec {
+            ppm: Some(*p),
+            ..SlaveSpec::default()
+        });
+    }
+    sc
+}
+
+/// Sign-magnitude decode of 0x092C.
+fn diff_ns(raw: u32) -> i64 {
+    let m = i64::from(raw & 0x7FFF_FFFF);
+    if raw & 0x8000_0000 != 0 {
+        -m
+    } else {
+        m
+    }
+}
+
+/// Writes true offsets (reference = slave 0) and true delays, then resets every loop.
+/// Returns the next free true time.
+fn compensate_from_truth(net: &mut Network, t: u64) -> u64 {
+    let n = net.slave_count();
+    let epu = net.epu_arrival_times(t);
+    let r = net.clock(0, t).unwrap().local.unwrap();
+    let mut locals = Vec::new();
+    for i in 0..n {
+        locals.push(net.clock(i, t).unwrap().local.unwrap());
+    }
+    let mut t = t + 1000;
+    for i in 1..n {
+        let off = r.wrapping_sub(locals[i]);
+        let delay = (epu[i].unwrap() - epu[0].unwrap()) as u32;
+        let st = 0x1000 + i as u16;
+        let (x, a) = one(
+            net,
+            t,
+            Command::Fpwr,
+            Address::configured(st, 0x0920),
+            &off.to_le_bytes(),
+        );
+        assert_eq!(x.wkc, 1);
+        let (x, a) = one(
+            net,
+            a + 1000,
+            Command::Fpwr,
+            Address::configured(st, 0x0928),
+            &delay.to_le_bytes(),
+        );
+        assert_eq!(x.wkc, 1);
+        t = a + 1000;
+    }
+    let (x, a) = one(
+        net,
+        t,
+        Command::Bwr,
+        Address::broadcast(0x0930),
+        &0x1000u16.to_le_bytes(),
+    );
+    assert_eq!(x.wkc as usize, n);
+    a + 1000
+}
+
+/// Sends one FRMW 0x0910 (reference = station 0x1000) per `period` from `t`, `count` times.
+fn drift_frames(net: &mut Network, mut t: u64, period: u64, count: usize) -> u64 {
+    for _ in 0..count {
+        let (x, _) = one(
+            net,
+            t,
+            Command::Frmw,
+            Address::configured(0x1000, 0x0910),
+            &[0; 8],
+        );
+        assert_eq!(x.wkc as usize, net.slave_count());
+        t += period;
+    }
+    t
+}
+
+/// Local copy of system time of `i` minus the reference's, at true time `t`.
+fn error_ns(net: &mut Network, i: usize, t: u64) -> i64 {
+    let r = net.clock(0, t).unwrap().system_time.unwrap();
+    let s = net.clock(i, t).unwrap().system_time.unwrap();
+    s.wrapping_sub(r) as i64
+}
+
+/// The loop correction needed so that slave `ppm_s` runs at the reference's rate.
+fn needed_ppm(ppm_r: f64, ppm_s: f64) -> f64 {
+    ((1.0 + ppm_r * 1e-6) / (1.0 + ppm_s * 1e-6) - 1.0) * 1e6
+}
+
+/// REQ-ESC-040: an uncompensated slave drifts at its configured rate (seed 000 Fig. 9: the
+/// error of an uncompensated slave grows steadily).
+#[test]
+fn uncompensated_slave_drifts_at_configured_ppm() {
+    let mut net = Network::new(&scenario(&[0.0, 30.0, -45.0])).unwrap();
+    address_all(&mut net, 0);
+    let t = compensate_from_truth(&mut net, 1_000_000);
+    let e1 = [error_ns(&mut net, 1, t), error_ns(&mut net, 2, t)];
+    let t2 = t + 1_000_000_000;
+    let e2 = [error_ns(&mut net, 1, t2), error_ns(&mut net, 2, t2)];
+    // 30 ppm for 1 s = 30 µs; −45 ppm = −45 µs (±20 ns: two 10 ns quantisations).
+    assert!((e2[0] - e1[0] - 30_000).abs() <= 20, "{e1:?} {e2:?}");
+    assert!((e2[1] - e1[1] + 45_000).abs() <= 20, "{e1:?} {e2:?}");
+    // Steadily: halfway it is half.
+    let mut net = Network::new(&scenario(&[0.0, 30.0])).unwrap();
+    let e0 = error_ns(&mut net, 1, 0);
+    let eh = error_ns(&mut net, 1, 500_000_000);
+    assert!((eh - e0 - 15_000).abs() <= 20);
+}
+
+/// REQ-ESC-052/055: repeated FRMW drives |0x092C| below 100 ns and 0x0932 to the value that
+/// cancels the configured frequency error (0x0932 is averaged over the last 500 samples: like
+/// the hardware's, it dithers by a few LSB around its mean).
+#[test]
+fn frmw_converges() {
+    let ppms = [0.0, 40.0, -25.0, 60.0, -80.0];
+    let mut net = Network::new(&scenario(&ppms)).unwrap();
+    let t = address_all(&mut net, 0);
+    let t = compensate_from_truth(&mut net, t + 1_000_000);
+    let mut t = drift_frames(&mut net, t, 1_000_000, 3_500);
+    let n = ppms.len();
+    let mut d_sum = vec![0i64; n];
+    let mut diff_max = vec![0i64; n];
+    for _ in 0..500 {
+        let (_, a) = one(
+            &mut net,
+            t,
+            Command::Frmw,
+            Address::configured(0x1000, 0x0910),
+            &[0; 8],
+        );
+        net.advance_to(a).unwrap();
+        for i in 1..n {
+            d_sum[i] += i64::from(u16_of(&net.peek(i, 0x0932, 2).unwrap()) as i16);
+            let diff = diff_ns(u32_of(&net.peek(i, 0x092C, 4).unwrap()));
+            diff_max[i] = diff_max[i].max(diff.abs());
+        }
+        t += 1_000_000;
+    }
+    for (i, p) in ppms.iter().enumerate().skip(1) {
+        let d_mean = (d_sum[i] as f64 / 500.0).round() as i16;
+        let got = correction_ppm(0x1000, d_mean);
+        let want = needed_ppm(0.0, *p);
+        let err = error_ns(&mut net, i, t);
+        eprintln!(
+            "slave {i}: max |0x092C| {} ns, mean D {d_mean} -> {got:.3} ppm (want {want:.3}), true error {err} ns",
+            diff_max[i]
+        );
+        assert!(diff_max[i] < 100, "slave {i}: |0x092C| = {}", diff_max[i]);
+        assert!((got - want).abs() < 0.1, "slave {i}: {got} vs {want}");
+        assert!(err.abs() < 100, "slave {i}: true error {err}");
+    }
+}
+
+/// REQ-ESC-052: the loop is a rate correction with memory — after convergence the slave keeps
+/// the reference's rate when the FRMW frames stop.
+#[test]
+fn loop_remembers_rate() {
+    let mut net = Network::new(&scenario(&[0.0, 70.0])).unwrap();
+    let t = address_all(&mut net, 0);
+    let t = compensate_from_truth(&mut net, t + 1_000_000);
+    let t = drift_frames(&mut net, t, 1_000_000, 4_000);
+    let e0 = error_ns(&mut net, 1, t);
+    let e1 = error_ns(&mut net, 1, t + 1_000_000_000);
+    // Without memory 70 ppm would add 70 µs in 1 s.
+    assert!((e1 - e0).abs() < 500, "{e0} -> {e1}");
+}
+
+/// REQ-ESC-056: the slew is limited (≈ 0.76 µs per ms at S = 0x1000): a 100 µs offset error
+/// cannot be removed faster.
+#[test]
+fn slew_is_limited() {
+    let mut net = Network::new(&scenario(&[0.0, 0.0])).unwrap();
+    let t = address_all(&mut net, 0);
+    let t = compensate_from_truth(&mut net, t + 1_000_000);
+    // Put slave 1 100 µs ahead.
+    let off = u64_of(&net.peek(1, 0x0920, 8).unwrap()).wrapping_add(100_000);
+    let (_, a) = one(
+        &mut net,
+        t,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0920),
+        &off.to_le_bytes(),
+    );
+    let t = a + 1000;
+    let e0 = error_ns(&mut net, 1, t);
+    let t2 = drift_frames(&mut net, t, 100_000, 100); // 10 ms of samples every 100 µs
+    let e1 = error_ns(&mut net, 1, t2);
+    let removed = e0 - e1;
+    eprintln!("removed {removed} ns of {e0} in 10 ms");
+    assert!(removed > 5_000, "loop too slow: {removed}");
+    assert!(removed <= 7_700, "slew above 0.77 µs/ms: {removed}");
+}
+
+/// REQ-ESC-053: any write to 0x0930 clears 0x092C and 0x0932.
+#[test]
+fn speed_counter_start_write_resets() {
+    let mut net = Network::new(&scenario(&[0.0, 50.0])).unwrap();
+    let t = address_all(&mut net, 0);
+    let t = compensate_from_truth(&mut net, t + 1_000_000);
+    let t = drift_frames(&mut net, t, 1_000_000, 200);
+    net.advance_to(t).unwrap();
+    assert_ne!(u16_of(&net.peek(1, 0x0932, 2).unwrap()), 0);
+    let (x, a) = one(
+        &mut net,
+        t,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0930),
+        &[0x00, 0x10],
+    );
+    assert_eq!(x.wkc, 1);
+    net.advance_to(a).unwrap();
+    assert_eq!(u16_of(&net.peek(1, 0x0932, 2).unwrap()), 0);
+    assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 0);
+    assert_eq!(u16_of(&net.peek(1, 0x0930, 2).unwrap()), 0x1000);
+}
+
+/// REQ-ESC-051: 0x092C is sign-magnitude, bit 31 set when the local copy is behind; depth
+/// 0x0934 = 1 (after a 0x0930 reset) shows each sample as is.
+#[test]
+fn difference_sign_magnitude() {
+    let mut sc = scenario(&[0.0, 0.0]);
+    sc.timing.tick_ns = 1;
+    sc.timing.phy_jitter_ns = 0;
+    let mut net = Network::new(&sc).unwrap();
+    let t = address_all(&mut net, 0);
+    let (_, a) = one(
+        &mut net,
+        t,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0934),
+        &[1],
+    );
+    let (_, a) = one(
+        &mut net,
+        a + 1000,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0930),
+        &[0, 0x10],
+    );
+    // Read slave 1's system time as the ECAT side sees it, then write it back 1000 ns ahead
+    // of what it will be: the local copy is then behind by 1000 ns.
+    let t1 = a + 1000;
+    let (x, a) = one(
+        &mut net,
+        t1,
+        Command::Fprd,
+        Address::configured(0x1001, 0x0910),
+        &[0; 8],
+    );
+    let v1 = u64_of(&x.data);
+    let t2 = a + 1000;
+    let ahead = v1 + (t2 - t1) + 1000;
+    let (_, a) = one(
+        &mut net,
+        t2,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0910),
+        &ahead.to_le_bytes(),
+    );
+    net.advance_to(a).unwrap();
+    assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 0x8000_03E8);
+    let t3 = a + 1000;
+    let behind = v1 + (t3 - t1) - 250;
+    let (_, a) = one(
+        &mut net,
+        t3,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0910),
+        &behind.to_le_bytes(),
+    );
+    net.advance_to(a).unwrap();
+    assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 250);
+    // Only the lower 32 bits count: a wrong upper half changes nothing.
+    let t4 = a + 1000;
+    let w = (v1 + (t4 - t1) - 250) ^ 0xFFFF_0000_0000_0000;
+    let (_, a) = one(
+        &mut net,
+        t4,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0910),
+        &w.to_le_bytes(),
+    );
+    net.advance_to(a).unwrap();
+    assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 250);
+}
+
+/// REQ-ESC-042: an ECAT read of 0x0910 returns local + offset − delay latched at SOF.
+#[test]
+fn system_time_read_subtracts_delay() {
+    let mut sc = scenario(&[0.0, 0.0]);
+    sc.timing.tick_ns = 1;
+    sc.timing.phy_jitter_ns = 0;
+    sc.slaves[1].initial_local_ns = Some(5_000_000);
+    let mut net = Network::new(&sc).unwrap();
+    let t = address_all(&mut net, 0);
+    let (_, a) = one(
+        &mut net,
+        t,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0920),
+        &7_000u64.to_le_bytes(),
+    );
+    let (_, a) = one(
+        &mut net,
+        a + 1000,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0928),
+        &300u32.to_le_bytes(),
+    );
+    let ts = a + 1000;
+    let sof = net.epu_arrival_times(ts)[1].unwrap();
+    let (x, _) = one(
+        &mut net,
+        ts,
+        Command::Fprd,
+        Address::configured(0x1001, 0x0910),
+        &[0; 8],
+    );
+    assert_eq!(u64_of(&x.data), 5_000_000 + sof + 7_000 - 300);
+}
