@@ -107,7 +107,7 @@ def main():
     if "--update" in args:
         frozen = sorted(set(untraced) | set(cited_undefined))
         SNAPSHOT.write_text("".join(f"{r}\n" for r in frozen), encoding="utf-8")
-        print(f"wrote {SNAPSHOT.relative_to(ROOT)} ({len(untraced)} ids)")
+        print(f"wrote {SNAPSHOT.relative_to(ROOT)} ({len(frozen)} ids)")
         return 0
     if "--check" in args:
         allowed = set()
