@@ -1,0 +1,84 @@
+//! The `ecdc simulate` binary: a scenario file in, the text report on stdout, the JSON and SVG
+//! files where asked.
+
+use std::process::Command;
+
+fn tmpdir(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("ecdc-simulate-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn scenario_file_to_json_and_svg() {
+    let dir = tmpdir("cli");
+    let sc = dir.join("four.toml");
+    std::fs::write(
+        &sc,
+        "seed = 3\n[defaults]\nppm = { uniform = { min = -20.0, max = 20.0 } }\n[[slaves]]\nrepeat = 4\n",
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_ecdc"))
+        .args([
+            "simulate",
+            "--duration-ms",
+            "500",
+            "--no-progress",
+            "--scenario",
+        ])
+        .arg(&sc)
+        .arg("--out-dir")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for needle in [
+        "offset compensation 0x0920",
+        "delay compensation 0x0928",
+        "drift comp. mean 0x092C",
+        "clock error mean",
+        "lock frames",
+        "seed000",
+        "uncompensated",
+        "targets",
+    ] {
+        assert!(stdout.contains(needle), "missing {needle:?} in\n{stdout}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("ecdc-simulate.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["setup"]["slaves"], 4);
+    assert_eq!(json["setup"]["seed"], 3);
+    let svg = std::fs::read_to_string(dir.join("ecdc-simulate.svg")).unwrap();
+    assert!(svg.starts_with("<svg"));
+    assert!(svg.trim_end().ends_with("</svg>"));
+    assert_eq!(
+        svg.matches("<polyline").count(),
+        3 * 3,
+        "3 panels x 3 slaves"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_scenario_is_an_error_not_a_panic() {
+    let dir = tmpdir("bad");
+    let sc = dir.join("bad.toml");
+    std::fs::write(&sc, "frame_loss_rate = 3.0\n[[slaves]]\nrepeat = 2\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_ecdc"))
+        .args(["simulate", "--no-progress", "--scenario"])
+        .arg(&sc)
+        .arg("--out-dir")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("frame_loss_rate"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,135 @@
+//! `ecdc simulate` end to end on short runs: the report has every promised key for all three
+//! schemes, ecdc locks, the seed 000 scheme does exactly its 15 000-frame burst and shows the
+//! eq. 23 erratum, and the uncompensated error grows. Behaviour only, never speed.
+
+use ecdc_harness::cli::simulate::{simulate, Args, Topology};
+use ecdc_harness::schemes::run::Record;
+
+fn short(ms: u64) -> Args {
+    Args {
+        duration_ms: ms,
+        ..Args::default()
+    }
+}
+
+fn record<'a>(recs: &'a [Record], name: &str) -> &'a Record {
+    recs.iter().find(|r| r.name == name).expect(name)
+}
+
+#[test]
+fn default_scenario_short_run_reports_three_schemes() {
+    let (report, recs) = simulate(&short(800)).expect("simulate");
+    let json: serde_json::Value = serde_json::from_str(&report.to_json().unwrap()).unwrap();
+    let schemes = json["schemes"].as_object().expect("schemes object");
+    assert_eq!(schemes.len(), 3);
+    for name in ["ecdc", "seed000", "uncompensated"] {
+        let s = &schemes[name];
+        for key in [
+            "lock_frames",
+            "lock_ms",
+            "skew_mean_ns",
+            "skew_p99_ns",
+            "skew_max_ns",
+            "slaves",
+        ] {
+            assert!(s.get(key).is_some(), "{name}.{key} missing");
+        }
+        assert!(s["error"].is_null(), "{name} stopped: {}", s["error"]);
+        assert_eq!(s["slaves"].as_array().unwrap().len(), 6);
+        // Skew measured on real pulses, finite.
+        assert!(s["skew_samples"].as_u64().unwrap() > 100, "{name}");
+        for key in ["skew_mean_ns", "skew_p99_ns", "skew_max_ns"] {
+            let v = s[key]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{name}.{key} null"));
+            assert!(v.is_finite() && v >= 0.0, "{name}.{key} = {v}");
+        }
+    }
+    assert_eq!(json["table"].as_array().unwrap().len(), 6);
+    assert!(json["ratios"]["skew_mean"].as_f64().is_some());
+
+    // ecdc locks (true time) and its skew is in the tens of ns at most.
+    let e = &report.schemes["ecdc"];
+    assert!(e.lock_frames.is_some(), "ecdc did not lock");
+    assert!(e.skew_max_ns.unwrap() < 200, "{e:?}");
+
+    // The seed 000 scheme: exactly the fixed burst, and the cyclic FRMWs after it.
+    let s = &report.schemes["seed000"];
+    assert_eq!(s.static_drift_frames, Some(15_000));
+    assert!(s.dist_frames > 15_000);
+    // Eq. 23 as printed puts i·t_DIFF instead of (n − 2)·t_DIFF into the last slave's delay:
+    // t_DIFF (80 ns) more than ecdc's measured delay, up to the latch jitter.
+    let d_seed = s.slaves[5].delay_ns.unwrap() as i64;
+    let d_ecdc = e.slaves[5].delay_ns.unwrap() as i64;
+    assert!(
+        (d_seed - d_ecdc - 80).abs() <= 30,
+        "seed000 {d_seed} vs ecdc {d_ecdc}"
+    );
+    for i in 1..5 {
+        let a = s.slaves[i].delay_ns.unwrap() as i64;
+        let b = e.slaves[i].delay_ns.unwrap() as i64;
+        assert!((a - b).abs() <= 30, "slave {}: {a} vs {b}", i + 1);
+    }
+
+    // No compensation: no reference-time frames, no 0x0928, and the error grows.
+    let u = &report.schemes["uncompensated"];
+    assert_eq!(u.dist_frames, 0);
+    assert!(u.slaves.iter().all(|r| r.delay_ns.is_none()));
+    assert!(u.slaves.iter().all(|r| r.drift_mean_ns.is_none()));
+    assert!(u.lock_frames.is_none());
+    let r = record(&recs, "uncompensated");
+    let start = r
+        .cyc_err
+        .iter()
+        .position(|_| true)
+        .and_then(|_| {
+            (0..r.cyc_t.len()).find(|&k| {
+                r.cyc_err
+                    .iter()
+                    .all(|v| v[k].is_some_and(|e| e.abs() < 100_000))
+            })
+        })
+        .expect("offsets written");
+    let worst = |k: usize| r.cyc_err.iter().map(|v| v[k].unwrap().abs()).max().unwrap();
+    let first = worst(start);
+    let last = worst(r.cyc_t.len() - 1);
+    assert!(
+        last > 4 * first.max(1),
+        "uncompensated error {first} ns -> {last} ns"
+    );
+    // Its skew is far worse than either compensated scheme.
+    assert!(u.skew_mean_ns.unwrap() > 10.0 * s.skew_mean_ns.unwrap());
+}
+
+#[test]
+fn tree_topology_ecdc_runs_and_line_only_schemes_say_why() {
+    let args = Args {
+        slaves: Some(7),
+        topology: Some(Topology::Tree),
+        ..short(500)
+    };
+    let (report, _) = simulate(&args).expect("simulate");
+    let e = &report.schemes["ecdc"];
+    assert!(e.error.is_none(), "{:?}", e.error);
+    assert!(e.lock_frames.is_some());
+    for name in ["seed000", "uncompensated"] {
+        let err = report.schemes[name].error.as_deref().unwrap_or("");
+        assert!(err.contains("not a line"), "{name}: {err:?}");
+    }
+}
+
+#[test]
+fn flags_reach_the_scenario() {
+    let args = Args {
+        slaves: Some(3),
+        ppm: Some(0.0),
+        seed: Some(5),
+        cycle_ns: 500_000,
+        ..short(400)
+    };
+    let (report, _) = simulate(&args).expect("simulate");
+    assert_eq!(report.setup.slaves, 3);
+    assert_eq!(report.setup.seed, 5);
+    assert_eq!(report.setup.cycle_ns, 500_000);
+    assert!(report.setup.crystal_ppm.iter().all(|p| *p == 0.0));
+}
