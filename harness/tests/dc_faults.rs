@@ -312,3 +312,112 @@ fn delay_remeasurement_rewrites_only_0928() {
     s.run_until(s.now() + 500_000_000).unwrap();
     assert!(s.machine.is_locked());
 }
+
+#[test]
+fn frequency_step_loses_and_regains_lock() {
+    let mut s = locked_line(6);
+    let mark = s.events().len();
+    let t = s.now() + 10_000_000;
+    // A sudden 40 ppm jump of one crystal (a violent temperature step): the slave drifts 40 ns
+    // per 1 ms cycle until its loop has learned the new rate, the bound exceeds 1 µs, then the
+    // loop catches up.
+    s.net
+        .schedule_fault(
+            t,
+            Fault::FrequencyStep {
+                slave: 4,
+                ppm: 40.0,
+            },
+        )
+        .unwrap();
+    let lost = s
+        .drive_until(t + 1_000_000_000, |e| matches!(e, Event::LockLost { .. }))
+        .expect("lock lost");
+    let regained = s
+        .drive_until(t + 10_000_000_000, |e| matches!(e, Event::Locked { .. }))
+        .expect("lock regained");
+    println!(
+        "{lost:?} -> {regained:?} at {} ms",
+        (s.now() - t) / 1_000_000
+    );
+    let ev = events_since(&s, mark);
+    // Losing lock is not a fault: no re-initialisation.
+    assert!(
+        !ev.iter()
+            .any(|e| matches!(e, Event::Error(_) | Event::Restarting)),
+        "{ev:?}"
+    );
+}
+
+#[test]
+fn out_of_range_crystal_fails_the_gate_with_a_report() {
+    // 2 000 ppm is beyond what the ESC loop can compensate (~760 ppm at 0x0930 = 0x1000).
+    let mut sc = Scenario::line(4);
+    sc.slaves = vec![
+        ecdc_harness::emu::SlaveSpec {
+            repeat: 2,
+            ..Default::default()
+        },
+        ecdc_harness::emu::SlaveSpec {
+            ppm: Some(2_000.0),
+            ..Default::default()
+        },
+        ecdc_harness::emu::SlaveSpec::default(),
+    ];
+    let mut cfg = config();
+    cfg.drift.max_frames = 3_000;
+    let mut s = sim::<8>(&sc, cfg);
+    let e = s
+        .drive_until(5_000_000_000, |e| {
+            matches!(e, Event::Error(Error::NotConverged { .. }))
+        })
+        .expect("not converged");
+    println!("{e:?}");
+    let Event::Error(Error::NotConverged {
+        frames,
+        worst_station,
+        slaves_over,
+        ..
+    }) = e
+    else {
+        unreachable!()
+    };
+    assert!(frames >= 3_000);
+    assert!(slaves_over >= 1);
+    assert_eq!(
+        worst_station, 0x1003,
+        "the 2000 ppm slave is reported as the worst"
+    );
+    // The per-slave report: the bad slave's last 0x092C is far above the threshold.
+    let d = s.machine.slaves()[2].last_diff_ns.unwrap();
+    assert!(d.unsigned_abs() > 100, "{d}");
+    // And the machine keeps trying (restart), it does not stop or panic.
+    assert!(s.events().iter().any(|(_, e)| *e == Event::Restarting));
+}
+
+#[test]
+fn unreachable_lock_threshold_reports_not_locked() {
+    // A lock threshold no real network meets (1 ns on the OR bound): cyclic operation runs,
+    // and after `lock_timeout_cycles` the machine reports `NotLocked` once, without stopping.
+    let mut cfg = config();
+    cfg.monitor.lock_ns = 1;
+    cfg.monitor.lock_timeout_cycles = 200;
+    let mut s = sim::<8>(&Scenario::line(4), cfg);
+    let e = s
+        .drive_until(2_000_000_000, |e| {
+            matches!(e, Event::Error(Error::NotLocked { .. }))
+        })
+        .expect("not locked");
+    let Event::Error(Error::NotLocked { cycles, .. }) = e else {
+        unreachable!()
+    };
+    assert_eq!(cycles, 200);
+    s.run_until(s.now() + 300_000_000).unwrap();
+    assert_eq!(s.machine.state(), State::Cyclic);
+    let n = s
+        .events()
+        .iter()
+        .filter(|(_, e)| matches!(e, Event::Error(Error::NotLocked { .. })))
+        .count();
+    assert_eq!(n, 1, "reported once per lock attempt");
+}

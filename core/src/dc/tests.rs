@@ -239,3 +239,37 @@ fn too_many_slaves_is_a_typed_error() {
         ]
     );
 }
+
+#[test]
+fn implausible_register_value_is_out_of_range_and_nothing_is_written() {
+    let mut c = Config {
+        auto_restart: false,
+        ..Config::default()
+    };
+    c.retries = 1;
+    let mut m: Machine<4> = Machine::new(c).unwrap();
+    let mut buf = [0u8; 1514];
+    m.start(SystemTime(T0));
+    let mut t = T0;
+    // Count (1 slave), assign, then ReadInfo replies with all-zero data: a DL status without
+    // any link cannot belong to a slave that answered.
+    for _ in 0..4 {
+        let Some(n) = m.poll_transmit(SystemTime(t), &mut buf) else {
+            break;
+        };
+        let sent = buf[..n].to_vec();
+        for (cmd, ..) in datagrams(&sent) {
+            assert_ne!(cmd, Command::Fpwr, "nothing may be written");
+        }
+        m.handle_frame(SystemTime(t + 1_000), &reply(&sent, 1));
+        t += 2_000;
+    }
+    assert_eq!(m.state(), State::Failed);
+    assert_eq!(
+        events(&mut m),
+        [Event::Error(Error::OutOfRange {
+            station: 0x1001,
+            register: 0x0110
+        })]
+    );
+}
