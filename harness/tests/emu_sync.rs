@@ -1,0 +1,298 @@
+//! SYNC unit: activation rules, start time, cycles, single shot, past start times, SYNC1,
+//! edges in true time, and the slave-to-slave skew after drift compensation
+//! (REQ-ESC-070..REQ-ESC-079).
+
+mod emu_support;
+
+use ecdc_core::wire::{Address, Command};
+use ecdc_harness::emu::{EscKind, Network, PpmSpec, Scenario, SlaveSpec, SyncSignal};
+use emu_support::*;
+
+const L0: u64 = 1_000_000_000;
+
+/// One slave, no drift, local time L0 at true time 0, addressed as 0x1000.
+fn one_slave(kind: EscKind, l0: u64) -> (Network, u64) {
+    let mut sc = Scenario::default().ideal();
+    sc.defaults.ppm = PpmSpec::Fixed(0.0);
+    sc = sc.with_slave(SlaveSpec {
+        kind: Some(kind),
+        initial_local_ns: Some(l0),
+        station: 0x1000,
+        ..SlaveSpec::default()
+    });
+    (Network::new(&sc).unwrap(), 0)
+}
+
+fn wr(net: &mut Network, t: u64, ado: u16, d: &[u8]) -> u64 {
+    let (r, a) = one(net, t, Command::Fpwr, Address::configured(0x1000, ado), d);
+    assert_eq!(r.wkc, 1);
+    a + 1000
+}
+
+fn rd(net: &mut Network, t: u64, ado: u16, len: usize) -> (Vec<u8>, u64) {
+    let (r, a) = one(
+        net,
+        t,
+        Command::Fprd,
+        Address::configured(0x1000, ado),
+        &vec![0; len],
+    );
+    (r.data, a + 1000)
+}
+
+/// REQ-ESC-070/073/078: cyclic SYNC0 from the start time, edges at the programmed system
+/// times (true time = system time − L0 without drift), generated without frames; 0x0990 reads
+/// the next pulse; 0x0984 bit 0 clears after the first pulse.
+#[test]
+fn cyclic_sync0() {
+    let (mut net, t) = one_slave(EscKind::Dc64, L0);
+    let start = L0 + 20_000_000;
+    let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
+    let t = wr(&mut net, t, 0x0990, &start.to_le_bytes());
+    let t = wr(&mut net, t, 0x0981, &[0x03]);
+    let (st, _) = rd(&mut net, t, 0x0984, 1);
+    assert_eq!(st[0] & 0x01, 0x01, "first pulse pending");
+    net.advance_to(50_000_000).unwrap();
+    let e = net.take_sync_edges();
+    assert_eq!(e.len(), 31);
+    for (k, edge) in e.iter().enumerate() {
+        assert_eq!(edge.signal, SyncSignal::Sync0);
+        assert_eq!(edge.system_time, start + k as u64 * 1_000_000);
+        assert_eq!(edge.true_time, edge.system_time - L0);
+    }
+    let (next, t) = rd(&mut net, 50_100_000, 0x0990, 8);
+    assert_eq!(u64_of(&next), start + 31_000_000);
+    let (st, t) = rd(&mut net, t, 0x0984, 1);
+    assert_eq!(st[0] & 0x01, 0);
+    // REQ-ESC-072: the start time cannot be written while the unit is active.
+    let t = wr(&mut net, t, 0x0990, &(L0 + 900_000_000).to_le_bytes());
+    let (next, _) = rd(&mut net, t, 0x0990, 8);
+    assert_eq!(u64_of(&next), start + 31_000_000);
+}
+
+/// REQ-ESC-076: cycle time 0 gives a single pulse.
+#[test]
+fn single_shot() {
+    let (mut net, t) = one_slave(EscKind::Dc64, L0);
+    let t = wr(&mut net, t, 0x0990, &(L0 + 5_000_000).to_le_bytes());
+    let _ = wr(&mut net, t, 0x0981, &[0x03]);
+    net.advance_to(100_000_000).unwrap();
+    let e = net.take_sync_edges();
+    assert_eq!(e.len(), 1);
+    assert_eq!(e[0].true_time, 5_000_000);
+}
+
+/// REQ-ESC-075/074: a start time in the past never fires on a 64-bit DC without the
+/// plausibility check; with the check (0x0981 bit 5) it fires at once and 0x0984 bit 2 is set.
+#[test]
+fn start_time_in_the_past() {
+    let (mut net, t) = one_slave(EscKind::Dc64, L0);
+    let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
+    let t = wr(&mut net, t, 0x0990, &(L0 - 1_000_000).to_le_bytes());
+    let _ = wr(&mut net, t, 0x0981, &[0x03]);
+    net.advance_to(100_000_000).unwrap();
+    assert!(net.take_sync_edges().is_empty());
+
+    let (mut net, t) = one_slave(EscKind::Dc64, L0);
+    let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
+    let t = wr(&mut net, t, 0x0990, &(L0 - 1_000_000).to_le_bytes());
+    let t = wr(&mut net, t, 0x0981, &[0x23]);
+    let (st, _) = rd(&mut net, t, 0x0984, 1);
+    assert_eq!(st[0] & 0x04, 0x04, "implausible start time flagged");
+    net.advance_to(10_000_000).unwrap();
+    let e = net.take_sync_edges();
+    assert_eq!(e.len(), 10, "fires at once, then every cycle");
+    assert!(e[0].true_time < t);
+}
+
+/// REQ-ESC-075: on a 32-bit DC a start time just in the past fires after the counter wraps
+/// round to it (≈ 4.29 s later).
+#[test]
+fn past_start_on_32bit_fires_after_wrap() {
+    let (mut net, t) = one_slave(EscKind::Dc32, 100_000_000);
+    let start = 100_000_000u32 - 1_000_000;
+    let t = wr(&mut net, t, 0x0990, &start.to_le_bytes());
+    let _ = wr(&mut net, t, 0x0981, &[0x03]);
+    net.advance_to(5_000_000_000).unwrap();
+    let e = net.take_sync_edges();
+    assert_eq!(e.len(), 1);
+    // 2^32 − 1 ms after the write, rounded up to the next 10 ns tick.
+    assert_eq!(e[0].true_time, ((1u64 << 32) - 1_000_000).div_ceil(10) * 10);
+}
+
+/// REQ-ESC-077: SYNC1 mirrors SYNC0 (cycle 0), follows each SYNC0 by its cycle, or with a
+/// cycle that is a multiple of SYNC0's, fires every n-th cycle.
+#[test]
+fn sync1_modes() {
+    for (c1, want) in [
+        (0u32, vec![0u64, 1_000_000, 2_000_000, 3_000_000, 4_000_000]),
+        (
+            300_000,
+            vec![300_000, 1_300_000, 2_300_000, 3_300_000, 4_300_000],
+        ),
+        (2_000_000, vec![2_000_000, 4_000_000]),
+    ] {
+        let (mut net, t) = one_slave(EscKind::Dc64, L0);
+        let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
+        let t = wr(&mut net, t, 0x09A4, &c1.to_le_bytes());
+        let t = wr(&mut net, t, 0x0990, &(L0 + 10_000_000).to_le_bytes());
+        let _ = wr(&mut net, t, 0x0981, &[0x07]);
+        net.advance_to(14_500_000).unwrap();
+        let s1: Vec<u64> = net
+            .take_sync_edges()
+            .iter()
+            .filter(|e| e.signal == SyncSignal::Sync1)
+            .map(|e| e.true_time - 10_000_000)
+            .collect();
+        assert_eq!(s1, want, "SYNC1 cycle {c1}");
+    }
+}
+
+/// REQ-ESC-071: with the cyclic unit assigned to the PDI (0x0980 bit 0), ECAT writes to the
+/// activation register are ignored.
+#[test]
+fn pdi_owned_unit_ignores_ecat() {
+    let (mut net, t) = one_slave(EscKind::Dc64, L0);
+    let t = wr(&mut net, t, 0x0990, &(L0 + 5_000_000).to_le_bytes());
+    let t = wr(&mut net, t, 0x0980, &[0x01]);
+    let t = wr(&mut net, t, 0x0981, &[0x03]);
+    let (a, _) = rd(&mut net, t, 0x0981, 1);
+    assert_eq!(a[0], 0);
+    net.advance_to(20_000_000).unwrap();
+    assert!(net.take_sync_edges().is_empty());
+}
+
+/// REQ-ESC-079: auto-activation on a start-time write, with the 32→64-bit extension.
+#[test]
+fn auto_activation_with_extension() {
+    let (mut net, t) = one_slave(EscKind::Dc64, 5 * (1 << 32) + 1_000);
+    let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
+    let t = wr(&mut net, t, 0x0981, &[0x1A]);
+    let t = wr(&mut net, t, 0x0990, &3_001_000u32.to_le_bytes());
+    let (a, t) = rd(&mut net, t, 0x0981, 1);
+    assert_eq!(a[0] & 0x01, 0x01, "activated by the write");
+    let (s, _) = rd(&mut net, t, 0x0990, 8);
+    assert_eq!(
+        u64_of(&s),
+        5 * (1 << 32) + 3_001_000,
+        "upper half taken from system time"
+    );
+    net.advance_to(4_000_000).unwrap();
+    let e = net.take_sync_edges();
+    assert_eq!(e.len(), 2);
+    assert_eq!(e[0].true_time, 3_000_000);
+}
+
+/// The measurement the papers made with an analyzer: after drift compensation the SYNC0
+/// edges of slaves with ±50 ppm crystals coincide within 100 ns in true time.
+#[test]
+fn skew_after_drift_compensation() {
+    let mut sc = Scenario::default();
+    sc.timing.wander_interval_ns = 0;
+    for p in [0.0, 50.0, -50.0, 20.0] {
+        sc = sc.with_slave(SlaveSpec {
+            ppm: Some(p),
+            ..SlaveSpec::default()
+        });
+    }
+    let mut net = Network::new(&sc).unwrap();
+    let mut t = address_all(&mut net, 0) + 1_000_000;
+    // Offsets and delays from the truth, then loop reset.
+    let epu = net.epu_arrival_times(t);
+    let r = net.clock(0, t).unwrap().local.unwrap();
+    let locals: Vec<u64> = (0..4)
+        .map(|i| net.clock(i, t).unwrap().local.unwrap())
+        .collect();
+    t += 1000;
+    for i in 1..4u16 {
+        let off = r.wrapping_sub(locals[usize::from(i)]);
+        let delay = (epu[usize::from(i)].unwrap() - epu[0].unwrap()) as u32;
+        let (_, a) = one(
+            &mut net,
+            t,
+            Command::Fpwr,
+            Address::configured(0x1000 + i, 0x0920),
+            &off.to_le_bytes(),
+        );
+        let (_, a) = one(
+            &mut net,
+            a + 1000,
+            Command::Fpwr,
+            Address::configured(0x1000 + i, 0x0928),
+            &delay.to_le_bytes(),
+        );
+        t = a + 1000;
+    }
+    let (_, a) = one(
+        &mut net,
+        t,
+        Command::Bwr,
+        Address::broadcast(0x0930),
+        &[0x00, 0x10],
+    );
+    t = a + 1000;
+    let frmw = |net: &mut Network, t: u64| {
+        one(
+            net,
+            t,
+            Command::Frmw,
+            Address::configured(0x1000, 0x0910),
+            &[0; 8],
+        )
+        .1
+    };
+    for _ in 0..2000 {
+        frmw(&mut net, t);
+        t += 1_000_000;
+    }
+    // Start SYNC0 on a common 1 ms grid 50 ms ahead of the reference's time.
+    let (x, a) = one(
+        &mut net,
+        t,
+        Command::Fprd,
+        Address::configured(0x1000, 0x0910),
+        &[0; 8],
+    );
+    let start = (u64_of(&x.data) / 1_000_000 + 50) * 1_000_000;
+    let (_, a) = one(
+        &mut net,
+        a + 1000,
+        Command::Bwr,
+        Address::broadcast(0x09A0),
+        &1_000_000u32.to_le_bytes(),
+    );
+    let (_, a) = one(
+        &mut net,
+        a + 1000,
+        Command::Bwr,
+        Address::broadcast(0x0990),
+        &start.to_le_bytes(),
+    );
+    let (_, a) = one(
+        &mut net,
+        a + 1000,
+        Command::Bwr,
+        Address::broadcast(0x0981),
+        &[0x03],
+    );
+    t = a + 1000;
+    for _ in 0..500 {
+        frmw(&mut net, t);
+        t += 1_000_000;
+    }
+    net.advance_to(t).unwrap();
+    let edges = net.take_sync_edges();
+    let mut by_time: std::collections::BTreeMap<u64, Vec<u64>> = Default::default();
+    for e in &edges {
+        by_time.entry(e.system_time).or_default().push(e.true_time);
+    }
+    let mut worst = 0;
+    let mut n = 0;
+    for v in by_time.values().filter(|v| v.len() == 4) {
+        worst = worst.max(v.iter().max().unwrap() - v.iter().min().unwrap());
+        n += 1;
+    }
+    eprintln!("{n} SYNC0 cycles, worst skew {worst} ns");
+    assert!(n > 400);
+    assert!(worst < 100, "skew {worst} ns");
+}
