@@ -59,6 +59,9 @@ pub struct ServoConfig {
     pub lock: LockConfig,
     /// Missing or invalid samples tolerated in holdover before re-acquiring (keeping I).
     pub holdover_max: u32,
+    /// Raise [`Output::fault`] after this many consecutive saturated samples during which |θ|
+    /// did not shrink (0 = never): the actuator is not acting (servo.md §1.9 item 3, §7 rule 7).
+    pub fault_after: u32,
 }
 
 /// Why a configuration was refused.
@@ -139,6 +142,9 @@ pub struct Output {
     pub verdict: Verdict,
     /// The PI output was clamped.
     pub saturated: bool,
+    /// Saturated for `fault_after` samples without the error shrinking: the command is not
+    /// reaching the clock (escalate; the servo keeps running). Clears when saturation ends.
+    pub fault: bool,
     /// The error used (clamped to ±2^62 for diagnostics), 0 when there was none.
     pub theta_ns: i64,
     /// Integrator after this input, Q32.
@@ -162,6 +168,8 @@ pub struct Counters {
     pub held: u64,
     /// Returns to Acquire (gate confirmation, holdover timeout).
     pub reacquired: u64,
+    /// Rising edges of [`Output::fault`].
+    pub faults: u64,
 }
 
 /// The servo engine state.
@@ -179,6 +187,9 @@ pub struct Servo {
     step_run: u8,
     step_positive: bool,
     blank_left: u8,
+    sat_run: u32,
+    sat_start: u64,
+    fault: bool,
     missing: u32,
     first: bool,
     counters: Counters,
@@ -207,6 +218,9 @@ impl Servo {
             step_run: 0,
             step_positive: false,
             blank_left: 0,
+            sat_run: 0,
+            sat_start: 0,
+            fault: false,
             missing: 0,
             first: true,
             counters: Counters::default(),
@@ -264,6 +278,7 @@ impl Servo {
             locked: self.lock.is_locked(),
             verdict,
             saturated: false,
+            fault: self.fault,
             theta_ns: theta,
             integrator_q32: self.integrator,
         }
@@ -400,6 +415,20 @@ impl Servo {
         self.integrator = s.integrator;
         if s.saturated {
             self.counters.saturated = self.counters.saturated.saturating_add(1);
+            if self.sat_run == 0 {
+                self.sat_start = mag;
+            }
+            self.sat_run = self.sat_run.saturating_add(1);
+            let stuck = self.cfg.fault_after > 0
+                && self.sat_run >= self.cfg.fault_after
+                && mag >= self.sat_start;
+            if stuck && !self.fault {
+                self.counters.faults = self.counters.faults.saturating_add(1);
+            }
+            self.fault = stuck;
+        } else {
+            self.sat_run = 0;
+            self.fault = false;
         }
         self.counters.accepted = self.counters.accepted.saturating_add(1);
         self.gate.push(theta);
@@ -426,6 +455,7 @@ impl Servo {
             locked: self.lock.is_locked(),
             verdict: Verdict::Accepted,
             saturated: s.saturated,
+            fault: self.fault,
             theta_ns: theta,
             integrator_q32: s.integrator,
         }
@@ -458,6 +488,7 @@ mod tests {
                 count: 4,
             },
             holdover_max: 3,
+            fault_after: 5,
         }
     }
 
@@ -549,5 +580,39 @@ mod tests {
             ..cfg()
         })
         .is_err());
+    }
+
+    #[test]
+    fn fault_when_saturated_and_not_shrinking() {
+        let mut c = cfg();
+        c.first_step_ns = 0;
+        c.step_ns = 0;
+        let mut s = Servo::new(c).unwrap();
+        let mut t = 0;
+        // The error shrinks while saturated (a working actuator slewing): no fault.
+        for k in 0..10 {
+            let o = s.update(sample(t, 9_000 - 100 * k));
+            assert!(o.saturated && !o.fault);
+            t += 1000;
+        }
+        // Back where the saturated run started (15 samples ago): no progress, fault.
+        let o = s.update(sample(t, 9_000));
+        assert!(o.fault);
+        t += 1000;
+        // A fresh servo pinned at the limit with a growing error: fault from the 5th sample,
+        // counted once.
+        let mut s = Servo::new(c).unwrap();
+        let mut first = None;
+        for k in 0..10 {
+            let o = s.update(sample(t, 9_000 + 100 * k));
+            if o.fault && first.is_none() {
+                first = Some(k);
+            }
+            t += 1000;
+        }
+        assert_eq!(first, Some(4));
+        assert_eq!(s.counters().faults, 1);
+        // Leaving saturation clears it.
+        assert!(!s.update(sample(t, 1)).fault);
     }
 }

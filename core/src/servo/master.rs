@@ -73,7 +73,8 @@ impl MasterConfig {
     ///   plus the drift); set `servo.first_step_ns` to allow one first-sample wake-up shift;
     /// - gear to tracking after 32 cycles with |θ| < P/50, or after 2000 cycles regardless;
     /// - lock below P/50 for 32 cycles, unlock above P/20 (linuxcnc: P/10);
-    /// - gate κ = 5 with floor P/100; holdover 100 cycles.
+    /// - gate κ = 5 with floor P/100; holdover 100 cycles; fault after 1000 saturated cycles
+    ///   without progress.
     pub fn for_period(period_ns: u32) -> Result<Self, ConfigError> {
         if !(1000..=PERIOD_MAX_NS).contains(&period_ns) {
             return Err(ConfigError::Parameter);
@@ -109,6 +110,7 @@ impl MasterConfig {
                     count: 32,
                 },
                 holdover_max: 100,
+                fault_after: 1000,
             },
         })
     }

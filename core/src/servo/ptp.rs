@@ -175,6 +175,7 @@ mod tests {
                     count: 8,
                 },
                 holdover_max: 16,
+                fault_after: 0,
             },
             max_ppb: 500_000,
             offset_filter: false,
