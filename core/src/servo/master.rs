@@ -200,6 +200,16 @@ impl MasterServo {
         self.servo.counters()
     }
 
+    /// Start over (e.g. after the DC network was re-initialised): back to `Init`, app time is
+    /// re-aligned by whole periods on the next sample, the learned drift is kept.
+    pub fn reset(&mut self) {
+        self.servo.reset();
+        self.carry.reset();
+        self.started = false;
+        self.whole_run = 0;
+        self.whole_last = 0;
+    }
+
     /// Learned drift of the master's timer, ns per cycle (Q32 integrator rounded toward −∞).
     pub const fn drift_ns_per_cycle(&self) -> i64 {
         self.servo.integrator_q32() >> 32
@@ -375,6 +385,16 @@ mod tests {
         assert_eq!(out.engine.verdict, Verdict::Missing);
         assert_eq!(out.engine.mode, Mode::Holdover);
         assert_eq!(out.app_time_step_ns, 0);
+        // After a reset the next sample realigns app time at once again, drift kept.
+        m.reset();
+        assert_eq!(m.mode(), Mode::Init);
+        let out = m.update(MasterInput::Sample {
+            local_ns: 0,
+            app_ns: 7_000_000_000,
+            ref_ns: 3_000_000_100,
+        });
+        assert_eq!(out.app_time_step_ns, -4_000_000_000);
+        assert_eq!(out.phase_error_ns, -100);
     }
 
     #[test]

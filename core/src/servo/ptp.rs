@@ -90,6 +90,14 @@ impl PtpServo {
         &self.servo
     }
 
+    /// Start over (e.g. after a grandmaster change), keeping the learned frequency.
+    pub fn reset(&mut self) {
+        self.servo.reset();
+        if let Some(f) = self.filter.as_mut() {
+            f.reset();
+        }
+    }
+
     /// REQ-SERVO-120: one exchange (t1..t4) taken at local time `local_ns`; `None` = lost.
     /// A refused exchange (negative delay, overflow) is treated as lost: holdover.
     pub fn sample(&mut self, local_ns: u64, exchange: Option<&Exchange>) -> PtpOutput {
