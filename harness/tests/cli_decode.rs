@@ -121,6 +121,10 @@ fn decodes_pcap_file() {
         out.contains("skipped: EtherType 0x0806"),
         "ARP is skipped: {out}"
     );
+    assert!(
+        out.contains("3 frame(s): 1 valid, 1 invalid, 1 not EtherCAT"),
+        "{out}"
+    );
     assert!(out.contains("frame 3"), "{out}");
     assert!(out.contains("error: buffer truncated (Truncated)"), "{out}");
     assert!(

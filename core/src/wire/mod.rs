@@ -10,6 +10,14 @@
 //! padding up to 60 bytes (without FCS)
 //! ```
 //!
+//! # Files
+//!
+//! `ethernet.rs` (Ethernet II + one 802.1Q tag), `frame.rs` (EtherCAT header, the M-bit walk,
+//! `iter`/`iter_mut`/`datagram_offsets`), `datagram.rs` (one datagram view + `DatagramRepr`),
+//! `command.rs` (the 15 commands, addressing kinds, WKC rules), `address.rs` (typed 4 address
+//! bytes), `builder.rs` (`FrameBuilder` into `&mut [u8]`), `register.rs` (DC register map and
+//! codecs), `error.rs` (`wire::Error`).
+//!
 //! # Contract (each sentence is checked by tests or proofs, see `spec/req/wire.md`)
 //!
 //! - Views (`EthernetFrame`, `EcatFrame`, `Datagram`) wrap any `T: AsRef<[u8]>`; setters exist

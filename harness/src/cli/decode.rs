@@ -40,8 +40,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             Outcome::NotEtherCat => skipped += 1,
         }
     }
-    print!("{out}");
     let ecat = frames.len() - skipped;
+    let _ = writeln!(
+        out,
+        "{} frame(s): {} valid, {bad} invalid, {skipped} not EtherCAT",
+        frames.len(),
+        ecat - bad
+    );
+    print!("{out}");
     if bad > 0 {
         bail!("{bad} of {ecat} EtherCAT frame(s) invalid");
     }
