@@ -413,3 +413,29 @@ fn rate_error_during_latch_measured() {
         worst_rtt / 1000
     );
 }
+
+/// REQ-DC-013 limitation, measured: a non-DC ESC wired upstream on port 1 (not port 0) cannot be
+/// recognised (no latches), so core assumes port 0 and swaps its processing and forwarding hops;
+/// the slaves behind it are off by exactly that ESC's t_Diff (here 150 ns) — nothing else.
+#[test]
+fn non_dc_wired_backwards_costs_its_t_diff() {
+    let mut mid = esc(Some((0, 1)), Dc::None, 0);
+    mid.entry = 1;
+    mid.t_p = mid.t_f + 150;
+    let net = Network {
+        escs: vec![
+            esc(None, Dc::Bits64, 1),
+            mid,
+            esc(Some((1, 0)), Dc::Bits64, 2),
+        ],
+    };
+    let latch = net.latch().unwrap();
+    let samples = core_samples(&net, &latch, 1, true);
+    let topo = Topology::<4>::build(&samples).unwrap();
+    let d = delay::compute(&samples, &topo, 0).unwrap();
+    assert_eq!(
+        i128::from(d.ns(2).unwrap()) - latch.delay(0, 2),
+        150,
+        "error is the non-DC ESC's t_Diff"
+    );
+}
