@@ -59,8 +59,8 @@ fn scenario_file_to_json_and_svg() {
     assert!(svg.trim_end().ends_with("</svg>"));
     assert_eq!(
         svg.matches("<polyline").count(),
-        3 * 3,
-        "3 panels x 3 slaves"
+        3 * 3 + 2,
+        "3 panels x 3 non-reference slaves + lock curves of ecdc and seed000"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

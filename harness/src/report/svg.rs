@@ -169,9 +169,98 @@ fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
     }
 }
 
-/// The SVG document for the given records (in panel order).
+/// Lock panel: the largest |clock error| over all slaves at every lock-detection sample, log
+/// scale (1 ns .. 1 ms, clipped), for the schemes that distribute the reference time, with the
+/// 100 ns lock threshold.
+fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let shown: Vec<&&Record> = records.iter().filter(|r| r.dist_frames > 0).collect();
+    let t_end = shown
+        .iter()
+        .filter_map(|r| {
+            let i = crate::schemes::measure::lock_index(&r.track)?;
+            r.track.get(i).map(|x| x.0)
+        })
+        .max()
+        .map_or(300_000_000, |t| (t * 2).max(100_000_000)) as f64;
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Lock: max |clock error| over slaves (log scale, every {} µs)</text>"#,
+        y0 - 10.0,
+        shown
+            .first()
+            .and_then(|r| r.track.get(1).zip(r.track.first()))
+            .map_or(0, |(b, a)| (b.0 - a.0) / 1000)
+    );
+    let _ = writeln!(
+        out,
+        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    );
+    let (lo, hi) = (0.0f64, 6.0f64); // log10 ns
+    let x = |t: f64| LEFT + (t / t_end).min(1.0) * pw;
+    let y = |e: f64| y0 + ph - ((e.max(1.0).log10().clamp(lo, hi) - lo) / (hi - lo)) * ph;
+    for (k, label) in ["1 ns", "10 ns", "100 ns", "1 µs", "10 µs", "100 µs", "1 ms"]
+        .iter()
+        .enumerate()
+    {
+        let v = 10f64.powi(k as i32);
+        let dash = if k == 2 {
+            ""
+        } else {
+            r#" stroke-dasharray="2 4""#
+        };
+        let _ = writeln!(
+            out,
+            r##"<line x1="{LEFT}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="#ccc"{dash}/><text x="{2}" y="{3:.1}" font-size="11" text-anchor="end">{label}</text>"##,
+            y(v),
+            LEFT + pw,
+            LEFT - 6.0,
+            y(v) + 4.0
+        );
+    }
+    for k in 0..=5 {
+        let t = t_end * f64::from(k) / 5.0;
+        let _ = writeln!(
+            out,
+            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.0} ms</text>"#,
+            x(t),
+            y0 + ph + 16.0,
+            t / 1e6
+        );
+    }
+    for (j, r) in shown.iter().enumerate() {
+        let color = if r.name == "ecdc" {
+            "#1f77b4"
+        } else {
+            "#d62728"
+        };
+        let mut pts = String::new();
+        for &(t, _, m) in r.track.iter().take_while(|p| (p.0 as f64) <= t_end) {
+            if let Some(m) = m {
+                let _ = write!(pts, "{:.1},{:.1} ", x(t as f64), y(m as f64));
+            }
+        }
+        let _ = writeln!(
+            out,
+            r#"<polyline fill="none" stroke="{color}" stroke-width="1" points="{pts}"/>"#
+        );
+        let ly = y0 + 14.0 + 16.0 * j as f64;
+        let _ = writeln!(
+            out,
+            r#"<line x1="{0}" y1="{ly}" x2="{1}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{2}" y="{3}" font-size="12">{4}</text>"#,
+            LEFT + pw + 12.0,
+            LEFT + pw + 32.0,
+            LEFT + pw + 38.0,
+            ly + 4.0,
+            r.name
+        );
+    }
+}
+
+/// The SVG document for the given records (in panel order), followed by the lock panel.
 pub fn render(records: &[&Record]) -> String {
-    let h = TOP + records.len() as f64 * (PANEL_H + GAP) + 10.0;
+    let h = TOP + (records.len() + 1) as f64 * (PANEL_H + GAP) + 10.0;
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -194,6 +283,8 @@ pub fn render(records: &[&Record]) -> String {
         };
         panel(&mut out, r, &title, y0, clip);
     }
+    let y0 = TOP + 30.0 + records.len() as f64 * (PANEL_H + GAP);
+    lock_panel(&mut out, records, y0);
     out.push_str("</svg>\n");
     out
 }

@@ -12,7 +12,18 @@ fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
 }
 
 fn optf(v: Option<f64>, prec: usize) -> String {
-    v.map_or("-".to_string(), |v| format!("{v:.prec$}"))
+    // A mean that rounds to zero prints as 0.0, not -0.0.
+    v.map_or("-".to_string(), |v| {
+        let s = format!("{v:.prec$}");
+        if s.trim_start_matches('-')
+            .chars()
+            .all(|c| c == '0' || c == '.')
+        {
+            format!("{:.prec$}", 0.0)
+        } else {
+            s
+        }
+    })
 }
 
 /// Formats one cell of a row.
