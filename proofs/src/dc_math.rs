@@ -116,6 +116,67 @@ pub fn p3_line<const N: usize>(line: &Line<N>) {
     }
 }
 
+/// A fixed tree for P3 beyond lines: A (ports 0, 1, 2) with B on port 1, D behind B, and C on
+/// A's port 2 — the datasheet's fork shape. Per-ESC `t_Diff` (the correction terms of
+/// REQ-DC-014 differ per hop kind), one `t_F`, per-link cables, per-ESC phases.
+#[derive(Debug, Clone, Copy)]
+pub struct Fork {
+    /// Common forwarding delay, ns.
+    pub t_f: u16,
+    /// `t_P − t_F` of A, B, C, D.
+    pub t_diff: [u16; 4],
+    /// Cable into A (from the master), B, C, D.
+    pub cable: [u16; 4],
+    /// Low 32 bits of the clock phase of A, B, C, D.
+    pub phase: [u32; 4],
+}
+
+/// P3 on the fork: delays of B, C, D relative to A are exact (equal to the true arrival
+/// differences), ≥ 0, at most A's round trip, and non-decreasing in auto-increment order
+/// A, B, D, C.
+pub fn p3_fork(f: &Fork) {
+    let tf = i64::from(f.t_f);
+    let tp = |k: usize| tf + i64::from(f.t_diff[k]);
+    let c = |k: usize| i64::from(f.cable[k]);
+    // True times (ns after the master sends), walking the frame by hand.
+    let t_a = c(0);
+    let t_b = t_a + tp(0) + c(1); // A: 0 → EPU → 1
+    let t_d = t_b + tp(1) + c(3); // B: 0 → EPU → 1
+    let r_b1 = t_d + tp(3) + c(3); // D is a line end: 0 → EPU → 0
+    let r_a1 = r_b1 + tf + c(1); // B: 1 → 0 forwarding
+    let t_c = r_a1 + tf + c(2); // A: 1 → 2 forwarding
+    let r_a2 = t_c + tp(2) + c(2); // C is a line end
+    let stamp = |k: usize, t: i64| f.phase[k].wrapping_add(t as u32);
+    let sample = |k: usize, ports: PortSet, raw: [u32; 4]| SlaveSample {
+        ports,
+        latches: Some(Latches::from_raw(raw, u64::from(raw[0]))),
+        t_diff: i32::from(f.t_diff[k]),
+    };
+    let p01 = PortSet::EMPTY.with(Port::P0).with(Port::P1);
+    let p0 = PortSet::EMPTY.with(Port::P0);
+    // Auto-increment order: A, B, D, C.
+    let samples = [
+        sample(
+            0,
+            p01.with(Port::P2),
+            [stamp(0, t_a), stamp(0, r_a1), stamp(0, r_a2), 0],
+        ),
+        sample(1, p01, [stamp(1, t_b), stamp(1, r_b1), 0, 0]),
+        sample(3, p0, [stamp(3, t_d), 0, 0, 0]),
+        sample(2, p0, [stamp(2, t_c), 0, 0, 0]),
+    ];
+    let topo = Topology::<4>::build(&samples).expect("fork topology");
+    let delays = delay::compute(&samples, &topo, 0).expect("physical latches give delays");
+    let truth = [0, t_b - t_a, t_d - t_a, t_c - t_a];
+    let mut prev = 0i64;
+    for (i, want) in truth.iter().enumerate() {
+        let d = delays.ns(i).expect("DC");
+        assert_eq!(d, *want, "slave {i}");
+        assert!(d >= prev && d <= r_a2 - t_a, "bounds at {i}");
+        prev = d;
+    }
+}
+
 /// P3, robustness half: for ANY latch values and DL status (not necessarily physical), topology
 /// and delay computation never panic and either fail with a typed error or return delays whose
 /// register values are non-negative (`BeforeReference` otherwise).
@@ -273,6 +334,26 @@ pub fn kani_p3_line() {
     kani::cover!(line.phase[0] > u32::MAX - 10_000, "wrap inside the latch");
     kani::cover!(line.n == 3 && line.t_diff > 0, "three slaves with t_Diff");
     p3_line(&line);
+}
+
+/// P3 on the fork shape with per-ESC t_Diff (second branch: q ≠ entry, forwarding hop).
+#[cfg_attr(kani, kani::proof)]
+#[cfg_attr(kani, kani::unwind(6))]
+pub fn kani_p3_fork() {
+    let t_diff: [u16; 4] = kani::any();
+    let cable: [u16; 4] = kani::any();
+    let f = Fork {
+        t_f: kani::any::<u16>() % 2_001,
+        t_diff: t_diff.map(|d| d % 1_001),
+        cable: cable.map(|c| c % 10_001),
+        phase: kani::any(),
+    };
+    kani::cover!(f.t_diff[2] != f.t_diff[0], "branch ESCs of different types");
+    kani::cover!(
+        f.phase[0] > u32::MAX - 40_000,
+        "reference wraps inside the latch"
+    );
+    p3_fork(&f);
 }
 
 /// P4 offset congruence for every master time, local time, width and bounded delay.

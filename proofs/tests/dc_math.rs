@@ -18,6 +18,17 @@ fn cfg(cases: u32) -> ProptestConfig {
 proptest! {
     #![proptest_config(cfg(2000))]
 
+    /// P3 on the fork shape with per-ESC t_Diff.
+    #[test]
+    fn p3_fork(
+        t_f in 0u16..=2_000,
+        t_diff in prop::array::uniform4(0u16..=1_000),
+        cable in prop::array::uniform4(0u16..=10_000),
+        phase in prop::array::uniform4(prop_oneof![any::<u32>(), (u32::MAX - 100_000)..=u32::MAX]),
+    ) {
+        dc_math::p3_fork(&dc_math::Fork { t_f, t_diff, cable, phase });
+    }
+
     /// P3 on lines of up to 16 ESCs, any clock phases (wraps anywhere).
     #[test]
     fn p3_line(
@@ -117,6 +128,14 @@ fn kani_harnesses_random() {
             "p3_line",
             dc_math::kani_p3_line as fn(),
             &["wrap inside the latch", "three slaves with t_Diff"][..],
+        ),
+        (
+            "p3_fork",
+            dc_math::kani_p3_fork,
+            &[
+                "branch ESCs of different types",
+                "reference wraps inside the latch",
+            ][..],
         ),
         (
             "p4_offset",
