@@ -84,8 +84,9 @@ impl Histogram {
         }
     }
 
-    /// The `q` quantile (0..=1) in ns: the upper edge of the bucket holding it, clamped to the
-    /// exact max. Samples beyond the range report the max. 0 when empty.
+    /// The `q` quantile (0..=1) in ns: the upper edge of the bucket holding it (10 ns
+    /// resolution), clamped to the exact min and max, which are returned exactly for the first
+    /// and last rank. Ranks beyond the bucket range report the max. 0 when empty.
     pub fn quantile(&self, q: f64) -> u64 {
         if self.count == 0 {
             return 0;
@@ -93,6 +94,13 @@ impl Histogram {
         let q = q.clamp(0.0, 1.0);
         // Rank of the sample we want, 1-based, at least 1.
         let rank = ((q * self.count as f64).ceil() as u64).max(1);
+        // The extremes are known exactly.
+        if rank == 1 {
+            return self.min();
+        }
+        if rank >= self.count {
+            return self.max;
+        }
         let mut seen = 0u64;
         for (i, &c) in self.buckets.iter().enumerate() {
             seen += u64::from(c);
