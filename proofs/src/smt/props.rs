@@ -123,12 +123,17 @@ pub fn fold_bitblasted<const N: u32>() -> Goal {
 
 /// P2 / REQ-TIME-008 at full width, with `urem` abstracted (see `smt::with_abstract_urem`):
 /// the kernel's single remainder m = urem(u, p) is a free value, and the proof assumes only
-/// the two facts of unsigned remainder it needs: m < p, and u − m is a multiple of p (so it
-/// states x − fold(x, p) as ±(u − m) + c·p with c ∈ {−1, 0, 1}, and that u = |x|). Then
-///   −p < 2·fold(x, p) ≤ p   and   x − fold(x, p) ≡ 0 (mod p)
-/// follow for every x and p > 0. Everything except the divider itself is the kernel's own
+/// the two facts of unsigned remainder it needs: m < p, and u − m is a multiple of p. It proves
+/// the divisor is p, u = |x|, −p < 2·f ≤ p, and σ·m − f ∈ {0, p, −p} (σ = sign of x). Since
+/// x − f = σ·(u − m) + (σ·m − f), that gives x − f ≡ 0 (mod p) for every x and p > 0. Everything except the divider itself is the kernel's own
 /// code; the divider is SMT-LIB `bvurem`/Rust `%`, checked exhaustively at 8/16 bits.
 pub fn fold<const N: u32>() -> Goal {
+    fold_case::<N>(None)
+}
+
+/// [`fold`] restricted to x < 0 (`Some(true)`) or x ≥ 0 (`Some(false)`): the two cases together
+/// are the full statement, and each is much easier for the solver than the whole.
+pub fn fold_case<const N: u32>(negative: Option<bool>) -> Goal {
     let (x, p) = (Sym::<N>::var("x"), Sym::<N>::var("p"));
     let (f, recs) = super::with_abstract_urem(|| k::fold::<Sym<N>>(x, p));
     assert_eq!(
@@ -140,12 +145,18 @@ pub fn fold<const N: u32>() -> Goal {
     let w = N + 2;
     let (xw, fw, pw) = (x.bv().sign_ext(2), f.bv().sign_ext(2), p.bv().zero_ext(2));
     let (uw, mw) = (u.zero_ext(2), m.zero_ext(2));
-    let kw = uw.bvsub(&mw); // a multiple of p, by the remainder's definition
     let xneg = xw.bvslt(&int(0, w));
-    let sk = xneg.ite(&kw.bvneg(), &kw); // ±(u − m), a multiple of p
-    let diff = xw.bvsub(&fw).bvsub(&sk);
+    // x − f = σ·(u − m) + (σ·m − f) once u = |x| (σ = sign of x); σ·(u − m) is a multiple of p,
+    // so "σ·m − f ∈ {0, ±p}" together with "u = |x|" gives x − f ≡ 0 (mod p). Stating the
+    // residue without x keeps the solver away from re-deriving |x| inside one adder chain.
+    let diff = xneg.ite(&mw.bvneg(), &mw).bvsub(&fw);
     let f2 = fw.bvadd(&fw);
-    let pre = and(&[&p.bv()._eq(&int(0, N)).not(), &m.bvult(p.bv())]);
+    let case = match negative {
+        None => t(),
+        Some(true) => x.bv().bvslt(&int(0, N)),
+        Some(false) => x.bv().bvslt(&int(0, N)).not(),
+    };
+    let pre = and(&[&p.bv()._eq(&int(0, N)).not(), &m.bvult(p.bv()), &case]);
     let claim = and(&[
         &d._eq(p.bv()),
         &uw._eq(&abs(&xw)),
