@@ -23,7 +23,11 @@ fn hundred_slave_tree_locks() {
         "TREE100 lock_frames={frames} lock_time_ms={:.1} steady={st:?}",
         t_lock as f64 / 1e6
     );
-    assert!(st.max_abs_diff < 100, "{st:?}");
+    // 0x092C compares against the reference time carried through up to ~90 jittery cables
+    // (8 ns uniform PHY jitter each), so single samples scatter more than the clocks do: the
+    // register bound is looser than the true-clock bound.
+    assert!(st.max_abs_diff < 150, "{st:?}");
+    assert!(st.mean_abs_diff < 30.0, "{st:?}");
     assert!(st.max_true_err < 100, "{st:?}");
     assert!(s.machine.is_locked());
     assert!(!s.events().iter().any(|(_, e)| matches!(e, Event::Error(_))));
