@@ -133,3 +133,22 @@ fn flags_reach_the_scenario() {
     assert_eq!(report.setup.cycle_ns, 500_000);
     assert!(report.setup.crystal_ppm.iter().all(|p| *p == 0.0));
 }
+
+#[test]
+fn frame_loss_does_not_stop_the_comparison_schemes() {
+    let args = Args {
+        loss: Some(0.02),
+        drift_burst_frames: Some(20),
+        ..short(700)
+    };
+    let (report, _) = simulate(&args).expect("simulate");
+    assert_eq!(report.setup.ecdc_drift_burst_frames, 20);
+    for name in ["ecdc", "seed000", "uncompensated"] {
+        let s = &report.schemes[name];
+        assert!(s.error.is_none(), "{name}: {:?}", s.error);
+        assert!(s.skew_samples > 0, "{name}");
+    }
+    // The burst is 15 000 frames sent, lost or not (seed 000 sends a fixed count).
+    assert_eq!(report.schemes["seed000"].static_drift_frames, Some(15_000));
+    assert!(report.schemes["ecdc"].lock_frames.is_some());
+}

@@ -68,6 +68,9 @@ pub struct Args {
     /// Never show the progress bar.
     #[arg(long)]
     pub no_progress: bool,
+    /// ecdc only: FRMW frames per static drift burst [default: the machine's default, 100].
+    #[arg(long)]
+    pub drift_burst_frames: Option<u16>,
 }
 
 impl Default for Args {
@@ -85,6 +88,7 @@ impl Default for Args {
             svg: None,
             json: None,
             no_progress: true,
+            drift_burst_frames: None,
         }
     }
 }
@@ -214,11 +218,12 @@ pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
     let crystal_ppm: Vec<f64> = (0..probe.slave_count())
         .filter_map(|i| probe.slave_info(i).map(|s| s.ppm))
         .collect();
+    let mut cfg = ecdc::config(i32::try_from(t_diff)?, cycle);
+    if let Some(b) = args.drift_burst_frames {
+        cfg.drift.burst_frames = b;
+    }
     let mut schemes: Vec<Box<dyn Scheme>> = vec![
-        Box::new(Ecdc::new(
-            net()?,
-            ecdc::config(i32::try_from(t_diff)?, cycle),
-        )?),
+        Box::new(Ecdc::new(net()?, cfg)?),
         Box::new(Seed000::new(net()?, t_diff, cycle)),
         Box::new(Uncompensated::new(net()?, cycle)),
     ];
@@ -242,6 +247,7 @@ pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
         seed: sc.seed,
         t_diff_ns: t_diff,
         sample_ns: opts.sample_ns,
+        ecdc_drift_burst_frames: cfg.drift.burst_frames,
     };
     let report = Report::new(setup, records.iter().map(summarize).collect());
     Ok((report, records))

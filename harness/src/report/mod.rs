@@ -23,6 +23,8 @@ pub struct Setup {
     pub t_diff_ns: i64,
     /// Lock-detection sampling period, ns.
     pub sample_ns: u64,
+    /// ecdc's FRMW frames per static drift burst (`DriftConfig::burst_frames`).
+    pub ecdc_drift_burst_frames: u16,
 }
 
 /// One stated target and whether this run met it.

@@ -83,14 +83,15 @@ pub fn render(r: &Report) -> String {
     let su = &r.setup;
     let _ = writeln!(
         out,
-        "ecdc simulate: {} slaves ({}), cycle {} ns, {:.3} s, seed {}, loss {}, t_DIFF {} ns",
+        "ecdc simulate: {} slaves ({}), cycle {} ns, {:.3} s, seed {}, loss {}, t_DIFF {} ns, ecdc drift burst {} frames",
         su.slaves,
         su.topology,
         su.cycle_ns,
         su.duration_ns as f64 / 1e9,
         su.seed,
         su.frame_loss_rate,
-        su.t_diff_ns
+        su.t_diff_ns,
+        su.ecdc_drift_burst_frames
     );
     let ppm: Vec<String> = su.crystal_ppm.iter().map(|p| format!("{p:+.1}")).collect();
     let _ = writeln!(out, "crystals (ppm): {}", ppm.join(" "));

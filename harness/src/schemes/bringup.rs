@@ -125,13 +125,17 @@ pub fn write_delay(link: &mut Link, i: usize, delay: u32) -> anyhow::Result<()> 
     Ok(())
 }
 
-/// One FRMW 0x0910 from the reference (position 0) to every other slave; returns the WKC.
+/// One FRMW 0x0910 from the reference (position 0) to every other slave; returns the WKC
+/// (0 if the frame was lost: a drift frame is not resent, the next one carries a fresh time).
 pub fn frmw(link: &mut Link) -> anyhow::Result<u16> {
-    let r = link.txn(&[(
+    let Some(r) = link.try_txn(&[(
         Command::Frmw,
         Address::configured(station(0), reg::SYSTEM_TIME),
         &[0u8; 8],
-    )])?;
+    )])?
+    else {
+        return Ok(0);
+    };
     Ok(r.first().map(|r| r.wkc).unwrap_or(0))
 }
 

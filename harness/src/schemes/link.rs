@@ -11,6 +11,13 @@ use ecdc_core::wire::{Address, Command, EcatFrame, EthernetFrame, FrameBuilder};
 
 use crate::emu::{Delivery, Network, TrueTime};
 
+/// How long the master waits for a lost frame before going on: 100 µs, far above any
+/// emulated round trip of these small frames, so a loss costs little time.
+pub const LOSS_TIMEOUT_NS: u64 = 100_000;
+
+/// Resends of a lost bring-up frame.
+pub const RETRIES: u32 = 5;
+
 /// One datagram of a reply.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Reply {
@@ -31,6 +38,8 @@ pub struct Link {
     pub gap_ns: u64,
     /// Frames sent.
     pub frames: u64,
+    /// Frames lost.
+    pub lost: u64,
     buf: Vec<u8>,
 }
 
@@ -42,14 +51,17 @@ impl Link {
             net,
             gap_ns: 2_000,
             frames: 0,
+            lost: 0,
             buf: vec![0u8; 1514],
         }
     }
 
-    /// Sends one frame with `dgs` at `self.now` and returns the replies in order. A lost frame
-    /// is an error (the schemes run on loss-free links unless the scenario says otherwise; a
-    /// loss then ends that scheme's bring-up with this error, which the report shows).
-    pub fn txn(&mut self, dgs: &[(Command, Address, &[u8])]) -> anyhow::Result<Vec<Reply>> {
+    /// Sends one frame with `dgs` at `self.now` and returns the replies in order, or `None`
+    /// if the frame was lost (the cursor then moves on by [`LOSS_TIMEOUT_NS`]).
+    pub fn try_txn(
+        &mut self,
+        dgs: &[(Command, Address, &[u8])],
+    ) -> anyhow::Result<Option<Vec<Reply>>> {
         let n = {
             let mut b = FrameBuilder::new(&mut self.buf).map_err(|e| anyhow!("{e:?}"))?;
             for (i, (c, a, d)) in dgs.iter().enumerate() {
@@ -64,7 +76,11 @@ impl Link {
         let frame = self.buf[..n].to_vec();
         let r = match self.net.transact(&frame, self.now).context("emulator")? {
             Delivery::Returned(r) => r,
-            Delivery::Lost(why) => bail!("frame lost at {} ns: {why:?}", self.now),
+            Delivery::Lost(_) => {
+                self.lost += 1;
+                self.now += LOSS_TIMEOUT_NS;
+                return Ok(None);
+            }
         };
         self.now = r.arrival + self.gap_ns;
         let eth = EthernetFrame::new_checked(&r.frame[..]).map_err(|e| anyhow!("{e:?}"))?;
@@ -80,7 +96,21 @@ impl Link {
         if out.len() != dgs.len() {
             bail!("reply has {} datagrams, sent {}", out.len(), dgs.len());
         }
-        Ok(out)
+        Ok(Some(out))
+    }
+
+    /// [`Link::try_txn`], resending a lost frame up to [`RETRIES`] times.
+    pub fn txn(&mut self, dgs: &[(Command, Address, &[u8])]) -> anyhow::Result<Vec<Reply>> {
+        for _ in 0..=RETRIES {
+            if let Some(r) = self.try_txn(dgs)? {
+                return Ok(r);
+            }
+        }
+        bail!(
+            "frame lost {} times in a row at {} ns",
+            RETRIES + 1,
+            self.now
+        )
     }
 
     /// One datagram; checks the working counter.
