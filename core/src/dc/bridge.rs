@@ -8,7 +8,8 @@ use crate::dc::machine::Machine;
 use crate::dc::port::{Port, PortSet};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::topology::{Latches, SlaveSample, Topology, TopologyError};
-use crate::time::SystemTime;
+use crate::time::{PortTime, SystemTime};
+use crate::wire::register::reg;
 
 impl<const N: usize> Machine<N> {
     /// REQ-DC-101: one latch round's delays, added to every slave's `delay_sum`.
@@ -102,16 +103,42 @@ impl<const N: usize> Machine<N> {
     /// is `t_master + delay_i`, where `t_master` was sampled just before the trigger left. So
     /// `offset_i = t_master + delay_i − epu_i` (mod 2^64; 32-bit slaves keep the low half,
     /// REQ-CONV-004). No hardware loop has to remove the delay afterwards.
+    ///
+    /// REQ-DC-112: the EPU time is only used if its low 32 bits agree (within
+    /// [`EPU_PORT_TOLERANCE_NS`]) with the earliest port time that changed across the trigger,
+    /// the port the frame entered through; otherwise the read is garbage and no offset is
+    /// derived from it.
     pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
         let t = SystemTime(self.latch_time);
         let count = usize::from(self.count);
         for s in self.slaves.iter_mut().take(count) {
-            if s.dc.has_system_time() {
-                s.offset = t
-                    .wrapping_add(u64::from(s.delay_ns))
-                    .0
-                    .wrapping_sub(s.epu_time);
+            if !s.dc.has_system_time() {
+                continue;
             }
+            let mut entry: [Option<PortTime>; 4] = [None; 4];
+            for (k, e) in entry.iter_mut().enumerate() {
+                let (Some(b), Some(a)) = (s.times_before.get(k), s.times_after.get(k)) else {
+                    continue;
+                };
+                if b != a {
+                    *e = Some(PortTime(*a));
+                }
+            }
+            let bad = Error::OutOfRange {
+                station: s.station,
+                register: reg::RECEIVE_TIME_EPU,
+            };
+            let first = PortTime::earliest(&entry)
+                .and_then(|k| entry.get(k).copied().flatten())
+                .ok_or(bad)?;
+            let epu_low = PortTime(SystemTime(s.epu_time).low32());
+            if epu_low.wrapping_since(first).unsigned_abs() > EPU_PORT_TOLERANCE_NS {
+                return Err(bad);
+            }
+            s.offset = t
+                .wrapping_add(u64::from(s.delay_ns))
+                .0
+                .wrapping_sub(s.epu_time);
         }
         Ok(())
     }
@@ -159,3 +186,8 @@ impl<const N: usize> Machine<N> {
 /// after the offsets were written. ecdc choice: 1 s (clock rates differ by ≤ 200 ppm, so a real
 /// deviation after a few seconds of bring-up is < 1 ms).
 const PLAUSIBLE_REF_DEVIATION_NS: u64 = 1_000_000_000;
+
+/// Largest accepted distance between the EPU receive time (0x0918) and the entry port's receive
+/// time of the same frame. They are stamped on the same frame at the same port (DS S2-74
+/// Tab.99), so they differ only by stamp quantisation. ecdc choice: 1 µs.
+const EPU_PORT_TOLERANCE_NS: u32 = 1_000;
