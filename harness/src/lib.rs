@@ -5,6 +5,8 @@
 //! - [`capture`]: classic pcap writing and reading.
 //! - [`runtime`]: the Linux AF_PACKET transport and cyclic loop.
 //! - [`cli`]: one module per `ecdc` subcommand.
+//! - [`schemes`]: the DC masters `ecdc simulate` compares (ecdc, seed 000, uncompensated) and
+//!   the true-time recorder; [`report`]: its JSON, text and SVG output.
 
 #![deny(unsafe_code)] // the only exception is runtime/sys.rs (raw socket and scheduling syscalls)
 
