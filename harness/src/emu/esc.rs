@@ -98,7 +98,7 @@ pub struct Esc {
     sync: SyncUnit,
     powered: bool,
     sched: Vec<(u64, Scheduled)>,
-    pending: Vec<(u64, u64, Pending)>,
+    pending: std::collections::VecDeque<(u64, u64, Pending)>,
     pending_seq: u64,
     rng: ChaCha8Rng,
     power_ups: u64,
@@ -140,7 +140,7 @@ impl Esc {
             sync: SyncUnit::default(),
             powered: true,
             sched: Vec::new(),
-            pending: Vec::new(),
+            pending: std::collections::VecDeque::new(),
             pending_seq: 0,
             rng,
             power_ups: 0,
@@ -157,8 +157,13 @@ impl Esc {
     fn push_pending(&mut self, t: u64, p: Pending) {
         self.pending_seq += 1;
         let key = (t, self.pending_seq);
-        let pos = self.pending.partition_point(|(x, s, _)| (*x, *s) <= key);
-        self.pending.insert(pos, (t, self.pending_seq, p));
+        // Almost always in time order: append; otherwise insert in place.
+        if !matches!(self.pending.back(), Some((x, s, _)) if (*x, *s) > key) {
+            self.pending.push_back((t, self.pending_seq, p));
+        } else {
+            let pos = self.pending.partition_point(|(x, s, _)| (*x, *s) <= key);
+            self.pending.insert(pos, (t, self.pending_seq, p));
+        }
     }
 
     /// Powered at the anchor.
@@ -211,14 +216,14 @@ impl Esc {
     /// Moves this ESC to true time `t`, firing everything due on the way (in time order).
     pub fn advance_to(&mut self, t: u64, edges: &mut Vec<SyncEdge>) {
         let sched_due = matches!(self.sched.first(), Some(e) if e.0 <= t);
-        let pending_due = matches!(self.pending.first(), Some(e) if e.0 <= t);
+        let pending_due = matches!(self.pending.front(), Some(e) if e.0 <= t);
         if !sched_due && !pending_due {
             self.run_until(t, edges);
             return;
         }
         loop {
             let ts = self.sched.first().map(|e| e.0).filter(|&x| x <= t);
-            let tp = self.pending.first().map(|e| e.0).filter(|&x| x <= t);
+            let tp = self.pending.front().map(|e| e.0).filter(|&x| x <= t);
             let next = match (ts, tp) {
                 (Some(a), Some(b)) => Some(a.min(b)),
                 (a, b) => a.or(b),
@@ -231,8 +236,9 @@ impl Esc {
                     self.apply_scheduled(a, what);
                 }
                 (_, Some(_)) => {
-                    let (_, _, p) = self.pending.remove(0);
-                    self.apply_pending(p);
+                    if let Some((_, _, p)) = self.pending.pop_front() {
+                        self.apply_pending(p);
+                    }
                 }
                 _ => break,
             }

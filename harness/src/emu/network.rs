@@ -96,6 +96,14 @@ enum NetEvent {
     Cable { slave: usize, ns: u64 },
 }
 
+/// What the frame walk needs of a slave.
+#[derive(Debug, Clone, Copy)]
+struct Hop {
+    ports: u8,
+    t_p: u64,
+    t_f: u64,
+}
+
 /// Statistics since construction.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Stats {
@@ -137,7 +145,12 @@ pub struct Network {
     escs: Vec<Esc>,
     info: Vec<SlaveInfo>,
     topo: Topology,
-    edges: Vec<SyncEdge>,
+    /// SYNC edges per slave (each in time order), merged on `take_sync_edges`.
+    edges: Vec<Vec<SyncEdge>>,
+    /// Per-slave hop parameters, kept compact for the frame walk.
+    hops: Vec<Hop>,
+    /// Some slave has written DL control loop bits (else the walk skips that check).
+    any_forced: bool,
     now: TrueTime,
     tx_free: TrueTime,
     master_cable_ns: u64,
@@ -226,7 +239,9 @@ impl Network {
             escs,
             info,
             topo: Topology::new(parents, cables),
-            edges: Vec::new(),
+            edges: vec![Vec::new(); n],
+            hops: Vec::new(),
+            any_forced: false,
             now: 0,
             tx_free: 0,
             master_cable_ns: cable(t.master_cable_m),
@@ -241,6 +256,15 @@ impl Network {
             latch: vec![false; n],
             stats: Stats::default(),
         };
+        net.hops = net
+            .info
+            .iter()
+            .map(|i| Hop {
+                ports: i.ports,
+                t_p: i.t_p_ns,
+                t_f: i.t_f_ns,
+            })
+            .collect();
         for f in &sc.faults {
             if matches!(f.fault, Fault::PortTimeWrap { .. }) {
                 continue;
@@ -367,9 +391,9 @@ impl Network {
             return Err(EmuError::TimeInPast { t, now: self.now });
         }
         self.apply_net_events(t);
-        for e in &mut self.escs {
+        for (e, log) in self.escs.iter_mut().zip(self.edges.iter_mut()) {
             if e.anchor() <= t {
-                e.advance_to(t, &mut self.edges);
+                e.advance_to(t, log);
             }
         }
         self.now = t;
@@ -389,7 +413,7 @@ impl Network {
         self.apply_net_events(t);
         self.now = t;
         let e = &mut self.escs[i];
-        e.advance_to(t, &mut self.edges);
+        e.advance_to(t, &mut self.edges[i]);
         Ok(ClockSample {
             true_time: t,
             local: e.powered().then(|| e.local()),
@@ -400,18 +424,37 @@ impl Network {
     /// All SYNC edges up to now, sorted by true time (then slave), removed from the log.
     pub fn take_sync_edges(&mut self) -> Vec<SyncEdge> {
         let now = self.now;
-        for e in &mut self.escs {
+        let mut due: Vec<Vec<SyncEdge>> = Vec::with_capacity(self.escs.len());
+        for (e, log) in self.escs.iter_mut().zip(self.edges.iter_mut()) {
             if e.anchor() <= now {
-                e.advance_to(now, &mut self.edges);
+                e.advance_to(now, log);
             }
+            // Each slave's log is in time order (output jitter aside, which only reorders
+            // SYNC0/SYNC1 of one slave by a few ns): split at `now`.
+            let mut mine = core::mem::take(log);
+            if !mine.windows(2).all(|w| w[0].true_time <= w[1].true_time) {
+                mine.sort_by_key(|x| x.true_time);
+            }
+            let n = mine.partition_point(|x| x.true_time <= now);
+            *log = mine.split_off(n);
+            due.push(mine);
         }
-        self.edges
-            // Stable: ties keep their (deterministic) insertion order; per-slave runs are
-            // already sorted, which the stable sort exploits.
-            .sort_by_key(|e| e.true_time);
-        let n = self.edges.partition_point(|e| e.true_time <= now);
-        let rest = self.edges.split_off(n);
-        core::mem::replace(&mut self.edges, rest)
+        let mut out: Vec<SyncEdge> = due.into_iter().flatten().collect();
+        // Sort on the bare u64 key (fast), then order the rare ties by slave and signal so the
+        // result is fully specified.
+        out.sort_unstable_by_key(|e| e.true_time);
+        let mut i = 0;
+        while i < out.len() {
+            let mut j = i + 1;
+            while j < out.len() && out[j].true_time == out[i].true_time {
+                j += 1;
+            }
+            if j - i > 1 {
+                out[i..j].sort_unstable_by_key(|e| (e.slave, e.signal as u8));
+            }
+            i = j;
+        }
+        out
     }
 
     /// Debug read of a slave's registers without side effects (0x0910 = local copy now).
@@ -436,6 +479,9 @@ impl Network {
     }
 
     fn forced_closed(&self, s: usize, port: u8) -> bool {
+        if !self.any_forced {
+            return false;
+        }
         // DL control 0x0101: two loop bits per port; 0b11 = always closed.
         let v = self.escs[s].loop_control();
         (v >> (2 * port)) & 0x03 == 0x03
@@ -443,7 +489,7 @@ impl Network {
 
     /// Whether the frame can leave `s` through `port` at `t` (and reach the neighbour).
     fn port_open(&self, s: usize, port: u8, t: u64) -> bool {
-        if port >= self.info[s].ports || self.forced_closed(s, port) {
+        if port >= self.hops[s].ports || self.forced_closed(s, port) {
             return false;
         }
         if port == 0 {
@@ -512,7 +558,7 @@ impl Network {
                 t,
                 set_c: reentry,
             });
-            t += self.info[s].t_p_ns;
+            t += self.hops[s].t_p;
             for q in [3u8, 1, 2] {
                 if !self.port_open(s, q, t) {
                     continue;
@@ -528,7 +574,7 @@ impl Network {
                     port: q,
                     t: rx,
                 });
-                t = rx + self.info[s].t_f_ns;
+                t = rx + self.hops[s].t_f;
             }
             if self.port_open(s, 0, t) {
                 return Some(t);
@@ -598,7 +644,7 @@ impl Network {
                         0
                     };
                     let esc = &mut self.escs[slave];
-                    esc.advance_to(t, &mut self.edges);
+                    esc.advance_to(t, &mut self.edges[slave]);
                     if class != FrameClass::Ecat || !esc.powered() {
                         continue;
                     }
@@ -617,7 +663,8 @@ impl Network {
                         t_eof: t + dur,
                         dl_status: dl,
                     };
-                    let r = esc.process(&mut buf, &spans, ctx, &mut self.edges);
+                    let r = esc.process(&mut buf, &spans, ctx, &mut self.edges[slave]);
+                    self.any_forced |= esc.loop_control() != 0;
                     self.latch[slave] = r.latch;
                 }
                 Visit::Rx { slave, port, t } => {
