@@ -155,3 +155,18 @@ fn drifting_master_clock_still_locks() {
     let st = steady(&mut s, 500_000_000, &[EscKind::Dc64; 4]);
     assert!(st.max_true_err < 100, "{st:?}");
 }
+
+/// ARMW (by the reference's position, as TwinCAT) instead of FRMW works the same.
+#[test]
+fn armw_drift_command_locks() {
+    let cfg = ecdc_core::dc::Config {
+        drift_command: ecdc_core::dc::DriftCommand::Armw,
+        ..config()
+    };
+    let mut s = sim::<8>(&Scenario::line(4), cfg);
+    lock(&mut s, 2_000_000_000);
+    let _ = steady(&mut s, 300_000_000, &[EscKind::Dc64; 4]);
+    let st = steady(&mut s, 500_000_000, &[EscKind::Dc64; 4]);
+    assert!(st.max_true_err < 100, "{st:?}");
+    assert!(st.max_abs_diff < 100, "{st:?}");
+}

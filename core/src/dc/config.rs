@@ -13,6 +13,16 @@ pub enum DriftCheck {
     Both,
 }
 
+/// Which datagram distributes the reference clock's time (static bursts and every cycle).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriftCommand {
+    /// FRMW to the reference's station address (SOEM, IgH, ethercrab): independent of
+    /// positions.
+    Frmw,
+    /// ARMW to the reference's auto-increment position (TwinCAT, seed 003 Fig. 10).
+    Armw,
+}
+
 /// Static drift compensation (ARMW/FRMW bursts with a convergence gate), REQ-DC-104.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DriftConfig {
@@ -166,6 +176,8 @@ pub struct Config {
     pub speed_counter_start: u16,
     /// Static drift compensation.
     pub drift: DriftConfig,
+    /// Command that carries the reference time (bursts and cycles). Default FRMW.
+    pub drift_command: DriftCommand,
     /// SYNC0/SYNC1 programming; `None` leaves the SYNC units untouched.
     pub sync: Option<SyncConfig>,
     /// Cyclic monitoring.
@@ -190,6 +202,7 @@ impl Default for Config {
             filter_depths: 0x0C00,
             speed_counter_start: 0x1000,
             drift: DriftConfig::default(),
+            drift_command: DriftCommand::Frmw,
             sync: Some(SyncConfig::default()),
             monitor: MonitorConfig::default(),
             auto_restart: true,

@@ -223,7 +223,7 @@ impl<const N: usize> Machine<N> {
                     return self.fault(
                         now,
                         Error::Wkc {
-                            command: crate::wire::Command::Frmw,
+                            command: self.frmw_op(now).command,
                             station,
                             register: reg::SYSTEM_TIME,
                             expected: self.sys_count,

@@ -31,7 +31,9 @@ mod steps;
 #[cfg(test)]
 mod tests;
 
-pub use config::{Config, ConfigError, DriftCheck, DriftConfig, MonitorConfig, SyncConfig};
+pub use config::{
+    Config, ConfigError, DriftCheck, DriftCommand, DriftConfig, MonitorConfig, SyncConfig,
+};
 pub use error::Error;
 pub use event::Event;
 pub use machine::{Machine, Stats};

@@ -2,6 +2,7 @@
 //! how each reply is checked and stored, and where the step goes when done. The per-step logic
 //! lives in `discovery.rs`, `measure.rs`, `adjust.rs`, `drift.rs` and `activation.rs`.
 
+use crate::dc::config::DriftCommand;
 use crate::dc::error::Error;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{Op, Pending};
@@ -36,12 +37,22 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// The drift-compensation FRMW to the reference's 0x0910, of the reference's width.
+    /// The drift-compensation datagram to the reference's 0x0910, of the reference's width:
+    /// FRMW by station address or ARMW by position (`Config::drift_command`).
     pub(crate) fn frmw_op(&self, now: u64) -> Op {
         let (station, width) = self
             .slave(self.reference)
             .map_or((0, 8), |s| (s.station, s.dc.time_width()));
-        Op::frmw(station, crate::wire::register::reg::SYSTEM_TIME, width, now)
+        let reg = crate::wire::register::reg::SYSTEM_TIME;
+        match self.cfg.drift_command {
+            DriftCommand::Frmw => Op::frmw(station, reg, width, now),
+            DriftCommand::Armw => Op {
+                command: crate::wire::Command::Armw,
+                address: crate::wire::Address::position(self.reference, reg),
+                len: width,
+                payload: crate::dc::request::Payload::Le(now),
+            },
+        }
     }
 
     /// FRMW working counter: every slave with a system time reads or writes it once.
