@@ -170,3 +170,44 @@ fn armw_drift_command_locks() {
     assert!(st.max_true_err < 100, "{st:?}");
     assert!(st.max_abs_diff < 100, "{st:?}");
 }
+
+/// The embedding master's own cyclic frame: it pushes its process data (an LRW with an index
+/// outside the machine's range) and lets the machine append the DC datagrams into the same
+/// frame; the reply is handed to the machine whole. Lock holds for 1 000 such cycles and the
+/// LRW is counted as foreign, never used.
+#[test]
+fn dc_datagrams_ride_in_the_callers_process_data_frame() {
+    use ecdc_core::wire::{Address, Command, FrameBuilder};
+    let mut s = sim::<8>(&Scenario::line(4), config());
+    lock(&mut s, 2_000_000_000);
+    let foreign0 = s.machine.stats().foreign_datagrams;
+    let mut buf = vec![0u8; 1514];
+    let mut t = s.now();
+    for _ in 0..1_000 {
+        t += 1_000_000;
+        let now = s.master_time_at(t);
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        b.push(
+            Command::Lrw,
+            0x01,
+            Address::logical(0x0001_0000),
+            &[0u8; 32],
+        )
+        .unwrap();
+        assert!(s.machine.poll_transmit_into(now, &mut b));
+        let n = b.finish().unwrap();
+        let frame = buf[..n].to_vec();
+        let r = s
+            .net
+            .transact(&frame, t)
+            .unwrap()
+            .returned()
+            .expect("returned");
+        s.machine
+            .handle_frame(s.master_time_at(r.arrival), &r.frame);
+        while s.machine.poll_event().is_some() {}
+    }
+    assert!(s.machine.is_locked());
+    assert_eq!(s.machine.stats().foreign_datagrams - foreign0, 1_000);
+    assert!(s.machine.diff_bound_ns().unwrap() < 200);
+}
