@@ -89,6 +89,44 @@ pub fn earliest_true_min<const N: u32, const P: usize>() -> Goal {
     (pre, Bool::and(ctx(), &claims.iter().collect::<Vec<_>>()))
 }
 
+/// [`earliest_true_min`] with the port times as free leaves: a free `base` with every
+/// t_i − base < 2^(N−1) (the times fit in half the circle), true order = order of t_i − base.
+pub fn earliest_leaves<const N: u32, const P: usize>() -> Goal {
+    let base = Sym::<N>::var("base");
+    let times: [Sym<N>; P] = core::array::from_fn(|i| Sym::var(&format!("t{i}")));
+    let act: [SymBool; P] =
+        core::array::from_fn(|i| SymBool::of(Bool::new_const(ctx(), format!("act{i}"))));
+    let half = int(1i128 << (N - 1), N);
+    let offs: Vec<BV<'static>> = times.iter().map(|t| t.bv().bvsub(base.bv())).collect();
+    let pre_terms: Vec<Bool<'static>> = offs.iter().map(|o| o.bvult(&half)).collect();
+    let pre = Bool::and(ctx(), &pre_terms.iter().collect::<Vec<_>>());
+    let (found, idx) = k::earliest(&times, &act);
+    let any: Vec<&Bool<'static>> = act.iter().map(|a| a.b()).collect();
+    let mut claims = vec![found.b()._eq(&Bool::or(ctx(), &any))];
+    let mut in_range = Vec::new();
+    for i in 0..P {
+        let is_i = idx.bv()._eq(&int(i as i128, N));
+        in_range.push(is_i.clone());
+        let mut ok = vec![act[i].b().clone()];
+        for j in 0..P {
+            let le = if j < i {
+                offs[i].bvult(&offs[j])
+            } else {
+                offs[i].bvule(&offs[j])
+            };
+            ok.push(act[j].b().implies(&le));
+        }
+        let ok = Bool::and(ctx(), &ok.iter().collect::<Vec<_>>());
+        claims.push(Bool::and(ctx(), &[found.b(), &is_i]).implies(&ok));
+    }
+    claims.push(
+        found
+            .b()
+            .implies(&Bool::or(ctx(), &in_range.iter().collect::<Vec<_>>())),
+    );
+    (pre, Bool::and(ctx(), &claims.iter().collect::<Vec<_>>()))
+}
+
 /// REQ-TIME-006: r = extend_near(low, ref, kb) keeps the low kb bits of `low` and lies in
 /// [−2^(kb−1), 2^(kb−1)) of `ref`, for 0 < kb < N.
 pub fn extend_near<const N: u32>(kb: u32) -> Goal {
