@@ -273,3 +273,55 @@ fn implausible_register_value_is_out_of_range_and_nothing_is_written() {
         })]
     );
 }
+
+/// A two-slave line with hand-made latches, ready for `accumulate_round`.
+fn two_slave_line() -> Machine<4> {
+    let mut m = machine();
+    m.count = 2;
+    m.reference = 0;
+    m.sys_count = 2;
+    // Port 0 and 1 open (link + communication, loop open) on slave 0; port 0 only on slave 1.
+    let dl_0 = 0x0010 | 0x0020 | 0x0200 | 0x0800 | (1 << 12) | (1 << 14);
+    let dl_1 = 0x0010 | 0x0200 | (1 << 10) | (1 << 12) | (1 << 14);
+    for (i, dl) in [dl_0, dl_1].into_iter().enumerate() {
+        let s = &mut m.slaves[i];
+        s.station = 0x1001 + i as u16;
+        s.dc = crate::dc::DcKind::Bits64;
+        s.dl_status = dl;
+        s.times_before = [1_000, 2_000, 0, 0];
+    }
+    // Frame reaches slave 0 at 10 000, slave 1 at 10 600 (its clock reads 50 000), comes back
+    // to slave 0's port 1 at 11 210.
+    m.slaves[0].times_after = [10_000, 11_210, 0, 0];
+    m.slaves[1].times_after = [50_000, 2_000, 0, 0];
+    m
+}
+
+#[test]
+fn latched_ports_give_delays() {
+    let mut m = two_slave_line();
+    m.accumulate_round().unwrap();
+    assert_eq!(m.slaves[0].delay_sum, 0);
+    assert_eq!(m.slaves[1].delay_sum, 605); // (1 210 + t_Diff 0) / 2, rounded half up
+}
+
+/// Stale-latch detection: slave 0's port 1 is open according to DL status but its receive time
+/// did not change across the trigger, so the frame never came back through it. The port is
+/// treated as closed, slave 1 then has nowhere to hang, and the round is rejected instead of
+/// yielding a delay from a stale time.
+#[test]
+fn stale_latch_is_not_used() {
+    let mut m = two_slave_line();
+    m.slaves[0].times_after[1] = m.slaves[0].times_before[1];
+    assert!(matches!(
+        m.accumulate_round(),
+        Err(Error::Measurement { .. })
+    ));
+    // A slave none of whose latches changed was not reached at all.
+    let mut m = two_slave_line();
+    m.slaves[1].times_after = m.slaves[1].times_before;
+    assert_eq!(
+        m.accumulate_round(),
+        Err(Error::Measurement { station: 0x1002 })
+    );
+}
