@@ -103,6 +103,10 @@ pub struct Esc {
     rng: ChaCha8Rng,
     power_ups: u64,
     loop_ctl: u8,
+    /// No SYNC pulse can fire before this true time (a conservative bound that survives loop
+    /// samples; cleared by anything else that can move the next pulse). Skips the pulse search
+    /// on most frame visits.
+    quiet_until: u64,
 }
 
 fn fresh_regs(cfg: &EscConfig) -> RegisterFile {
@@ -145,6 +149,7 @@ impl Esc {
             rng,
             power_ups: 0,
             loop_ctl: 0,
+            quiet_until: 0,
         }
     }
 
@@ -250,7 +255,7 @@ impl Esc {
         if !self.powered {
             return;
         }
-        if !self.cfg.kind.has_system_time() {
+        if !self.cfg.kind.has_system_time() || until < self.quiet_until {
             self.osc.advance(until);
             return;
         }
@@ -261,6 +266,9 @@ impl Esc {
             // Cheap bound first: most calls ask about a pulse well after `until`.
             let span = until.saturating_sub(self.osc.anchor());
             if d > self.osc.max_advance(span) && self.osc.piece_end() > until {
+                // Local time cannot run more than 1 % fast (crystal + loop ≪ 1 %).
+                let slack = d.saturating_sub(2 * self.cfg.tick_ns + 2);
+                self.quiet_until = self.osc.anchor().saturating_add(slack - slack / 100);
                 break;
             }
             match self.osc.time_to_advance(d) {
@@ -305,6 +313,7 @@ impl Esc {
     }
 
     fn apply_scheduled(&mut self, t: u64, what: Scheduled) {
+        self.quiet_until = 0;
         match what {
             Scheduled::PowerOff => {
                 self.osc.advance(t);
@@ -388,7 +397,12 @@ impl Esc {
             return res;
         }
         let local_sof = self.osc.local();
-        let sys_sof = self.system_time().unwrap_or(0);
+        let sys_sof = if self.cfg.kind.has_system_time() {
+            let off = self.regs.get_u64(addr::SYSTEM_TIME_OFFSET);
+            local_sof.wrapping_add(off) & self.mask()
+        } else {
+            0
+        };
         let delay = u64::from(self.regs.get_u32(addr::SYSTEM_TIME_DELAY));
         // REQ-ESC-042: ECAT read of 0x0910 = local copy at SOF − System Time Delay.
         let sys_read = sys_sof.wrapping_sub(delay) & self.mask();
@@ -525,6 +539,28 @@ impl Esc {
     }
 
     fn read(&mut self, ado: u16, data: &mut [u8], st: &Visit, or: bool) -> bool {
+        // Fast path: a range with no computed bytes (not 0x0110, not 0x0910..0x0917) that
+        // exists entirely.
+        let a0 = usize::from(ado);
+        let end = a0 + data.len();
+        let computed = (a0 <= 0x0111 && end > 0x0110) || (a0 <= 0x0917 && end > 0x0910);
+        if !computed && !data.is_empty() {
+            let last = u16::try_from(end - 1).ok();
+            if let Some(last) = last {
+                if self.regs.implemented(ado)
+                    && self.regs.implemented(last)
+                    && (end <= 0x0900 || a0 > 0x09FF)
+                {
+                    let src = &self.regs.bytes()[a0..end];
+                    if or {
+                        data.iter_mut().zip(src).for_each(|(d, s)| *d |= *s);
+                    } else {
+                        data.copy_from_slice(src);
+                    }
+                    return true;
+                }
+            }
+        }
         let mut any = false;
         for (i, b) in data.iter_mut().enumerate() {
             let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
@@ -549,6 +585,8 @@ impl Esc {
             st.sample = Some((st.sys_read as u32).wrapping_sub(received) as i32);
             return true;
         }
+        // Offset, SYNC configuration or a 0x0930 reset may move the next pulse.
+        self.quiet_until = 0;
         let sync_owner_ecat = self.regs.get_u8(addr::CYCLIC_UNIT_CONTROL) & 0x01 == 0;
         let sync_active = SyncUnit::active(&self.regs);
         let old_act = self.regs.get_u8(addr::SYNC_ACTIVATION);
@@ -712,6 +750,9 @@ impl Esc {
                     if do_write {
                         if self.regs.ecat_writable(pa) {
                             self.regs.set_u8(pa, inb);
+                            if pa < addr::PROCESS_RAM {
+                                self.quiet_until = 0;
+                            }
                         }
                         wrote = true;
                     }
