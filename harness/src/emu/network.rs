@@ -439,22 +439,21 @@ impl Network {
             *log = mine.split_off(n);
             due.push(mine);
         }
-        let mut out: Vec<SyncEdge> = due.into_iter().flatten().collect();
-        // Sort on the bare u64 key (fast), then order the rare ties by slave and signal so the
-        // result is fully specified.
-        out.sort_unstable_by_key(|e| e.true_time);
-        let mut i = 0;
-        while i < out.len() {
-            let mut j = i + 1;
-            while j < out.len() && out[j].true_time == out[i].true_time {
-                j += 1;
-            }
-            if j - i > 1 {
-                out[i..j].sort_unstable_by_key(|e| (e.slave, e.signal as u8));
-            }
-            i = j;
-        }
-        out
+        let all: Vec<SyncEdge> = due.into_iter().flatten().collect();
+        // Sort compact keys (time, slave, signal, index) instead of the 40-byte records, then
+        // gather: same order as sorting the records by (true time, slave, signal).
+        let mut keys: Vec<(u64, u64)> = all
+            .iter()
+            .enumerate()
+            .map(|(i, e)| {
+                let tie = ((e.slave as u64) << 33) | ((e.signal as u64) << 32) | i as u64;
+                (e.true_time, tie)
+            })
+            .collect();
+        keys.sort_unstable();
+        keys.iter()
+            .map(|(_, tie)| all[(tie & 0xFFFF_FFFF) as usize])
+            .collect()
     }
 
     /// Debug read of a slave's registers without side effects (0x0910 = local copy now).
