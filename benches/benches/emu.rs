@@ -24,7 +24,7 @@ fn frame(dgs: &[(Command, Address, &[u8])]) -> Vec<u8> {
     buf
 }
 
-/// A 100-slave line, addressed, SYNC0 running at 1 ms from t = 10 ms.
+/// A 100-slave line, addressed, SYNC0 running at 1 ms from t = 1 ms.
 fn setup() -> (Network, u64) {
     let mut sc = Scenario::default();
     sc.timing.power_on_spread_ns = 0;
@@ -38,7 +38,7 @@ fn setup() -> (Network, u64) {
     let mut t = 0;
     for (ado, data) in [
         (0x09A0u16, CYCLE_NS.to_le_bytes()[..4].to_vec()),
-        (0x0990, 10_000_000u64.to_le_bytes().to_vec()),
+        (0x0990, 1_000_000u64.to_le_bytes().to_vec()),
         (0x0981, vec![0x03]),
         (0x0930, vec![0x00, 0x10]),
     ] {
