@@ -118,6 +118,61 @@ impl SystemTime {
     }
 }
 
+/// REQ-TIME-014: UTC calendar form `YYYY-MM-DDTHH:MM:SS.nnnnnnnnnZ` (no leap seconds, like
+/// the EtherCAT system time itself), for logs and reports; every u64 value prints (the last is
+/// 2584-07-20T23:34:33.709551615Z).
+impl core::fmt::Display for SystemTime {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        const NS_PER_S: u64 = 1_000_000_000;
+        const S_PER_DAY: u64 = 86_400;
+        let secs = self.0.checked_div(NS_PER_S).unwrap_or(0);
+        let nanos = self.0.checked_rem(NS_PER_S).unwrap_or(0);
+        let days = secs.checked_div(S_PER_DAY).unwrap_or(0);
+        let sod = secs.checked_rem(S_PER_DAY).unwrap_or(0);
+        let (y, m, d) = civil_from_days(days);
+        write!(
+            f,
+            "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{nanos:09}Z",
+            sod / 3600,
+            (sod % 3600) / 60,
+            sod % 60
+        )
+    }
+}
+
+/// Proleptic Gregorian (year, month, day) of `days` since 2000-01-01 (H. Hinnant's
+/// days-to-civil, shifted so the year starts on 1 March). Every step stays far below 2^64:
+/// `days` < 2^64 / 86 400 10^9 ≈ 213 504.
+fn civil_from_days(days: u64) -> (u64, u64, u64) {
+    // Days since 0000-03-01: 2000-01-01 is day 730 425 of that count.
+    let z = days.wrapping_add(730_425);
+    let era = z / 146_097;
+    let doe = z.wrapping_sub(era.wrapping_mul(146_097)); // [0, 146 096]
+    let yoe = doe
+        .wrapping_sub(doe / 1_460)
+        .wrapping_add(doe / 36_524)
+        .wrapping_sub(doe / 146_096)
+        / 365; // [0, 399]
+    let doy = doe.wrapping_sub(
+        yoe.wrapping_mul(365)
+            .wrapping_add(yoe / 4)
+            .wrapping_sub(yoe / 100),
+    ); // [0, 365]
+    let mp = doy.wrapping_mul(5).wrapping_add(2) / 153; // [0, 11], March = 0
+    let d = doy
+        .wrapping_sub(mp.wrapping_mul(153).wrapping_add(2) / 5)
+        .wrapping_add(1);
+    let m = if mp < 10 {
+        mp.wrapping_add(3)
+    } else {
+        mp.wrapping_sub(9)
+    };
+    let y = yoe
+        .wrapping_add(era.wrapping_mul(400))
+        .wrapping_add(u64::from(m <= 2));
+    (y, m, d)
+}
+
 /// REQ-TIME-001: a 32-bit receive-time latch in a slave's local time (0x0900..0x090F).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct PortTime(pub u32);
@@ -218,6 +273,25 @@ mod tests {
                 "{low:#x} -> {d}"
             );
         }
+    }
+
+    /// REQ-TIME-014, checked against an independent calendar implementation.
+    #[test]
+    fn display_is_utc_calendar() {
+        use std::string::ToString;
+        assert_eq!(SystemTime(0).to_string(), "2000-01-01T00:00:00.000000000Z");
+        assert_eq!(
+            SystemTime(5_097_600_000_000_000).to_string(),
+            "2000-02-29T00:00:00.000000000Z"
+        );
+        assert_eq!(
+            SystemTime(849_546_449_123_456_789).to_string(),
+            "2026-12-02T17:07:29.123456789Z"
+        );
+        assert_eq!(
+            SystemTime(u64::MAX).to_string(),
+            "2584-07-20T23:34:33.709551615Z"
+        );
     }
 
     #[test]

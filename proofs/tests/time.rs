@@ -104,6 +104,14 @@ proptest! {
         prop_assert_eq!(PortTime::earliest(&ports), expect);
     }
 
+    /// REQ-TIME-014: the calendar text parses back (with the forward days-from-civil formula,
+    /// an independent computation) to exactly the same nanosecond count, for any u64.
+    #[test]
+    fn typed_display_round_trips(t in u64s()) {
+        let text = SystemTime(t).to_string();
+        prop_assert_eq!(parse_calendar(&text), Some(t), "{}", text);
+    }
+
     /// REQ-TIME-007: cycle alignment yields a multiple at or after t (when no 2^64 wrap).
     #[test]
     fn typed_phase(t in 0u64..(1u64 << 62), cycle in 1u64..10_000_000_000) {
@@ -113,6 +121,27 @@ proptest! {
         prop_assert!(n.as_nanos() >= t && n.as_nanos() - t < cycle);
         prop_assert_eq!(s.phase_in(cycle), Some(t % cycle));
     }
+}
+
+/// `YYYY-MM-DDTHH:MM:SS.nnnnnnnnnZ` → ns since 2000-01-01 (days_from_civil, forward direction).
+fn parse_calendar(s: &str) -> Option<u64> {
+    let b = s.as_bytes();
+    if b.len() != 30 || &s[4..5] != "-" || &s[10..11] != "T" || &s[29..] != "Z" {
+        return None;
+    }
+    let num = |r: std::ops::Range<usize>| s.get(r)?.parse::<i128>().ok();
+    let (y, m, d) = (num(0..4)?, num(5..7)?, num(8..10)?);
+    let (hh, mm, ss, ns) = (num(11..13)?, num(14..16)?, num(17..19)?, num(20..29)?);
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y - era * 400;
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    let days_since_0000_03_01 = era * 146_097 + doe;
+    let days = days_since_0000_03_01 - 730_425;
+    let total = ((days * 86_400 + hh * 3600 + mm * 60 + ss) * 1_000_000_000) + ns;
+    u64::try_from(total).ok()
 }
 
 /// The `num` Kani harnesses, run under the shim with 20 000 boundary-biased random inputs each;
