@@ -1,24 +1,29 @@
-//! Glue between the machine and the pure DC maths (`topology`, `delay`): turns the latches the
-//! machine gathered into delays, offsets and the SYNC start time. Nothing here touches the wire.
+//! Glue between the machine and the pure DC maths (`topology`, `delay`, `offset`, `sync`): builds
+//! their inputs from the registers the machine read and maps their errors to the machine's typed
+//! errors. Every formula lives in those modules, so the machine and the proofs use one copy of
+//! it. Nothing here touches the wire.
 
 use crate::dc::config::SyncConfig;
-use crate::dc::delay::{self, DelayError};
+use crate::dc::delay::{self, DelayError, Delays};
 use crate::dc::error::Error;
 use crate::dc::machine::Machine;
+use crate::dc::offset::{self, ClockWidth};
 use crate::dc::port::{Port, PortSet};
-use crate::dc::slave::SlaveInfo;
-use crate::dc::topology::{Latches, SlaveSample, Topology, TopologyError};
+use crate::dc::slave::{DcKind, SlaveInfo};
+use crate::dc::sync;
+use crate::dc::topology::{Latches, Node, SlaveSample, Topology, TopologyError};
+use crate::num::low32;
 use crate::time::{PortTime, SystemTime};
 use crate::wire::register::reg;
 
 impl<const N: usize> Machine<N> {
-    /// REQ-DC-101: one latch round's delays, added to every slave's `delay_sum`.
+    /// REQ-DC-101, REQ-DC-012..018: the topology and exact delays of the latest latch round.
     ///
     /// Stale-latch detection: a port that DL status calls open but whose receive time did not
     /// change across the trigger was not passed by the frame (bypassed, e.g. a redundancy
     /// link); it is treated as closed. A latching slave with no changed port at all was not
     /// reached, and the round is rejected.
-    pub(crate) fn accumulate_round(&mut self) -> Result<(), Error> {
+    fn latch_round_delays(&self) -> Result<(Topology<N>, Delays<N>), Error> {
         let count = usize::from(self.count);
         let mut samples = [SlaveSample::default(); N];
         for (s, out) in self.slaves.iter().zip(samples.iter_mut()).take(count) {
@@ -52,15 +57,46 @@ impl<const N: usize> Machine<N> {
         let topo = Topology::<N>::build(samples).map_err(|e| self.topology_error(e))?;
         let delays = delay::compute(samples, &topo, usize::from(self.reference))
             .map_err(|e| self.delay_error(e))?;
-        for (i, s) in self.slaves.iter_mut().enumerate().take(count) {
+        Ok((topo, delays))
+    }
+
+    /// REQ-DC-101, REQ-DC-019: adds the latest latch round of the bring-up measurement to the
+    /// exact sum of its rounds (`self.delays`, restarted at round 0) with
+    /// [`Delays::accumulate`], so the mean over the K rounds is rounded once, not once per
+    /// round. Returns this round's topology (its entry ports are needed for the offsets).
+    pub(crate) fn add_latch_round(&mut self) -> Result<Topology<N>, Error> {
+        let (topo, round) = self.latch_round_delays()?;
+        let sum = match self.delays.take() {
+            Some(mut sum) if self.latch_round > 0 => {
+                sum.accumulate(&round).map_err(|e| self.delay_error(e))?;
+                sum
+            }
+            _ => round,
+        };
+        self.delays = Some(sum);
+        Ok(topo)
+    }
+
+    /// REQ-DC-107: one latch round (a re-measurement during cyclic operation) into every
+    /// slave's `delay_sum`: its 0x0928 value, rounded once. Bring-up rounds are averaged
+    /// exactly by [`Self::add_latch_round`] instead.
+    pub(crate) fn accumulate_round(&mut self) -> Result<(), Error> {
+        let (_, delays) = self.latch_round_delays()?;
+        for (i, s) in self
+            .slaves
+            .iter_mut()
+            .enumerate()
+            .take(usize::from(self.count))
+        {
             if !s.dc.has_system_time() {
                 continue;
             }
             let station = s.station;
-            let v = delays
-                .register_value(i)
-                .map_err(|_| Error::Measurement { station })?;
-            s.delay_sum = s.delay_sum.saturating_add(u64::from(v));
+            s.delay_sum = u64::from(
+                delays
+                    .register_value(i)
+                    .map_err(|_| Error::Measurement { station })?,
+            );
         }
         Ok(())
     }
@@ -98,59 +134,49 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// REQ-DC-102: offset of every slave with a system time, with its propagation delay folded
-    /// in: at the instant the last trigger frame reached slave `i`, the reference's system time
-    /// is `t_master + delay_i`, where `t_master` was sampled just before the trigger left. So
-    /// `offset_i = t_master + delay_i − epu_i` (mod 2^64; 32-bit slaves keep the low half,
-    /// REQ-CONV-004). No hardware loop has to remove the delay afterwards.
+    /// REQ-DC-102, REQ-DC-021..023: the offset of every slave with a system time, with its
+    /// propagation delay (`delay_ns`, the 0x0928 value) folded in, from the latches of the last
+    /// round and its topology `topo`. The frame entered slave `s` at local time
+    /// [`offset::entry_local_time`] — 0x0918 moved back to the entry port's stamp, which is not
+    /// 0x0918 itself when the slave is entered through port 1, 2 or 3 — and the offset is
+    /// [`offset::initial_offset`] of the slave's clock width.
     ///
-    /// REQ-DC-112: the EPU time is only used if its low 32 bits agree (within
-    /// [`EPU_PORT_TOLERANCE_NS`]) with the earliest port time that changed across the trigger,
-    /// the port the frame entered through; otherwise the read is garbage and no offset is
-    /// derived from it.
-    pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
-        let t = SystemTime(self.latch_time);
+    /// REQ-DC-112: no offset is derived from an implausible EPU time ([`epu_plausible`]).
+    pub(crate) fn compute_offsets(&mut self, topo: &Topology<N>) -> Result<(), Error> {
+        let master = SystemTime(self.latch_time);
         let count = usize::from(self.count);
-        for s in self.slaves.iter_mut().take(count) {
-            if !s.dc.has_system_time() {
+        for (i, s) in self.slaves.iter_mut().enumerate().take(count) {
+            let Some(width) = clock_width(s.dc) else {
                 continue;
-            }
-            let mut entry: [Option<PortTime>; 4] = [None; 4];
-            for (k, e) in entry.iter_mut().enumerate() {
-                let (Some(b), Some(a)) = (s.times_before.get(k), s.times_after.get(k)) else {
-                    continue;
-                };
-                if b != a {
-                    *e = Some(PortTime(*a));
-                }
-            }
+            };
             let bad = Error::OutOfRange {
                 station: s.station,
                 register: reg::RECEIVE_TIME_EPU,
             };
-            let first = PortTime::earliest(&entry)
-                .and_then(|k| entry.get(k).copied().flatten())
-                .ok_or(bad)?;
-            let epu_low = PortTime(SystemTime(s.epu_time).low32());
-            if epu_low.wrapping_since(first).unsigned_abs() > EPU_PORT_TOLERANCE_NS {
+            let node = topo.node(i).ok_or(bad)?;
+            let latches = Latches::from_raw(s.times_after, s.epu_time);
+            if !epu_plausible(&latches, node) {
                 return Err(bad);
             }
-            s.offset = t
-                .wrapping_add(u64::from(s.delay_ns))
-                .0
-                .wrapping_sub(s.epu_time);
+            let entry_local = offset::entry_local_time(&latches, node.entry);
+            s.offset =
+                offset::initial_offset(master, i64::from(s.delay_ns), entry_local, width).as_u64();
         }
         Ok(())
     }
 
     /// REQ-DC-105: the one SYNC0 start time for every slave, from the reference's system time
-    /// `raw` read at master time `now`:
-    /// `start = ⌈(t_ref + start_delay) / T⌉·T + shift`, with `T` the SYNC0 cycle (SYNC0+SYNC1
-    /// with SYNC1 longer than SYNC0 uses the SOEM "true cycle" ⌊(c1/c0)+1⌋·c0), on a grid
-    /// anchored at the DC epoch, so the phase is the same on every start (linuxcnc #465).
-    /// A 32-bit reference's time is widened around the master's clock (REQ-TIME-006). When the
-    /// reference's offset was written in this bring-up its time must be within 1 s of the
-    /// master's, otherwise the read is rejected as garbage (no start time is written from it).
+    /// `raw` read at master time `now` (a 32-bit reference's time widened around the master's
+    /// clock, REQ-DC-051), by [`sync::start_time`] (REQ-DC-050): the first multiple of the
+    /// SYNC0 cycle `T` at or after `t_ref + start_delay`, plus the shift, on a grid anchored at
+    /// the DC epoch. SYNC0+SYNC1 with SYNC1 longer than SYNC0 uses the SOEM "true cycle"
+    /// ⌊(c1/c0)+1⌋·c0 as `T`.
+    ///
+    /// `None` (the caller's typed `OutOfRange` error; nothing is written) when the start is not
+    /// strictly inside `(t_ref, t_ref + 2^31 ns)` (32-bit slaves and the ESC's near-future
+    /// window would take it as a time in the past), when it overflows, or when the reference's
+    /// offset was written in this bring-up and its time is more than 1 s from the master's
+    /// (a garbage read).
     pub(crate) fn compute_sync_start(
         &self,
         now: u64,
@@ -158,11 +184,8 @@ impl<const N: usize> Machine<N> {
         r: &SlaveInfo,
         sync: &SyncConfig,
     ) -> Option<u64> {
-        let t_ref = if r.dc.time_width() == 8 {
-            SystemTime(raw)
-        } else {
-            SystemTime::extend_low32(u32::try_from(raw).ok()?, SystemTime(now))
-        };
+        let width = clock_width(r.dc)?;
+        let t_ref = sync::reference_now(raw, width, SystemTime(now));
         if r.offset_written
             && t_ref.wrapping_since(SystemTime(now)).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
         {
@@ -175,11 +198,36 @@ impl<const N: usize> Machine<N> {
         } else {
             c0
         };
-        let start = t_ref
-            .wrapping_add(sync.start_delay_ns)
-            .next_multiple_of(period)?;
-        Some(start.wrapping_add(u64::from(sync.shift_ns)).0)
+        sync::start_time(t_ref, sync.start_delay_ns, period, i64::from(sync.shift_ns))
+            .ok()
+            .map(SystemTime::as_nanos)
     }
+}
+
+/// The width of a slave's system time, `None` for slaves without one.
+fn clock_width(dc: DcKind) -> Option<ClockWidth> {
+    match dc {
+        DcKind::Bits64 => Some(ClockWidth::Bits64),
+        DcKind::Bits32 => Some(ClockWidth::Bits32),
+        DcKind::None | DcKind::DelayOnly => None,
+    }
+}
+
+/// REQ-DC-112: whether the EPU receive time 0x0918 belongs to the latched frame. The EPU
+/// follows port 0's receiver (REQ-DC-010), so when the frame passed port 0 (whatever port it
+/// entered through) 0x0918 and port 0's stamp mark the same frame at the same place and agree
+/// within [`EPU_PORT_TOLERANCE_NS`]. With port 0 closed the frame loops back into the EPU
+/// between the entry port and the last port it visits, so 0x0918 must lie in that span.
+fn epu_plausible(latches: &Latches, node: &Node) -> bool {
+    let epu = PortTime(low32(latches.epu));
+    if node.ports.contains(Port::P0) {
+        return epu.wrapping_since(latches.at(Port::P0)).unsigned_abs() <= EPU_PORT_TOLERANCE_NS;
+    }
+    let entry = latches.at(node.entry);
+    let since_entry = i64::from(epu.wrapping_since(entry));
+    let span = i64::from(latches.at(node.last_port()).wrapping_since(entry));
+    let tol = i64::from(EPU_PORT_TOLERANCE_NS);
+    since_entry >= tol.saturating_neg() && since_entry <= span.saturating_add(tol)
 }
 
 /// Largest accepted distance between the reference's system time and the master clock right
@@ -187,7 +235,170 @@ impl<const N: usize> Machine<N> {
 /// deviation after a few seconds of bring-up is < 1 ms).
 const PLAUSIBLE_REF_DEVIATION_NS: u64 = 1_000_000_000;
 
-/// Largest accepted distance between the EPU receive time (0x0918) and the entry port's receive
-/// time of the same frame. They are stamped on the same frame at the same port (DS S2-74
-/// Tab.99), so they differ only by stamp quantisation. ecdc choice: 1 µs.
+/// Largest accepted distance between the EPU receive time (0x0918) and port 0's receive time
+/// of the same frame. They are stamped on the same frame at the same place (DS S2-74 Tab.99),
+/// so they differ only by stamp quantisation. ecdc choice: 1 µs.
 const EPU_PORT_TOLERANCE_NS: u32 = 1_000;
+
+#[cfg(test)]
+mod tests {
+    //! The machine's path from hand-made latch registers to 0x0928/0x0920/0x0990 values, for
+    //! cases the emulator cannot produce (its slaves are always cabled upstream on port 0).
+
+    use super::*;
+    use crate::dc::{Config, State};
+
+    /// Master time sampled before the trigger (REQ-DC-002).
+    const M: u64 = 800_000_000_000_000_000;
+    /// DL status bits: port `n` open = bit 9+2n set (communication) and bit 8+2n clear.
+    const fn open(n: u16) -> u16 {
+        1 << (9 + 2 * n)
+    }
+    const fn closed(n: u16) -> u16 {
+        1 << (8 + 2 * n)
+    }
+
+    /// Two 64-bit DC slaves; slave 0 (the reference) with the given DL status, slave 1 a line
+    /// end on port 0. `times_before` differ from every value used after the trigger.
+    fn pair(dl_0: u16) -> Machine<4> {
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        m.count = 2;
+        m.reference = 0;
+        m.sys_count = 2;
+        let dl_1 = open(0) | closed(1) | closed(2) | closed(3);
+        for (i, dl) in [dl_0, dl_1].into_iter().enumerate() {
+            let s = &mut m.slaves[i];
+            s.station = 0x1001 + i as u16;
+            s.dc = DcKind::Bits64;
+            s.dl_status = dl;
+            s.times_before = [1, 1, 1, 1];
+        }
+        m.latch_time = M;
+        m
+    }
+
+    /// Runs the last step of the bring-up measurement (REQ-DC-101) on the latches in place.
+    fn finish_round(m: &mut Machine<4>) -> Result<State, Error> {
+        m.state = State::LatchReadAfter;
+        m.measure_done()
+    }
+
+    /// REQ-DC-022, REQ-DC-021, REQ-DC-013: slave 0 is entered through port 3 and reaches slave 1
+    /// through port 0, so the frame passes slave 0's EPU (and 0x0918 is stamped) only on its
+    /// way back, `x` ns after it entered. The offset must use the entry time, not 0x0918: at the
+    /// entry instant slave 0's system time is M, and slave 1's is M + its delay when the frame
+    /// reaches it. The old bridge used 0x0918 directly (slave 0 then `x` ns behind) or, for
+    /// `x` > 1 µs, rejected the plausible EPU time.
+    #[test]
+    fn offset_uses_entry_port_not_epu_when_entered_on_port_3() {
+        for x in [800u32, 1_210, 250_000] {
+            let mut m = pair(open(0) | closed(1) | closed(2) | open(3));
+            m.cfg.latch_rounds = 1;
+            let t3 = 10_000u32;
+            let t0 = t3 + x; // back from slave 1 into port 0, then the EPU
+            let epu_0 = 0x5_0000_0000u64 + u64::from(t0);
+            let epu_1 = 0x9_0000_0000u64 + 50_000;
+            m.slaves[0].times_after = [t0, 1, 1, t3];
+            m.slaves[0].epu_time = epu_0;
+            m.slaves[1].times_after = [50_000, 1, 1, 1];
+            m.slaves[1].epu_time = epu_1;
+            assert_eq!(finish_round(&mut m), Ok(State::ReadAlStatus), "x = {x}");
+            let delay = x / 2; // slave 1 is a line end: half the excursion behind port 0
+            assert_eq!(m.slaves[0].delay_ns, 0);
+            assert_eq!(m.slaves[1].delay_ns, delay);
+            let entry_0 = epu_0 - u64::from(x);
+            assert_eq!(entry_0.wrapping_add(m.slaves[0].offset), M, "x = {x}");
+            assert_eq!(
+                epu_1.wrapping_add(m.slaves[1].offset),
+                M + u64::from(delay),
+                "x = {x}"
+            );
+        }
+    }
+
+    /// REQ-DC-112: with entry on port 3 the EPU time is checked against port 0's stamp (where
+    /// the EPU sits), not the entry port's; a 0x0918 far from it is rejected, no offset derived.
+    #[test]
+    fn garbage_epu_rejected_when_entered_on_port_3() {
+        let mut m = pair(open(0) | closed(1) | closed(2) | open(3));
+        m.cfg.latch_rounds = 1;
+        m.slaves[0].times_after = [12_000, 1, 1, 10_000];
+        m.slaves[0].epu_time = 0x5_0000_0000 + 10_000; // the entry stamp, not port 0's
+        m.slaves[1].times_after = [50_000, 1, 1, 1];
+        m.slaves[1].epu_time = 50_000;
+        assert_eq!(
+            finish_round(&mut m),
+            Err(Error::OutOfRange {
+                station: 0x1001,
+                register: reg::RECEIVE_TIME_EPU
+            })
+        );
+        assert_eq!(m.slaves[0].offset, 0);
+    }
+
+    /// REQ-DC-019: K rounds are averaged from their exact doubled sums, rounded once. Round
+    /// trips 1209, 1209, 1208, 1208 ns give 604.25 ns → 604; rounding each round first
+    /// (605, 605, 604, 604) and averaging those gives 605.
+    #[test]
+    fn rounds_averaged_exactly() {
+        let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
+        m.cfg.latch_rounds = 4;
+        for (k, x) in [1_209u32, 1_209, 1_208, 1_208].into_iter().enumerate() {
+            let t0 = 10_000 + 100_000 * k as u32;
+            m.slaves[0].times_after = [t0, t0 + x, 1, 1];
+            m.slaves[0].epu_time = u64::from(t0);
+            m.slaves[1].times_after = [50_000 + 100_000 * k as u32, 1, 1, 1];
+            m.slaves[1].epu_time = u64::from(m.slaves[1].times_after[0]);
+            let next = if k < 3 {
+                State::LatchReadBefore
+            } else {
+                State::ReadAlStatus
+            };
+            assert_eq!(finish_round(&mut m), Ok(next));
+        }
+        assert_eq!(m.slaves[1].delay_ns, 604);
+        assert_eq!(m.delays, None, "the sum is consumed");
+    }
+
+    /// REQ-DC-050, REQ-DC-105: a start that would lie 2^31 ns or more ahead of the reference's
+    /// time is refused (the caller turns it into `OutOfRange`), never written.
+    #[test]
+    fn sync_start_outside_window_refused() {
+        let m = Machine::<4>::new(Config::default()).unwrap();
+        let now = M;
+        for dc in [DcKind::Bits64, DcKind::Bits32] {
+            let r = SlaveInfo {
+                dc,
+                ..SlaveInfo::default()
+            };
+            let raw = if dc == DcKind::Bits64 {
+                now
+            } else {
+                u64::from(low32(now))
+            };
+            let ok = SyncConfig::default();
+            let start = m.compute_sync_start(now, raw, &r, &ok).unwrap();
+            let lead = start - now;
+            assert!(lead >= ok.start_delay_ns && lead < 1 << 31, "{lead}");
+            assert_eq!(start % u64::from(ok.sync0_cycle_ns), 0);
+            let far = SyncConfig {
+                start_delay_ns: 3_000_000_000,
+                ..ok
+            };
+            assert_eq!(m.compute_sync_start(now, raw, &r, &far), None);
+            // SYNC1 "true cycle" of 3 × 0.9 s pushes the first grid point past 2^31 ns.
+            let long = SyncConfig {
+                sync0_cycle_ns: 900_000_000,
+                sync1_cycle_ns: 2_000_000_000,
+                ..ok
+            };
+            let now_on_grid = 2_700_000_000 * 300_000_000;
+            let raw = if dc == DcKind::Bits64 {
+                now_on_grid + 1
+            } else {
+                u64::from(low32(now_on_grid + 1))
+            };
+            assert_eq!(m.compute_sync_start(now_on_grid, raw, &r, &long), None);
+        }
+    }
+}

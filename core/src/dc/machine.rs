@@ -2,6 +2,7 @@
 
 use crate::dc::config::{Config, ConfigError};
 use crate::dc::cyclic::CyclicState;
+use crate::dc::delay::Delays;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
@@ -89,6 +90,8 @@ pub struct Machine<const N: usize> {
     pub(crate) last_sent: u64,
     pub(crate) frames_at_start: u64,
     pub(crate) latch_round: u8,
+    /// Exact sum of the bring-up's latch rounds so far (REQ-DC-019); taken when they are done.
+    pub(crate) delays: Option<Delays<N>>,
     /// Master time sampled just before sending the latch trigger (REQ-DC-102).
     pub(crate) latch_time: u64,
     pub(crate) drift_frames: u32,
@@ -122,6 +125,7 @@ impl<const N: usize> Machine<N> {
             last_sent: 0,
             frames_at_start: 0,
             latch_round: 0,
+            delays: None,
             latch_time: 0,
             drift_frames: 0,
             drift_ok: 0,

@@ -1,14 +1,16 @@
 //! Propagation-delay measurement (REQ-DC-101, REQ-DC-102): read the latches, trigger a new
 //! latch with one BWR 0x0900 (master time sampled just before it leaves), read the port and
 //! EPU receive times, and turn them into delays with the pure DC maths. Repeated
-//! `latch_rounds` times and averaged. A port counts as latched only if its time changed across
-//! the trigger (stale-latch detection, Lambert's IgH patch).
+//! `latch_rounds` times and averaged exactly (one rounding, REQ-DC-019). A port counts as
+//! latched only if its time changed across the trigger (stale-latch detection, Lambert's IgH
+//! patch).
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Pending};
 use crate::dc::state::State;
+use crate::dc::topology::Topology;
 use crate::wire::register::reg;
 
 /// Bytes of one full latch read: 0x0900..0x091F (4 port times, system time, EPU time).
@@ -103,51 +105,46 @@ impl<const N: usize> Machine<N> {
             State::LatchReadBefore => Ok(State::LatchTrigger),
             State::LatchTrigger => Ok(State::LatchReadAfter),
             State::LatchReadAfter => {
-                if self.latch_round == 0 {
-                    for s in self.slaves.iter_mut() {
-                        s.delay_sum = 0;
-                    }
-                }
-                self.accumulate_round()?;
+                let topo = self.add_latch_round()?;
                 self.latch_round = self.latch_round.saturating_add(1);
                 if self.latch_round < self.cfg.latch_rounds {
                     return Ok(State::LatchReadBefore);
                 }
-                self.finish_delays()?;
+                self.finish_delays(&topo)?;
                 Ok(State::ReadAlStatus)
             }
             _ => Ok(self.state),
         }
     }
 
-    /// Averages the accumulated delays, checks them and computes the offsets of the last round.
-    fn finish_delays(&mut self) -> Result<(), Error> {
-        let rounds = u64::from(self.cfg.latch_rounds.max(1));
+    /// REQ-DC-019, REQ-DC-101: the 0x0928 values from the exact sum of the K rounds (one
+    /// rounding), range-checked, then the offsets from the last round (REQ-DC-102).
+    fn finish_delays(&mut self, topo: &Topology<N>) -> Result<(), Error> {
+        let delays = self
+            .delays
+            .take()
+            .ok_or(Error::Measurement { station: 0 })?;
         let max_delay = self.cfg.max_delay_ns;
         let mut max_seen = 0u32;
         let count = self.count;
-        for s in self.slaves.iter_mut().take(usize::from(count)) {
+        for (i, s) in self.slaves.iter_mut().enumerate().take(usize::from(count)) {
             if !s.dc.has_system_time() {
                 continue;
             }
-            // Rounded mean of the rounds.
-            let mean = s
-                .delay_sum
-                .saturating_add(rounds >> 1)
-                .checked_div(rounds)
-                .unwrap_or(0);
-            let d =
-                u32::try_from(mean)
-                    .ok()
-                    .filter(|d| *d <= max_delay)
-                    .ok_or(Error::OutOfRange {
-                        station: s.station,
-                        register: reg::SYSTEM_TIME_DELAY,
-                    })?;
+            let station = s.station;
+            let d = delays
+                .register_value(i)
+                .map_err(|_| Error::Measurement { station })?;
+            if d > max_delay {
+                return Err(Error::OutOfRange {
+                    station,
+                    register: reg::SYSTEM_TIME_DELAY,
+                });
+            }
             s.delay_ns = d;
             max_seen = max_seen.max(d);
         }
-        self.compute_offsets()?;
+        self.compute_offsets(topo)?;
         self.push_event(Event::DelaysMeasured {
             max_delay_ns: max_seen,
         });

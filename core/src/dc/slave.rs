@@ -54,7 +54,8 @@ pub struct SlaveInfo {
     pub times_after: [u32; 4],
     /// EPU receive time 0x0918 of the latest trigger.
     pub epu_time: u64,
-    /// Sum of the per-round delays (for averaging over `latch_rounds`).
+    /// Delay of the latest single latch round (re-measurement, REQ-DC-107); the bring-up's
+    /// rounds are averaged exactly in the machine instead (REQ-DC-019).
     pub(crate) delay_sum: u64,
     /// Propagation delay from the reference, ns (0x0928).
     pub delay_ns: u32,
