@@ -139,6 +139,42 @@ fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
+/// Stable LSD radix sort of `vals` by `keys` (both permuted together), 11 bits per pass over
+/// the span `max − min` only: a drain of 100 ms needs 3 passes.
+fn radix_sort_stable(keys: &mut Vec<u64>, vals: &mut Vec<u32>) {
+    const BITS: u32 = 11;
+    const MASK: u64 = (1 << BITS) - 1;
+    let (Some(&min), Some(&max)) = (keys.iter().min(), keys.iter().max()) else {
+        return;
+    };
+    let bits = 64 - (max - min).leading_zeros();
+    let mut k2 = vec![0u64; keys.len()];
+    let mut v2 = vec![0u32; vals.len()];
+    let mut shift = 0;
+    while shift < bits {
+        let digit = |k: u64| (((k - min) >> shift) & MASK) as usize;
+        let mut count = vec![0usize; 1 << BITS];
+        for &k in keys.iter() {
+            count[digit(k)] += 1;
+        }
+        let mut sum = 0;
+        for c in count.iter_mut() {
+            let n = *c;
+            *c = sum;
+            sum += n;
+        }
+        for (&k, &v) in keys.iter().zip(vals.iter()) {
+            let d = digit(k);
+            k2[count[d]] = k;
+            v2[count[d]] = v;
+            count[d] += 1;
+        }
+        core::mem::swap(keys, &mut k2);
+        core::mem::swap(vals, &mut v2);
+        shift += BITS;
+    }
+}
+
 /// The emulated slave chain.
 #[derive(Debug)]
 pub struct Network {
@@ -424,36 +460,27 @@ impl Network {
     /// All SYNC edges up to now, sorted by true time (then slave), removed from the log.
     pub fn take_sync_edges(&mut self) -> Vec<SyncEdge> {
         let now = self.now;
-        let mut due: Vec<Vec<SyncEdge>> = Vec::with_capacity(self.escs.len());
+        // Each slave's log is put in (true time, signal) order — it almost always is already:
+        // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns. The due prefixes
+        // are concatenated slave by slave and stably radix-sorted by true time: the same order
+        // as sorting everything by (true time, slave, signal, log position), in linear time.
+        let mut all = Vec::new();
         for (e, log) in self.escs.iter_mut().zip(self.edges.iter_mut()) {
             if e.anchor() <= now {
                 e.advance_to(now, log);
             }
-            // Each slave's log is in time order (output jitter aside, which only reorders
-            // SYNC0/SYNC1 of one slave by a few ns): split at `now`.
-            let mut mine = core::mem::take(log);
-            if !mine.windows(2).all(|w| w[0].true_time <= w[1].true_time) {
-                mine.sort_by_key(|x| x.true_time);
+            let key = |x: &SyncEdge| (x.true_time, x.signal as u8);
+            if !log.windows(2).all(|w| key(&w[0]) <= key(&w[1])) {
+                log.sort_by_key(key);
             }
-            let n = mine.partition_point(|x| x.true_time <= now);
-            *log = mine.split_off(n);
-            due.push(mine);
+            let n = log.partition_point(|x| x.true_time <= now);
+            // Drain in place so each log keeps its capacity for the next interval.
+            all.extend(log.drain(..n));
         }
-        let all: Vec<SyncEdge> = due.into_iter().flatten().collect();
-        // Sort compact keys (time, slave, signal, index) instead of the 40-byte records, then
-        // gather: same order as sorting the records by (true time, slave, signal).
-        let mut keys: Vec<(u64, u64)> = all
-            .iter()
-            .enumerate()
-            .map(|(i, e)| {
-                let tie = ((e.slave as u64) << 33) | ((e.signal as u64) << 32) | i as u64;
-                (e.true_time, tie)
-            })
-            .collect();
-        keys.sort_unstable();
-        keys.iter()
-            .map(|(_, tie)| all[(tie & 0xFFFF_FFFF) as usize])
-            .collect()
+        let mut keys: Vec<u64> = all.iter().map(|e| e.true_time).collect();
+        let mut order: Vec<u32> = (0..all.len() as u32).collect();
+        radix_sort_stable(&mut keys, &mut order);
+        order.iter().map(|&i| all[i as usize]).collect()
     }
 
     /// Debug read of a slave's registers without side effects (0x0910 = local copy now).
@@ -733,5 +760,38 @@ impl Network {
         }
         self.visits = saved;
         out
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    /// The radix sort is a stable sort by key: same permutation as `sort_by_key` on random
+    /// keys with many ties and spans from 0 to 64 bits.
+    #[test]
+    fn radix_sort_matches_stable_sort() {
+        let mut r = ChaCha8Rng::seed_from_u64(7);
+        for case in 0..200 {
+            let n = r.gen_range(0..3000);
+            let bits = case % 65;
+            let base: u64 = r.gen();
+            let keys: Vec<u64> = (0..n)
+                .map(|_| {
+                    let off = if bits == 0 {
+                        0
+                    } else {
+                        r.gen::<u64>() >> (64 - bits)
+                    };
+                    base.wrapping_add(off / 3 * 3)
+                })
+                .collect();
+            let mut want: Vec<u32> = (0..n as u32).collect();
+            want.sort_by_key(|&i| keys[i as usize]);
+            let mut k = keys.clone();
+            let mut got: Vec<u32> = (0..n as u32).collect();
+            radix_sort_stable(&mut k, &mut got);
+            assert_eq!(got, want, "case {case}");
+        }
     }
 }
