@@ -212,3 +212,109 @@ fn wrapper_matches_machine_words() {
     assert_eq!(get(Sym::<32>::lit(200)), 200);
     let _unused: Option<BV> = None;
 }
+
+/// The kernels themselves, run on z3 constants and simplified, agree with the `u32`/`u64`
+/// instances on boundary and pseudo-random inputs (a second faithfulness check, at kernel level).
+#[test]
+fn kernels_agree_on_constants() {
+    fn v32(s: Sym<32>) -> u32 {
+        s.bv().simplify().as_u64().expect("constant") as u32
+    }
+    fn v64(s: Sym<64>) -> u64 {
+        s.bv().simplify().as_u64().expect("constant")
+    }
+    fn b(s: ecdc_proofs::smt::SymBool) -> bool {
+        s.b().simplify().as_bool().expect("constant")
+    }
+    let mut xs: Vec<u64> = vec![
+        0,
+        1,
+        2,
+        3,
+        999,
+        1000,
+        1001,
+        i64::MAX as u64,
+        1 << 63,
+        u64::MAX,
+        u64::MAX - 1,
+    ];
+    xs.extend([0x7FFF_FFFF, 0x8000_0000, 0xFFFF_FFFF, 0x1_0000_0000]);
+    let mut s = 0x0123_4567_89AB_CDEFu64;
+    for _ in 0..8 {
+        s = s
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        xs.push(s);
+    }
+    for &a in &xs {
+        for &c in &xs {
+            let (a32, c32) = (a as u32, c as u32);
+            let (x, y) = (Sym::<32>::val(a), Sym::<32>::val(c));
+            assert_eq!(
+                v32(k::wrapping_diff(x, y)),
+                k::wrapping_diff(a32, c32) as u32
+            );
+            assert_eq!(b(k::is_after(x, y)), k::is_after(a32, c32));
+            assert_eq!(
+                v32(k::half_toward_zero::<Sym<32>>(x)),
+                k::half_toward_zero::<u32>(a32 as i32) as u32
+            );
+            assert_eq!(
+                v32(k::sign_magnitude_encode::<Sym<32>>(x)),
+                k::sign_magnitude_encode::<u32>(a32 as i32)
+            );
+            assert_eq!(
+                v32(k::sign_magnitude_decode::<Sym<32>>(x)),
+                k::sign_magnitude_decode::<u32>(a32) as u32
+            );
+            assert_eq!(
+                v32(k::saturating_add::<Sym<32>>(x, y)),
+                k::saturating_add::<u32>(a32 as i32, c32 as i32) as u32
+            );
+            assert_eq!(
+                v32(k::clamp_magnitude::<Sym<32>>(x, y)),
+                k::clamp_magnitude::<u32>(a32 as i32, c32) as u32
+            );
+            assert_eq!(v32(k::extend_near(x, y, 16)), k::extend_near(a32, c32, 16));
+            if c32 != 0 {
+                assert_eq!(
+                    v32(k::fold::<Sym<32>>(x, y)),
+                    k::fold::<u32>(a32 as i32, c32) as u32
+                );
+            }
+            let (x, y) = (Sym::<64>::val(a), Sym::<64>::val(c));
+            assert_eq!(v64(k::wrapping_diff(x, y)), k::wrapping_diff(a, c) as u64);
+            assert_eq!(
+                v64(k::saturating_sub::<Sym<64>>(x, y)),
+                k::saturating_sub::<u64>(a as i64, c as i64) as u64
+            );
+            assert_eq!(v64(k::extend_near(x, y, 32)), k::extend_near(a, c, 32));
+            assert_eq!(
+                v64(k::clamp::<Sym<64>>(x, y, Sym::val(1000))),
+                k::clamp::<u64>(a as i64, c as i64, 1000) as u64
+            );
+            if c != 0 {
+                assert_eq!(
+                    v64(k::fold::<Sym<64>>(x, y)),
+                    k::fold::<u64>(a as i64, c) as u64
+                );
+            }
+        }
+    }
+    // earliest: 4 ports across a wrap, every mask.
+    let t = [0xFFFF_FF00u32, 0x10, 0xFFFF_FFF0, 0x20];
+    for mask in 0..16u8 {
+        let act: [bool; 4] = core::array::from_fn(|i| mask & (1 << i) != 0);
+        let (f, i) = k::earliest(&t, &act);
+        let ts: [Sym<32>; 4] = core::array::from_fn(|j| Sym::val(u64::from(t[j])));
+        let acts: [ecdc_proofs::smt::SymBool; 4] = core::array::from_fn(|j| {
+            ecdc_proofs::smt::SymBool::of(z3::ast::Bool::from_bool(smt::ctx(), act[j]))
+        });
+        let (fs, is) = k::earliest(&ts, &acts);
+        assert_eq!(b(fs), f);
+        if f {
+            assert_eq!(v32(is), i);
+        }
+    }
+}
