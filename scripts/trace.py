@@ -6,6 +6,7 @@ must be cited in proofs/ and listed in docs/verification.md.
   scripts/trace.py            print the table
   scripts/trace.py --check    also gate: fail if an id is untraced and not in the committed
                               snapshot scripts/trace-untraced.txt (the snapshot may only shrink)
+  scripts/trace.py --self-test  run the checker on a small made-up tree (negative controls)
   scripts/trace.py --update   rewrite the snapshot to the current untraced ids (and ids
                               cited but not defined, which the gate also freezes)
 
@@ -20,6 +21,12 @@ import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SNAPSHOT = ROOT / "scripts" / "trace-untraced.txt"
+
+
+def set_root(root):
+    global ROOT, SNAPSHOT
+    ROOT = pathlib.Path(root)
+    SNAPSHOT = ROOT / "scripts" / "trace-untraced.txt"
 REQ = re.compile(r"REQ-[A-Z]+-\d{3}")
 DEF = re.compile(r"(?:\*\*|^\|\s*)(REQ-[A-Z]+-\d{3})", re.M)
 PROP = re.compile(r"^\|\s*(P\d+)\s*\|", re.M)
@@ -73,8 +80,53 @@ def properties():
     return PROP.findall(spec.read_text(encoding="utf-8")) if spec.exists() else []
 
 
+def self_test():
+    """The gate must fail on a new untraced id and on a dangling citation, and pass otherwise."""
+    import contextlib
+    import io
+    import tempfile
+
+    def tree(files):
+        d = tempfile.mkdtemp()
+        for rel, text in files.items():
+            f = pathlib.Path(d) / rel
+            f.parent.mkdir(parents=True, exist_ok=True)
+            f.write_text(text, encoding="utf-8")
+        return d
+
+    spec = "| id | p |\n|---|---|\n| P1 | x |\n"
+    req = "- **REQ-AB-001 A.** a\n- **REQ-AB-002 B.** b\n"
+    doc = "| P1 | row |\n"
+    good = {
+        "spec/SPEC.md": spec,
+        "spec/req/ab.md": req,
+        "docs/verification.md": doc,
+        "core/src/a.rs": "// REQ-AB-001 REQ-AB-002\n#[cfg(test)]\n// REQ-AB-001\n",
+        "proofs/src/p.rs": "// P1 REQ-AB-002\n",
+    }
+    cases = [
+        ("all traced", good, 0),
+        ("test missing", {**good, "proofs/src/p.rs": "// P1\n"}, 1),
+        ("code missing", {**good, "core/src/a.rs": "#[cfg(test)]\n// REQ-AB-001 REQ-AB-002\n"}, 1),
+        ("dangling citation", {**good, "proofs/src/q.rs": "// REQ-AB-009\n"}, 1),
+        ("property not in docs", {**good, "docs/verification.md": ""}, 1),
+        ("frozen in snapshot", {**good, "proofs/src/p.rs": "// P1\n", "scripts/trace-untraced.txt": "REQ-AB-002\n"}, 0),
+    ]
+    ok = True
+    for name, files, want in cases:
+        set_root(tree(files))
+        sys.argv = ["trace.py", "--check"]
+        with contextlib.redirect_stdout(io.StringIO()):
+            got = main()
+        print(f"self-test {name}: exit {got} (want {want})")
+        ok &= got == want
+    return 0 if ok else 1
+
+
 def main():
     args = set(sys.argv[1:])
+    if "--self-test" in args:
+        return self_test()
     defs = definitions()
     code, test = citations()
     matrix = (ROOT / "docs" / "verification.md")
