@@ -349,6 +349,31 @@ pub fn kani_sign_magnitude_u32() {
     prop_sign_magnitude::<u32>(x, v);
 }
 
+/// Kani: REQ-TIME-005 through the typed API the DC topology code calls: for 4 optional port
+/// times within half the 32-bit circle of a base, `PortTime::earliest` returns the present
+/// port with the least true time (first on ties), or `None` when no port is present.
+#[cfg_attr(kani, kani::proof)]
+#[cfg_attr(kani, kani::unwind(10))]
+pub fn kani_port_time_earliest() {
+    use ecdc_core::time::PortTime;
+    let base: u32 = kani::any();
+    let offsets: [u32; 4] = kani::any::<[u32; 4]>().map(|o| o & 0x7FFF_FFFF);
+    let present: [bool; 4] = kani::any();
+    let ports: [Option<PortTime>; 4] =
+        core::array::from_fn(|i| present[i].then(|| PortTime(base.wrapping_add(offsets[i]))));
+    kani::cover!(
+        present.iter().filter(|&&p| p).count() >= 2 && base > u32::MAX - 0x7FFF_FFFF,
+        "several ports, wrap possible"
+    );
+    let mut expect: Option<usize> = None;
+    for i in 0..4 {
+        if present[i] && expect.is_none_or(|e| offsets[i] < offsets[e]) {
+            expect = Some(i);
+        }
+    }
+    assert_eq!(PortTime::earliest(&ports), expect);
+}
+
 /// Every harness in this file, for the shim runner.
 pub const KANI_HARNESSES: &[(&str, fn())] = &[
     ("kani_p2_wrapping_diff_u32", kani_p2_wrapping_diff_u32),
@@ -358,4 +383,5 @@ pub const KANI_HARNESSES: &[(&str, fn())] = &[
     ("kani_extend_low32", kani_extend_low32),
     ("kani_clamp_saturate_i64", kani_clamp_saturate_i64),
     ("kani_sign_magnitude_u32", kani_sign_magnitude_u32),
+    ("kani_port_time_earliest", kani_port_time_earliest),
 ];
