@@ -79,11 +79,36 @@ impl MeanFilter {
         }
         // Round half away from zero so a symmetric input gives a symmetric mean.
         let n = self.len as i64;
-        if self.sum >= 0 {
-            (self.sum + n / 2) / n
+        let x = if self.sum >= 0 {
+            self.sum + n / 2
         } else {
-            (self.sum - n / 2) / n
-        }
+            self.sum - n / 2
+        };
+        div_small(x, n)
+    }
+}
+
+/// `x / n` (truncating, like `/`), with the usual filter depths as constant divisors so the
+/// compiler replaces the slow hardware division by multiply-and-shift (same result).
+fn div_small(x: i64, n: i64) -> i64 {
+    match n {
+        1 => x,
+        2 => x / 2,
+        3 => x / 3,
+        4 => x / 4,
+        5 => x / 5,
+        6 => x / 6,
+        7 => x / 7,
+        8 => x / 8,
+        9 => x / 9,
+        10 => x / 10,
+        11 => x / 11,
+        12 => x / 12,
+        13 => x / 13,
+        14 => x / 14,
+        15 => x / 15,
+        16 => x / 16,
+        _ => x / n,
     }
 }
 
@@ -202,6 +227,34 @@ impl ControlLoop {
 #[cfg(test)]
 mod test {
     use super::*;
+
+    /// The constant-divisor fast path divides exactly like `/` (truncation toward zero).
+    #[test]
+    fn div_small_is_division() {
+        let xs = [
+            0i64,
+            1,
+            -1,
+            5,
+            -5,
+            6,
+            -6,
+            7,
+            -7,
+            1 << 40,
+            -(1 << 40),
+            i64::MAX,
+            i64::MIN + 8,
+        ];
+        for n in 1..=40i64 {
+            for &x in &xs {
+                for dx in -20..=20 {
+                    let v = x.saturating_add(dx);
+                    assert_eq!(div_small(v, n), v / n, "{v} / {n}");
+                }
+            }
+        }
+    }
 
     /// REQ-ESC-051: bit 31 set means the local copy is behind (Δt < 0).
     #[test]

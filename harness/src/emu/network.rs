@@ -139,22 +139,34 @@ fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
-/// Stable LSD radix sort of `vals` by `keys` (both permuted together), 11 bits per pass over
-/// the span `max − min` only: a drain of 100 ms needs 3 passes.
-fn radix_sort_stable(keys: &mut Vec<u64>, vals: &mut Vec<u32>) {
+/// Scratch space of [`Network::take_sync_edges`].
+#[derive(Debug, Default)]
+struct DrainScratch {
+    all: Vec<SyncEdge>,
+    keys: Vec<u64>,
+    order: Vec<u32>,
+    keys2: Vec<u64>,
+    order2: Vec<u32>,
+}
+
+/// Stable LSD radix sort of `sc.order` by `sc.keys` (both permuted together), 11 bits per
+/// pass over the span `max − min` only: a drain of 100 ms needs 3 passes.
+fn radix_sort_stable(sc: &mut DrainScratch) {
     const BITS: u32 = 11;
     const MASK: u64 = (1 << BITS) - 1;
-    let (Some(&min), Some(&max)) = (keys.iter().min(), keys.iter().max()) else {
+    let (Some(&min), Some(&max)) = (sc.keys.iter().min(), sc.keys.iter().max()) else {
         return;
     };
     let bits = 64 - (max - min).leading_zeros();
-    let mut k2 = vec![0u64; keys.len()];
-    let mut v2 = vec![0u32; vals.len()];
+    let n = sc.keys.len();
+    sc.keys2.resize(n, 0);
+    sc.order2.resize(n, 0);
+    let mut count = [0usize; 1 << BITS];
     let mut shift = 0;
     while shift < bits {
         let digit = |k: u64| (((k - min) >> shift) & MASK) as usize;
-        let mut count = vec![0usize; 1 << BITS];
-        for &k in keys.iter() {
+        count.fill(0);
+        for &k in sc.keys.iter() {
             count[digit(k)] += 1;
         }
         let mut sum = 0;
@@ -163,14 +175,14 @@ fn radix_sort_stable(keys: &mut Vec<u64>, vals: &mut Vec<u32>) {
             *c = sum;
             sum += n;
         }
-        for (&k, &v) in keys.iter().zip(vals.iter()) {
+        for (&k, &v) in sc.keys.iter().zip(sc.order.iter()) {
             let d = digit(k);
-            k2[count[d]] = k;
-            v2[count[d]] = v;
+            sc.keys2[count[d]] = k;
+            sc.order2[count[d]] = v;
             count[d] += 1;
         }
-        core::mem::swap(keys, &mut k2);
-        core::mem::swap(vals, &mut v2);
+        core::mem::swap(&mut sc.keys, &mut sc.keys2);
+        core::mem::swap(&mut sc.order, &mut sc.order2);
         shift += BITS;
     }
 }
@@ -183,6 +195,7 @@ pub struct Network {
     topo: Topology,
     /// SYNC edges per slave (each in time order), merged on `take_sync_edges`.
     edges: Vec<Vec<SyncEdge>>,
+    drain: DrainScratch,
     /// Per-slave hop parameters, kept compact for the frame walk.
     hops: Vec<Hop>,
     /// Some slave has written DL control loop bits (else the walk skips that check).
@@ -276,6 +289,7 @@ impl Network {
             info,
             topo: Topology::new(parents, cables),
             edges: vec![Vec::new(); n],
+            drain: DrainScratch::default(),
             hops: Vec::new(),
             any_forced: false,
             now: 0,
@@ -464,7 +478,9 @@ impl Network {
         // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns. The due prefixes
         // are concatenated slave by slave and stably radix-sorted by true time: the same order
         // as sorting everything by (true time, slave, signal, log position), in linear time.
-        let mut all = Vec::new();
+        // Scratch buffers are kept between drains: fresh ones cost page faults every time.
+        let mut sc = core::mem::take(&mut self.drain);
+        sc.all.clear();
         for (e, log) in self.escs.iter_mut().zip(self.edges.iter_mut()) {
             if e.anchor() <= now {
                 e.advance_to(now, log);
@@ -475,12 +491,16 @@ impl Network {
             }
             let n = log.partition_point(|x| x.true_time <= now);
             // Drain in place so each log keeps its capacity for the next interval.
-            all.extend(log.drain(..n));
+            sc.all.extend(log.drain(..n));
         }
-        let mut keys: Vec<u64> = all.iter().map(|e| e.true_time).collect();
-        let mut order: Vec<u32> = (0..all.len() as u32).collect();
-        radix_sort_stable(&mut keys, &mut order);
-        order.iter().map(|&i| all[i as usize]).collect()
+        sc.keys.clear();
+        sc.keys.extend(sc.all.iter().map(|e| e.true_time));
+        sc.order.clear();
+        sc.order.extend(0..sc.all.len() as u32);
+        radix_sort_stable(&mut sc);
+        let out = sc.order.iter().map(|&i| sc.all[i as usize]).collect();
+        self.drain = sc;
+        out
     }
 
     /// Debug read of a slave's registers without side effects (0x0910 = local copy now).
@@ -788,10 +808,13 @@ mod test {
                 .collect();
             let mut want: Vec<u32> = (0..n as u32).collect();
             want.sort_by_key(|&i| keys[i as usize]);
-            let mut k = keys.clone();
-            let mut got: Vec<u32> = (0..n as u32).collect();
-            radix_sort_stable(&mut k, &mut got);
-            assert_eq!(got, want, "case {case}");
+            let mut sc = DrainScratch {
+                keys: keys.clone(),
+                order: (0..n as u32).collect(),
+                ..DrainScratch::default()
+            };
+            radix_sort_stable(&mut sc);
+            assert_eq!(sc.order, want, "case {case}");
         }
     }
 }
