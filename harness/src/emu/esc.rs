@@ -107,6 +107,8 @@ pub struct Esc {
     /// samples; cleared by anything else that can move the next pulse). Skips the pulse search
     /// on most frame visits.
     quiet_until: u64,
+    /// Last (S, D) → `correction_rate(S, D)`.
+    dev_cache: Option<((u16, i16), i128)>,
 }
 
 fn fresh_regs(cfg: &EscConfig) -> RegisterFile {
@@ -150,6 +152,7 @@ impl Esc {
             power_ups: 0,
             loop_ctl: 0,
             quiet_until: 0,
+            dev_cache: None,
         }
     }
 
@@ -368,8 +371,17 @@ impl Esc {
             }
             Pending::Sample { dt } => {
                 self.lp.sample(dt);
-                self.osc
-                    .set_dev(correction_rate(self.lp.start(), self.lp.speed_diff()));
+                let key = (self.lp.start(), self.lp.speed_diff());
+                // D is often unchanged from the last sample: skip the two divisions.
+                let dev = match self.dev_cache {
+                    Some((k, dev)) if k == key => dev,
+                    _ => {
+                        let dev = correction_rate(key.0, key.1);
+                        self.dev_cache = Some((key, dev));
+                        dev
+                    }
+                };
+                self.osc.set_dev(dev);
                 self.regs
                     .set_u32(addr::SYSTEM_TIME_DIFFERENCE, self.lp.difference_register());
                 self.regs

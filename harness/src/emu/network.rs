@@ -535,7 +535,14 @@ impl Network {
 
     /// Whether the frame can leave `s` through `port` at `t` (and reach the neighbour).
     fn port_open(&self, s: usize, port: u8, t: u64) -> bool {
-        if port >= self.hops[s].ports || self.forced_closed(s, port) {
+        if port >= self.hops[s].ports {
+            return false;
+        }
+        if !self.any_forced && self.topo.is_static() {
+            // Nothing scheduled, no forced loop: exactly the cabled ports are open.
+            return port == 0 || self.topo.children[s][usize::from(port)].is_some();
+        }
+        if self.forced_closed(s, port) {
             return false;
         }
         if port == 0 {

@@ -97,6 +97,11 @@ impl Topology {
             .is_some_and(|v| state_at(v, t))
     }
 
+    /// No link or power change was ever scheduled: every link is up at every time.
+    pub fn is_static(&self) -> bool {
+        self.all_static
+    }
+
     /// The cable into `slave`'s port 0 carries signal at `t`: cable intact and both ends
     /// powered (the master end always is).
     pub fn link_up(&self, slave: usize, t: u64) -> bool {
