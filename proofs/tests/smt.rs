@@ -47,7 +47,7 @@ fn p2_earliest_64() {
     );
     check("earliest of 2 @64", props::earliest_true_min::<64, 2>());
 }
-/// REQ-TIME-005 at 64 bits with 4 ports: proved in 143 s here under load, so kept out of CI
+/// REQ-TIME-005 at 64 bits with 4 ports: proved in 143–241 s here under load, so kept out of CI
 /// (`cargo test -p ecdc-proofs --release --features smt --test smt -- --ignored`).
 #[test]
 #[ignore]
