@@ -13,6 +13,8 @@ use super::topology::Topology;
 use super::{EmuError, TrueTime};
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use std::cmp::Reverse;
+use std::collections::binary_heap::{BinaryHeap, PeekMut};
 
 /// A frame that came back to the master.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -139,54 +141,6 @@ fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
-/// Scratch space of [`Network::take_sync_edges`].
-#[derive(Debug, Default)]
-struct DrainScratch {
-    all: Vec<SyncEdge>,
-    keys: Vec<u64>,
-    order: Vec<u32>,
-    keys2: Vec<u64>,
-    order2: Vec<u32>,
-}
-
-/// Stable LSD radix sort of `sc.order` by `sc.keys` (both permuted together), 11 bits per
-/// pass over the span `max − min` only: a drain of 100 ms needs 3 passes.
-fn radix_sort_stable(sc: &mut DrainScratch) {
-    const BITS: u32 = 11;
-    const MASK: u64 = (1 << BITS) - 1;
-    let (Some(&min), Some(&max)) = (sc.keys.iter().min(), sc.keys.iter().max()) else {
-        return;
-    };
-    let bits = 64 - (max - min).leading_zeros();
-    let n = sc.keys.len();
-    sc.keys2.resize(n, 0);
-    sc.order2.resize(n, 0);
-    let mut count = [0usize; 1 << BITS];
-    let mut shift = 0;
-    while shift < bits {
-        let digit = |k: u64| (((k - min) >> shift) & MASK) as usize;
-        count.fill(0);
-        for &k in sc.keys.iter() {
-            count[digit(k)] += 1;
-        }
-        let mut sum = 0;
-        for c in count.iter_mut() {
-            let n = *c;
-            *c = sum;
-            sum += n;
-        }
-        for (&k, &v) in sc.keys.iter().zip(sc.order.iter()) {
-            let d = digit(k);
-            sc.keys2[count[d]] = k;
-            sc.order2[count[d]] = v;
-            count[d] += 1;
-        }
-        core::mem::swap(&mut sc.keys, &mut sc.keys2);
-        core::mem::swap(&mut sc.order, &mut sc.order2);
-        shift += BITS;
-    }
-}
-
 /// The emulated slave chain.
 #[derive(Debug)]
 pub struct Network {
@@ -195,7 +149,8 @@ pub struct Network {
     topo: Topology,
     /// SYNC edges per slave (each in time order), merged on `take_sync_edges`.
     edges: Vec<Vec<SyncEdge>>,
-    drain: DrainScratch,
+    /// Scratch of `take_sync_edges`: due edges per slave.
+    due: Vec<usize>,
     /// Per-slave hop parameters, kept compact for the frame walk.
     hops: Vec<Hop>,
     /// Some slave has written DL control loop bits (else the walk skips that check).
@@ -289,7 +244,7 @@ impl Network {
             info,
             topo: Topology::new(parents, cables),
             edges: vec![Vec::new(); n],
-            drain: DrainScratch::default(),
+            due: Vec::with_capacity(n),
             hops: Vec::new(),
             any_forced: false,
             now: 0,
@@ -475,13 +430,15 @@ impl Network {
     pub fn take_sync_edges(&mut self) -> Vec<SyncEdge> {
         let now = self.now;
         // Each slave's log is put in (true time, signal) order — it almost always is already:
-        // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns. The due prefixes
-        // are concatenated slave by slave and stably radix-sorted by true time: the same order
-        // as sorting everything by (true time, slave, signal, log position), in linear time.
-        // Scratch buffers are kept between drains: fresh ones cost page faults every time.
-        let mut sc = core::mem::take(&mut self.drain);
-        sc.all.clear();
-        for (e, log) in self.escs.iter_mut().zip(self.edges.iter_mut()) {
+        // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns — and the due
+        // prefixes are merged by (true time, slave) through a heap straight into the output.
+        // Same order as sorting everything by (true time, slave, signal, log position), with
+        // no scratch copy of the records (large fresh buffers cost page faults).
+        let mut heap = BinaryHeap::with_capacity(self.escs.len());
+        let mut due = core::mem::take(&mut self.due);
+        due.clear();
+        let mut total = 0;
+        for (s, (e, log)) in self.escs.iter_mut().zip(self.edges.iter_mut()).enumerate() {
             if e.anchor() <= now {
                 e.advance_to(now, log);
             }
@@ -490,16 +447,28 @@ impl Network {
                 log.sort_by_key(key);
             }
             let n = log.partition_point(|x| x.true_time <= now);
-            // Drain in place so each log keeps its capacity for the next interval.
-            sc.all.extend(log.drain(..n));
+            if let Some(first) = log.first().filter(|_| n > 0) {
+                heap.push(Reverse((first.true_time, s, 0usize)));
+            }
+            due.push(n);
+            total += n;
         }
-        sc.keys.clear();
-        sc.keys.extend(sc.all.iter().map(|e| e.true_time));
-        sc.order.clear();
-        sc.order.extend(0..sc.all.len() as u32);
-        radix_sort_stable(&mut sc);
-        let out = sc.order.iter().map(|&i| sc.all[i as usize]).collect();
-        self.drain = sc;
+        let mut out = Vec::with_capacity(total);
+        while let Some(mut top) = heap.peek_mut() {
+            let Reverse((_, s, i)) = *top;
+            let log = &self.edges[s];
+            out.push(log[i]);
+            if i + 1 < due[s] {
+                *top = Reverse((log[i + 1].true_time, s, i + 1));
+            } else {
+                PeekMut::pop(top);
+            }
+        }
+        // Drain in place so each log keeps its capacity for the next interval.
+        for (log, n) in self.edges.iter_mut().zip(&due) {
+            log.drain(..*n);
+        }
+        self.due = due;
         out
     }
 
@@ -787,41 +756,5 @@ impl Network {
         }
         self.visits = saved;
         out
-    }
-}
-
-#[cfg(test)]
-mod test {
-    use super::*;
-
-    /// The radix sort is a stable sort by key: same permutation as `sort_by_key` on random
-    /// keys with many ties and spans from 0 to 64 bits.
-    #[test]
-    fn radix_sort_matches_stable_sort() {
-        let mut r = ChaCha8Rng::seed_from_u64(7);
-        for case in 0..200 {
-            let n = r.gen_range(0..3000);
-            let bits = case % 65;
-            let base: u64 = r.gen();
-            let keys: Vec<u64> = (0..n)
-                .map(|_| {
-                    let off = if bits == 0 {
-                        0
-                    } else {
-                        r.gen::<u64>() >> (64 - bits)
-                    };
-                    base.wrapping_add(off / 3 * 3)
-                })
-                .collect();
-            let mut want: Vec<u32> = (0..n as u32).collect();
-            want.sort_by_key(|&i| keys[i as usize]);
-            let mut sc = DrainScratch {
-                keys: keys.clone(),
-                order: (0..n as u32).collect(),
-                ..DrainScratch::default()
-            };
-            radix_sort_stable(&mut sc);
-            assert_eq!(sc.order, want, "case {case}");
-        }
     }
 }
