@@ -1,6 +1,6 @@
 //! Emulator speed: 100 slaves, one cyclic frame per 1 ms (FRMW 0x0910 + LRW 200 bytes + BRD
 //! AL status), SYNC0 active on every slave with a 1 ms cycle, PHY jitter and wander on.
-//! The target is ≥ 50× real time (docs/emulator.md §Speed).
+//! The target is ≥ 50× real time (REQ-ESC-101; docs/emulator.md §Speed).
 //!
 //! Reading the output: criterion's benchmark `emu_100_slaves_1khz/100ms_simulated` declares its
 //! throughput in simulated nanoseconds, so its `thrpt` in Gelem/s *is* the simulated/real-time

@@ -336,3 +336,73 @@ fn system_time_read_subtracts_delay() {
     );
     assert_eq!(u64_of(&x.data), 5_000_000 + sof + 7_000 - 300);
 }
+
+/// REQ-ESC-041: observed local time moves in whole ticks of the raw counter (10 ns by default,
+/// floor of the raw value), and a 1 ns quantum shows the raw counter itself.
+#[test]
+fn local_time_quantised_to_tick() {
+    for tick in [10u64, 1] {
+        let mut sc = scenario(&[0.0, 37.0]).ideal();
+        sc.timing.tick_ns = tick;
+        sc.slaves[0].initial_local_ns = Some(0);
+        sc.slaves[1].initial_local_ns = Some(0);
+        let mut net = Network::new(&sc).unwrap();
+        for t in [1u64, 9, 10, 11, 19, 1_234_567, 999_999_999] {
+            // No drift, no loop: local = raw = t, shown in whole ticks.
+            let l = net.clock(0, t).unwrap().local.unwrap();
+            assert_eq!(l, t - t % tick, "tick {tick}, t {t}");
+            // 37 ppm fast: a multiple of the tick, at most one tick below the raw value.
+            let l = net.clock(1, t).unwrap().local.unwrap();
+            let raw = t as f64 * (1.0 + 37e-6);
+            assert_eq!(l % tick, 0, "tick {tick}, t {t}");
+            assert!(l as f64 <= raw + 1e-6 && l as f64 > raw - tick as f64 - 1e-6);
+        }
+    }
+}
+
+/// REQ-ESC-043: a write to 0x0920 moves the local copy of system time at once (by exactly the
+/// change of offset) and leaves the loop alone (0x092C, 0x0932 and the clock rate unchanged).
+#[test]
+fn offset_write_moves_local_copy_at_once() {
+    let mut sc = scenario(&[0.0, 50.0]).ideal();
+    sc.timing.tick_ns = 1;
+    let mut net = Network::new(&sc).unwrap();
+    let t = address_all(&mut net, 0);
+    let t = compensate_from_truth(&mut net, t + 1_000_000);
+    let t = drift_frames(&mut net, t, 1_000_000, 200);
+    net.advance_to(t).unwrap();
+    let d_before = u16_of(&net.peek(1, 0x0932, 2).unwrap());
+    let diff_before = u32_of(&net.peek(1, 0x092C, 4).unwrap());
+    assert_ne!(d_before, 0, "the loop is running");
+    let old = u64_of(&net.peek(1, 0x0920, 8).unwrap());
+    let new = old.wrapping_add(123_457);
+    // Rate before the write: local ns per true ms (no frames in between, so constant).
+    let r0 = net.clock(1, t).unwrap().local.unwrap();
+    let t = t + 1_000_000;
+    let before = net.clock(1, t).unwrap();
+    let rate_before = before.local.unwrap() - r0;
+    let (x, a) = one(
+        &mut net,
+        t,
+        Command::Fpwr,
+        Address::configured(0x1001, 0x0920),
+        &new.to_le_bytes(),
+    );
+    assert_eq!(x.wkc, 1);
+    let after = net.clock(1, a).unwrap();
+    let dl = after.local.unwrap() - before.local.unwrap();
+    let ds = after
+        .system_time
+        .unwrap()
+        .wrapping_sub(before.system_time.unwrap());
+    assert_eq!(ds, dl + 123_457, "jump = change of offset, no slew");
+    assert_eq!(u16_of(&net.peek(1, 0x0932, 2).unwrap()), d_before);
+    assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), diff_before);
+    // The rate is untouched too (a loop reset would bring back the 50 ppm drift: 50 ns/ms).
+    let l1 = net.clock(1, a + 1_000_000).unwrap().local.unwrap();
+    let rate_after = l1 - after.local.unwrap();
+    assert!(
+        rate_after.abs_diff(rate_before) <= 1,
+        "{rate_before} vs {rate_after}"
+    );
+}

@@ -204,6 +204,7 @@ fn dl_status_matches_topology() {
 
 /// REQ-ESC-030/031: BWR to 0x0900 latches every port; the new values are not visible in the
 /// same frame; APWR does not latch; ports the frame does not reach keep their old values.
+/// REQ-ESC-032: 0x0918 reads port 0's stamp.
 #[test]
 fn receive_time_latch_rules() {
     let mut sc = Scenario::line(3).ideal();

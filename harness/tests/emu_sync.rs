@@ -40,9 +40,10 @@ fn rd(net: &mut Network, t: u64, ado: u16, len: usize) -> (Vec<u8>, u64) {
     (r.data, a + 1000)
 }
 
-/// REQ-ESC-070/073/078: cyclic SYNC0 from the start time, edges at the programmed system
-/// times (true time = system time − L0 without drift), generated without frames; 0x0990 reads
-/// the next pulse; 0x0984 bit 0 clears after the first pulse.
+/// REQ-ESC-070, REQ-ESC-073, REQ-ESC-078: cyclic SYNC0 from the start time, edges at the
+/// programmed system times and at their true times (system time − L0 without drift),
+/// generated without frames; 0x0990 reads the next pulse; 0x0984 bit 0 clears after the first
+/// pulse.
 #[test]
 fn cyclic_sync0() {
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
@@ -82,7 +83,7 @@ fn single_shot() {
     assert_eq!(e[0].true_time, 5_000_000);
 }
 
-/// REQ-ESC-075/074: a start time in the past never fires on a 64-bit DC without the
+/// REQ-ESC-075, REQ-ESC-074: a start time in the past never fires on a 64-bit DC without the
 /// plausibility check; with the check (0x0981 bit 5) it fires at once and 0x0984 bit 2 is set.
 #[test]
 fn start_time_in_the_past() {

@@ -419,6 +419,8 @@ impl Servo {
                 self.sat_start = mag;
             }
             self.sat_run = self.sat_run.saturating_add(1);
+            // REQ-SERVO-086: fault after `fault_after` saturated samples without |θ| shrinking
+            // below its value at the start of the run; cleared when saturation ends.
             let stuck = self.cfg.fault_after > 0
                 && self.sat_run >= self.cfg.fault_after
                 && mag >= self.sat_start;
@@ -582,6 +584,7 @@ mod tests {
         .is_err());
     }
 
+    /// REQ-SERVO-086: fault flag raised once per run of stuck saturation, cleared after it.
     #[test]
     fn fault_when_saturated_and_not_shrinking() {
         let mut c = cfg();

@@ -203,6 +203,7 @@ impl ControlLoop {
                 .clamp(-lim_fp, lim_fp);
         }
         let cmd = (self.integ.saturating_sub(p) >> GAIN_FRAC).clamp(-lim, lim);
+        // REQ-ESC-055: 0x0932 = mean of the last max(1, 0x0935) commands.
         let applied = self.speed.push(cmd).clamp(-lim, lim);
         self.d = applied as i16;
         self.d
@@ -292,5 +293,38 @@ mod test {
         let mut g = MeanFilter::new(0);
         assert_eq!(g.push(-7), -7);
         assert_eq!(g.push(3), 3);
+    }
+
+    /// REQ-ESC-055: 0x0932 is the mean (rounded half away from zero) of the last
+    /// max(1, 0x0935) D commands. The commands do not depend on the speed filter, so a depth-1
+    /// loop fed the same samples shows them one by one.
+    #[test]
+    fn speed_diff_is_mean_of_last_commands() {
+        let samples: Vec<i32> = (0..60).map(|k| ((k * 7919) % 4001) - 1500).collect();
+        let mut raw = ControlLoop::new(LoopGains::default());
+        raw.reset(0x1000, 1, 1);
+        let cmds: Vec<i64> = samples
+            .iter()
+            .map(|&dt| i64::from(raw.sample(dt)))
+            .collect();
+        assert!(cmds.windows(2).any(|w| w[0] != w[1]), "commands vary");
+        for depth in [0u8, 1, 3, 12] {
+            let mut l = ControlLoop::new(LoopGains::default());
+            l.reset(0x1000, 1, depth);
+            let n = usize::from(depth.max(1));
+            for (k, &dt) in samples.iter().enumerate() {
+                let d = l.sample(dt);
+                let last = &cmds[(k + 1).saturating_sub(n)..=k];
+                let sum: i64 = last.iter().sum();
+                let m = last.len() as i64;
+                let want = if sum >= 0 {
+                    (sum + m / 2) / m
+                } else {
+                    (sum - m / 2) / m
+                };
+                assert_eq!(i64::from(d), want, "depth {depth}, sample {k}");
+                assert_eq!(l.speed_diff(), d);
+            }
+        }
     }
 }

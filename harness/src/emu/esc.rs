@@ -213,6 +213,8 @@ impl Esc {
     }
 
     /// Local copy of system time at the anchor (width-masked), if the ESC has system time.
+    /// Computed from the offset register on every call, so a write to 0x0920 moves it at once
+    /// and leaves the loop's rate alone (REQ-ESC-043).
     pub fn system_time(&self) -> Option<u64> {
         if !self.cfg.kind.has_system_time() || !self.powered {
             return None;
@@ -266,7 +268,8 @@ impl Esc {
             let Some((sig, d)) = self.sync.next_due(&self.regs, sys) else {
                 break;
             };
-            // Cheap bound first: most calls ask about a pulse well after `until`.
+            // Cheap bound first: most calls ask about a pulse well after `until` (REQ-ESC-101:
+            // skipping the exact inversion here is what keeps 100 slaves at 1 kHz fast).
             let span = until.saturating_sub(self.osc.anchor());
             if d > self.osc.max_advance(span) && self.osc.piece_end() > until {
                 // Local time cannot run more than 1 % fast (crystal + loop ≪ 1 %).
@@ -292,6 +295,8 @@ impl Esc {
         self.osc.advance(until);
     }
 
+    /// Records each output edge with its true time `t` (plus pin jitter) and programmed system
+    /// time; called from `run_until`, so edges come with or without frames. REQ-ESC-078.
     fn fire(&mut self, sig: SyncSignal, t: u64, edges: &mut Vec<SyncEdge>) {
         let (x, out) = self.sync.fire(sig, &mut self.regs);
         for (i, on) in out.iter().enumerate() {
@@ -364,6 +369,7 @@ impl Esc {
                     .set_u32(addr::RECEIVE_TIME_PORT0 + 4 * u16::from(port), v);
             }
             Pending::CommitSof { local } => {
+                // REQ-ESC-032: 0x0918 (EPU) = port 0's stamp, 64-bit.
                 self.regs.set_u32(addr::RECEIVE_TIME_PORT0, local as u32);
                 if self.cfg.kind.has_system_time() {
                     self.regs.set_dc64(addr::RECEIVE_TIME_EPU, local);
@@ -648,6 +654,7 @@ impl Esc {
             return false;
         }
         // REQ-ESC-030: only BWR/FPWR covering 0x0900 trigger the receive-time latch.
+        // REQ-ESC-083: a non-DC slave never latches (it still adds its delays in the walk).
         if touched.latch && (c == cmd::BWR || c == cmd::FPWR) && kind.has_receive_times() {
             st.latch = true;
         }

@@ -114,7 +114,8 @@ pub struct Stats {
     pub lost: u64,
 }
 
-/// splitmix64: derives independent seeds for independent random streams.
+/// splitmix64: derives independent seeds for independent random streams. Every random
+/// draw comes from a ChaCha8 stream seeded from the scenario seed (REQ-ESC-100).
 fn sub_seed(seed: u64, stream: u64) -> u64 {
     let mut z = seed ^ stream.wrapping_mul(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -199,7 +200,7 @@ impl Network {
             for f in &sc.faults {
                 if let Fault::PortTimeWrap { slave } = f.fault {
                     if slave.is_none() || slave == Some(i) {
-                        // local(at) = initial + at·(1 + ppm) ≡ 0 (mod 2^32).
+                        // REQ-ESC-094: local(at) = initial + at·(1 + ppm) ≡ 0 (mod 2^32).
                         let adv = (f.at_ns as f64 * (1.0 + ppm * 1e-6)).round() as u64;
                         let m = 1u64 << 32;
                         initial = m + (m - adv % m) % m;
@@ -321,6 +322,7 @@ impl Network {
             });
         }
         match fault {
+            // REQ-ESC-091: link state is a function of true time.
             Fault::LinkBreak { slave, port } | Fault::LinkRestore { slave, port } => {
                 self.check_slave(slave)?;
                 let id = self
@@ -330,6 +332,7 @@ impl Network {
                 let up = matches!(fault, Fault::LinkRestore { .. });
                 self.topo.set_link(id, at, up);
             }
+            // REQ-ESC-093: reference loss is this fault on the reference slave.
             Fault::PowerOff { slave } => {
                 self.check_slave(slave)?;
                 self.topo.set_power(slave, at, false);
@@ -580,6 +583,7 @@ impl Network {
                 t,
                 set_c: reentry,
             });
+            // REQ-ESC-082: t_P from port 0, t_F from port n, cable + PHY jitter per traversal.
             t += self.hops[s].t_p;
             for q in [3u8, 1, 2] {
                 if !self.port_open(s, q, t) {
@@ -617,6 +621,7 @@ impl Network {
         self.now = send_time;
         self.apply_net_events(send_time);
         self.stats.frames += 1;
+        // REQ-ESC-082: the master's port serialises frames (frame time + gap).
         let t0 = send_time.max(self.tx_free);
         let dur = datagram::wire_duration_ns(frame.len());
         self.tx_free = t0 + dur + IFG_NS;
@@ -637,6 +642,8 @@ impl Network {
         let t_in = t0 + self.master_cable_ns + self.jitter(true);
         let mut budget = 8 * self.escs.len() + 8;
         let back = self.walk(0, t_in, &mut c, &mut budget, true);
+        // REQ-ESC-092: a lost frame is cut at a uniformly chosen visit; later ones commit
+        // nothing and the master gets nothing.
         let injected = self.loss_rate > 0.0 && self.loss_rng.gen::<f64>() < self.loss_rate;
         let cut = if injected {
             self.loss_rng.gen_range(0..=self.visits.len())

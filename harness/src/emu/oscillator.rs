@@ -197,6 +197,8 @@ impl Oscillator {
         self.quantise(self.raw, self.corr)
     }
 
+    /// REQ-ESC-041: whole ticks of the raw counter (floor) plus the integer part of the loop
+    /// correction.
     fn quantise(&self, raw: i128, corr: i128) -> i128 {
         let raw_ns = (raw >> FRAC) as i64;
         // Constant divisors for the common ticks let the compiler avoid a division.

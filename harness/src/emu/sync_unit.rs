@@ -49,6 +49,7 @@ impl SyncUnit {
 
     /// The next pulse and its distance from `sys_now` in local-copy ns. SYNC1 wins ties so a
     /// SYNC1 cycle that is a multiple of the SYNC0 cycle re-arms on the coinciding SYNC0.
+    /// The distance is modular (REQ-ESC-075): a past start time fires after the wrap.
     pub fn next_due(&self, regs: &RegisterFile, sys_now: u64) -> Option<(SyncSignal, u64)> {
         let m = Self::mask(regs);
         let d0 = self
@@ -73,12 +74,14 @@ impl SyncUnit {
         match sig {
             SyncSignal::Sync0 => {
                 let x = self.next0.unwrap_or(0);
+                // REQ-ESC-076: repeat every 0x09A0 ns; 0 = single shot.
                 let c0 = u64::from(regs.get_u32(addr::SYNC0_CYCLE));
                 self.next0 = if c0 == 0 {
                     None
                 } else {
                     Some(x.wrapping_add(c0) & m)
                 };
+                // REQ-ESC-073: 0x0990 reads the next SYNC0 time (0x0998 the next SYNC1).
                 if let Some(n) = self.next0 {
                     regs.set_dc64(addr::START_TIME, n);
                 }
@@ -88,6 +91,8 @@ impl SyncUnit {
                 if out[0] && ack_mode {
                     regs.set_u8(addr::SYNC0_STATUS, 1);
                 }
+                // REQ-ESC-077: cycle 0 mirrors SYNC0; otherwise arm SYNC1 0x09A4 after this
+                // SYNC0 unless one is already pending (re-armed by the first SYNC0 after it).
                 let c1 = u64::from(regs.get_u32(addr::SYNC1_CYCLE));
                 if act & ACT_SYNC1 != 0 {
                     if c1 == 0 {
