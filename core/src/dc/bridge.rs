@@ -26,7 +26,10 @@ impl<const N: usize> Machine<N> {
     fn latch_round_delays(&self) -> Result<(Topology<N>, Delays<N>), Error> {
         let count = usize::from(self.count);
         let mut samples = [SlaveSample::default(); N];
-        for (s, out) in self.slaves.iter().zip(samples.iter_mut()).take(count) {
+        for (position, (s, out)) in (0u16..)
+            .zip(self.slaves.iter().zip(samples.iter_mut()))
+            .take(count)
+        {
             let open = PortSet::from_dl_status(s.dl_status);
             let mut ports = open;
             let latches = if s.dc.has_latches() {
@@ -50,7 +53,7 @@ impl<const N: usize> Machine<N> {
             *out = SlaveSample {
                 ports,
                 latches,
-                t_diff: self.cfg.t_diff_ns,
+                t_diff: self.slave_t_diff(position), // REQ-DC-015
             };
         }
         let samples = samples.get(..count).unwrap_or(&[]);

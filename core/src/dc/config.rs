@@ -167,8 +167,9 @@ pub struct Config {
     /// halves the 10 ns stamp quantisation noise.
     pub latch_rounds: u8,
     /// `t_Diff = t_P − t_F` of the ESCs (processing minus forwarding delay), ns, from the ESI
-    /// or the ESC datasheet (DS S1-73); used for every slave by the delay maths. 0 when
-    /// unknown: then each hop's delay is off by t_Diff/2 (seed 000 eq. 13).
+    /// or the ESC datasheet (DS S1-73); used for every slave without its own value
+    /// ([`Machine::set_slave_t_diff`](crate::dc::Machine::set_slave_t_diff)). 0 when unknown:
+    /// then each hop's delay is off by t_Diff/2 (seed 000 eq. 13).
     pub t_diff_ns: i32,
     /// Largest plausible propagation delay from the reference to any slave, ns; a larger
     /// computed delay is rejected as out of range instead of being written. ecdc choice: 1 ms
@@ -232,6 +233,8 @@ pub enum ConfigError {
     Hysteresis,
     /// 0x0930 value outside the valid range 0x0080..=0x3FFF (DS S2-76).
     SpeedCounterStart,
+    /// A per-slave setting for a position beyond the machine's capacity `N`.
+    Capacity,
 }
 
 impl Config {

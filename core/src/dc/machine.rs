@@ -92,6 +92,9 @@ pub struct Machine<const N: usize> {
     pub(crate) latch_round: u8,
     /// Exact sum of the bring-up's latch rounds so far (REQ-DC-019); taken when they are done.
     pub(crate) delays: Option<Delays<N>>,
+    /// Per-slave `t_Diff` overrides by auto-increment position (REQ-DC-015); `None` uses
+    /// `Config::t_diff_ns`.
+    pub(crate) t_diff: [Option<i32>; N],
     /// Master time sampled just before sending the latch trigger (REQ-DC-102).
     pub(crate) latch_time: u64,
     pub(crate) drift_frames: u32,
@@ -126,6 +129,7 @@ impl<const N: usize> Machine<N> {
             frames_at_start: 0,
             latch_round: 0,
             delays: None,
+            t_diff: [None; N],
             latch_time: 0,
             drift_frames: 0,
             drift_ok: 0,
@@ -158,6 +162,32 @@ impl<const N: usize> Machine<N> {
         if self.state == State::Cyclic {
             self.cyc.remeasure_requested = true;
         }
+    }
+
+    /// Sets `t_Diff = t_P − t_F` (ns, from the ESI or the ESC datasheet) of the slave at
+    /// auto-increment `position` (0 = first slave), overriding [`Config::t_diff_ns`] for that
+    /// slave at the next delay measurement (REQ-DC-015: seed 000 eq. 23 is the line case with
+    /// one common value; mixed ESC types need one per slave). Returns the previous override.
+    /// Fails with [`ConfigError::Capacity`] when `position` is beyond the capacity `N`.
+    pub fn set_slave_t_diff(
+        &mut self,
+        position: u16,
+        t_diff_ns: Option<i32>,
+    ) -> Result<Option<i32>, ConfigError> {
+        let slot = self
+            .t_diff
+            .get_mut(usize::from(position))
+            .ok_or(ConfigError::Capacity)?;
+        Ok(core::mem::replace(slot, t_diff_ns))
+    }
+
+    /// The `t_Diff` used for the slave at `position`: its override, else `Config::t_diff_ns`.
+    pub fn slave_t_diff(&self, position: u16) -> i32 {
+        self.t_diff
+            .get(usize::from(position))
+            .copied()
+            .flatten()
+            .unwrap_or(self.cfg.t_diff_ns)
     }
 
     // ----- getters --------------------------------------------------------------------------
