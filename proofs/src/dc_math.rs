@@ -306,6 +306,39 @@ pub fn sync_start(now: u64, margin: u64, period: u64, shift: i64) {
     assert_eq!(r32.as_slice(), &(s as u32).to_le_bytes());
 }
 
+/// Adapter for fuzzing [`p3_arbitrary_latches`] from plain integers: one
+/// `(DL port bits, port stamps, EPU stamp, has DC, t_Diff)` tuple per slave.
+pub fn p3_arbitrary_latches_raw(raw: &[(u8, [u32; 4], u64, bool, i32)], reference: usize) {
+    let samples: Vec<SlaveSample> = raw
+        .iter()
+        .map(|&(ports, t, epu, dc, t_diff)| SlaveSample {
+            ports: PortSet::from_bits(ports),
+            latches: dc.then(|| Latches::from_raw(t, epu)),
+            t_diff,
+        })
+        .collect();
+    p3_arbitrary_latches(&samples, reference);
+}
+
+/// Adapter for fuzzing [`p3_tree`] from plain integers: generates the network the same way as
+/// `proofs/tests/dc_math.rs` (`count` clamped to 1..=64, `shape` 0..=3 = line, fork, cross,
+/// any; `non_dc` percent clamped to 0..=30).
+pub fn p3_tree_generated(seed: u64, count: usize, shape: u8, non_dc: u64) {
+    use ecdc_spec::network::{generate, GenParams, Shape, SplitMix};
+    let shape = [Shape::Line, Shape::Fork, Shape::Cross, Shape::Any][usize::from(shape % 4)];
+    let p = GenParams {
+        count: count.clamp(1, 64),
+        shape,
+        t_f: (0, 800),
+        t_diff: (0, 400),
+        cable: (0, 5_000),
+        non_dc_percent: non_dc.min(30),
+        bits32_percent: 30,
+        rate_ppb: (0, 0),
+    };
+    p3_tree(&generate(&mut SplitMix::new(seed), &p));
+}
+
 // ------------------------------------------------------------------ Kani harnesses
 //
 // Under `cargo kani` these are proofs over every input within the assumptions. In ordinary

@@ -282,6 +282,52 @@ pub fn prop_lock_hysteresis(low: u64, high: u64, count: u16, thetas: &[i64]) {
     }
 }
 
+/// Adapter for fuzzing [`prop_engine_bounded`] from plain integers: the 1 ms master servo
+/// configuration with the step, first-step, confirm, blank, holdover and limit fields replaced
+/// (as `proofs/tests/servo.rs` does). Configurations the core refuses are skipped.
+#[allow(clippy::too_many_arguments)]
+pub fn prop_engine_bounded_params(
+    step_ns: u64,
+    first_step_ns: u64,
+    step_confirm: u8,
+    blank: u8,
+    holdover_max: u32,
+    y_max_ns: i64,
+    i_max_ns: i64,
+    inputs: &[(bool, u64, i64)],
+) {
+    let Ok(master) = ecdc_core::servo::MasterConfig::for_period(1_000_000) else {
+        return;
+    };
+    let Ok(limits) = ecdc_core::servo::PiLimits::from_ns(y_max_ns, i_max_ns) else {
+        return;
+    };
+    let mut cfg = master.servo;
+    cfg.step_ns = step_ns;
+    cfg.first_step_ns = first_step_ns;
+    cfg.step_confirm = step_confirm;
+    cfg.blank = blank;
+    cfg.holdover_max = holdover_max;
+    cfg.limits = limits;
+    prop_engine_bounded(cfg, inputs);
+}
+
+/// Adapter for fuzzing [`prop_master_bounded`] from plain integers: `MasterConfig::for_period`
+/// with the reference width and target phase set. Periods the core refuses are skipped.
+pub fn prop_master_bounded_params(
+    period_ns: u32,
+    ref_32bit: bool,
+    target_ns: i64,
+    inputs: &[(bool, u64, u64, u64)],
+) {
+    let Ok(mut cfg) = ecdc_core::servo::MasterConfig::for_period(period_ns) else {
+        return;
+    };
+    cfg.ref_32bit = ref_32bit;
+    cfg.target_ns = target_ns;
+    prop_master_bounded(cfg, inputs);
+}
+
 // ---------------------------------------------------------------------------- Kani harnesses
 // Symbolic for users with Kani; here run under `crate::kani_shim` (random, boundary-biased) by
 // proofs/tests/servo.rs. Gains are one of a few concrete admissible sets so the solver does not
