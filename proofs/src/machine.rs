@@ -199,12 +199,25 @@ fn check_tx(
 /// A tiny consistent line of `k` ideal 64-bit DC slaves, used for "plausible" replies so that
 /// scripts reach the deep states (offset write, drift gate, SYNC, cyclic) and the property is
 /// exercised where it matters. It is not an emulator: no drift, 1 µs per hop.
+///
+/// Two faults change it: a **slave reset** (power cycle) clears that slave's station address,
+/// so configured-address datagrams to it go unanswered (WKC 0) until an APWR to 0x0010
+/// addresses it again, and its AL state falls back to INIT; a **port-time wrap** moves every
+/// latch close below 2^32 ns so the 32-bit receive times of one measurement straddle the wrap.
 struct Model {
     k: u16,
     latch: u32,
+    /// Bit `p` set: the slave at position `p` was reset and has no station address yet.
+    unaddressed: u8,
+    /// Added to every latch time (0, or just below 2^32 after a wrap fault).
+    wrap_base: u64,
 }
 
 impl Model {
+    fn is_unaddressed(&self, pos: u16) -> bool {
+        pos < 8 && self.unaddressed & (1u8 << pos) != 0
+    }
+
     fn answer(&mut self, cmd: u8, adp: u16, ado: u16, base: u16, now: u64, data: &mut [u8]) -> u16 {
         let k = self.k;
         let put = |data: &mut [u8], v: u64| {
@@ -223,18 +236,28 @@ impl Model {
                 }
                 k
             }
-            Ok(Command::Apwr) => u16::from(Address::position_of_adp(adp) < k),
+            Ok(Command::Apwr) => {
+                let pos = Address::position_of_adp(adp);
+                if ado == 0x0010 && pos < 8 {
+                    self.unaddressed &= !(1u8 << pos);
+                }
+                u16::from(pos < k)
+            }
             Ok(Command::Frmw) => {
                 put(data, now);
+                // The reference reads; every other addressed-or-not slave compares.
                 k
             }
-            Ok(Command::Fpwr) => u16::from(adp.wrapping_sub(base) < k),
+            Ok(Command::Fpwr) => {
+                let pos = adp.wrapping_sub(base);
+                u16::from(pos < k && !self.is_unaddressed(pos))
+            }
             Ok(Command::Fprd) => {
                 let pos = adp.wrapping_sub(base);
-                if pos >= k {
+                if pos >= k || self.is_unaddressed(pos) {
                     return 0;
                 }
-                let t = u64::from(self.latch) * 1_000_000;
+                let t = self.wrap_base + u64::from(self.latch) * 1_000_000;
                 match ado {
                     0x0008 => put(data, 0x000C),
                     0x0110 => {
@@ -378,6 +401,8 @@ pub fn run_script(script: &[u8]) -> Result<Outcome, Violation> {
     let mut model = Model {
         k: 1 + u16::from(r.u8_or0()) % CAP as u16,
         latch: 0,
+        unaddressed: 0,
+        wrap_base: 0,
     };
     let mut now: u64 = 800_000_000_000_000_000;
     m.start(SystemTime(now));
@@ -479,6 +504,26 @@ pub fn run_script(script: &[u8]) -> Result<Outcome, Violation> {
                     0 => m.reset(),
                     1 => m.start(SystemTime(now)),
                     2 => m.request_delay_measurement(),
+                    4 => {
+                        // A slave resets (power cycle): station address gone, AL back to
+                        // INIT. The machine must notice and re-initialise without writing a
+                        // wrong value anywhere.
+                        let j = usize::from(r.u8_or0()) % CAP;
+                        if let Some(a) = al.get_mut(j) {
+                            *a = 0x0001;
+                        }
+                        if j < 8 {
+                            model.unaddressed |= 1u8 << j;
+                        }
+                    }
+                    5 => {
+                        // The slaves' 32-bit port times are about to wrap: the next latch
+                        // rounds straddle 2^32 ns.
+                        // The next latch (latch + 1) lands 1.5 µs below a multiple of 2^32.
+                        let next = u64::from(model.latch.wrapping_add(1)) * 1_000_000;
+                        let below_wrap = u32::MAX - 1_499;
+                        model.wrap_base = u64::from(below_wrap.wrapping_sub(next as u32));
+                    }
                     _ => {
                         // Skip straight to the machine's deadline.
                         if let Some(t) = m.poll_timeout() {
