@@ -151,19 +151,14 @@ fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
             }
         }
         let color = COLORS[s % COLORS.len()];
-        let _ = writeln!(
+        series(
             out,
-            r#"<polyline fill="none" stroke="{color}" stroke-width="1" points="{pts}"/>"#
-        );
-        let ly = y0 + 14.0 + 16.0 * legend as f64;
-        let _ = writeln!(
-            out,
-            r#"<line x1="{0}" y1="{ly}" x2="{1}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{2}" y="{3}" font-size="12">slave {4}</text>"#,
-            LEFT + pw + 12.0,
-            LEFT + pw + 32.0,
-            LEFT + pw + 38.0,
-            ly + 4.0,
-            s + 1
+            color,
+            &pts,
+            y0,
+            pw,
+            legend,
+            &format!("slave {}", s + 1),
         );
         legend += 1;
     }
@@ -241,21 +236,27 @@ fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
                 let _ = write!(pts, "{:.1},{:.1} ", x(t as f64), y(m as f64));
             }
         }
-        let _ = writeln!(
-            out,
-            r#"<polyline fill="none" stroke="{color}" stroke-width="1" points="{pts}"/>"#
-        );
-        let ly = y0 + 14.0 + 16.0 * j as f64;
-        let _ = writeln!(
-            out,
-            r#"<line x1="{0}" y1="{ly}" x2="{1}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{2}" y="{3}" font-size="12">{4}</text>"#,
-            LEFT + pw + 12.0,
-            LEFT + pw + 32.0,
-            LEFT + pw + 38.0,
-            ly + 4.0,
-            r.name
-        );
+        series(out, color, &pts, y0, pw, j, r.name);
     }
+}
+
+/// One plotted series: its polyline, and its entry (row `row`) in the legend right of a panel
+/// of width `pw` whose top is `y0`.
+fn series(out: &mut String, color: &str, pts: &str, y0: f64, pw: f64, row: usize, label: &str) {
+    let _ = writeln!(
+        out,
+        r#"<polyline fill="none" stroke="{color}" stroke-width="1" points="{pts}"/>"#
+    );
+    let ly = y0 + 14.0 + 16.0 * row as f64;
+    let _ = writeln!(
+        out,
+        r#"<line x1="{0}" y1="{ly}" x2="{1}" y2="{ly}" stroke="{color}" stroke-width="2"/><text x="{2}" y="{3}" font-size="12">{4}</text>"#,
+        LEFT + pw + 12.0,
+        LEFT + pw + 32.0,
+        LEFT + pw + 38.0,
+        ly + 4.0,
+        label
+    );
 }
 
 /// The SVG document for the given records (in panel order), followed by the lock panel.
