@@ -63,30 +63,8 @@ pub fn earliest_true_min<const N: u32, const P: usize>() -> Goal {
     let pre = Bool::and(ctx(), &pre_terms.iter().collect::<Vec<_>>());
     let times: [Sym<N>; P] = core::array::from_fn(|i| base.wrapping_add(offs[i]));
     let (found, idx) = k::earliest(&times, &act);
-    let any: Vec<&Bool<'static>> = act.iter().map(|a| a.b()).collect();
-    let mut claims = vec![found.b()._eq(&Bool::or(ctx(), &any))];
-    let mut in_range = Vec::new();
-    for i in 0..P {
-        let is_i = idx.bv()._eq(&int(i as i128, N));
-        in_range.push(is_i.clone());
-        let mut ok = vec![act[i].b().clone()];
-        for j in 0..P {
-            let le = if j < i {
-                offs[i].bv().bvult(offs[j].bv())
-            } else {
-                offs[i].bv().bvule(offs[j].bv())
-            };
-            ok.push(act[j].b().implies(&le));
-        }
-        let ok = Bool::and(ctx(), &ok.iter().collect::<Vec<_>>());
-        claims.push(Bool::and(ctx(), &[found.b(), &is_i]).implies(&ok));
-    }
-    claims.push(
-        found
-            .b()
-            .implies(&Bool::or(ctx(), &in_range.iter().collect::<Vec<_>>())),
-    );
-    (pre, Bool::and(ctx(), &claims.iter().collect::<Vec<_>>()))
+    let offs: Vec<BV<'static>> = offs.iter().map(|o| o.bv().clone()).collect();
+    (pre, earliest_claim::<N, P>(&offs, &act, &found, &idx))
 }
 
 /// [`earliest_true_min`] with the port times as free leaves: a free `base` with every
@@ -101,6 +79,18 @@ pub fn earliest_leaves<const N: u32, const P: usize>() -> Goal {
     let pre_terms: Vec<Bool<'static>> = offs.iter().map(|o| o.bvult(&half)).collect();
     let pre = Bool::and(ctx(), &pre_terms.iter().collect::<Vec<_>>());
     let (found, idx) = k::earliest(&times, &act);
+    (pre, earliest_claim::<N, P>(&offs, &act, &found, &idx))
+}
+
+/// The claim of both `earliest` goals, given each port's true position `offs` on the circle
+/// (order of `offs` = true order): `found` ⇔ some port is active, and when found the chosen
+/// index is in range, active, has the least true time, and is the first such.
+fn earliest_claim<const N: u32, const P: usize>(
+    offs: &[BV<'static>],
+    act: &[SymBool; P],
+    found: &SymBool,
+    idx: &Sym<N>,
+) -> Bool<'static> {
     let any: Vec<&Bool<'static>> = act.iter().map(|a| a.b()).collect();
     let mut claims = vec![found.b()._eq(&Bool::or(ctx(), &any))];
     let mut in_range = Vec::new();
@@ -124,7 +114,7 @@ pub fn earliest_leaves<const N: u32, const P: usize>() -> Goal {
             .b()
             .implies(&Bool::or(ctx(), &in_range.iter().collect::<Vec<_>>())),
     );
-    (pre, Bool::and(ctx(), &claims.iter().collect::<Vec<_>>()))
+    Bool::and(ctx(), &claims.iter().collect::<Vec<_>>())
 }
 
 /// REQ-TIME-006: r = extend_near(low, ref, kb) keeps the low kb bits of `low` and lies in
