@@ -1,6 +1,9 @@
-# Sourced by .ci/run. Bounded model checking of the DC state machine (P6): a model test binary
-# proofs/tests/model_check*.rs that drives the real no_std machine against an emulated ring with
-# fault actions over all interleavings up to its bound. Skipped until that model exists.
+# Sourced by .ci/run. Bounded model checking of the DC state machine (P6), in release mode:
+# proofs/tests/model_check_bfs.rs: explicit-state BFS with state hashing (proofs/src/model.rs)
+#   over (real no_std Machine, emulated line, wire, clock) from every fault-free bring-up state
+#   to depth 5-6 with 16+k fault/input actions, bounded liveness from every visited state;
+# proofs/tests/model_check.rs: every placement of <= 3 faults along the bring-up, and every
+#   5-action interleaving after bring-up prefixes (script enumeration).
 mc_tests=$(ls proofs/tests/model_check*.rs 2>/dev/null | xargs -r -n1 basename | sed 's/\.rs$//')
 if [ -z "$mc_tests" ]; then
     layer model-check "skipped: no model-check harness yet (proofs/tests/model_check*.rs; issue 7 item 3)"

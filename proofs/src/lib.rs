@@ -11,6 +11,7 @@ pub mod dc_math;
 #[cfg(not(kani))]
 pub mod kani_shim;
 pub mod machine;
+pub mod model;
 pub mod num;
 pub mod servo;
 #[cfg(feature = "smt")]

@@ -114,7 +114,7 @@ impl Reader<'_> {
 
 /// Truthful AL state of a station: stations `base..base+CAP` get script-chosen states, every
 /// other station counts as OP (never writable).
-fn al_truth(al: &[u16; CAP], base: u16, station: u16) -> u16 {
+pub(crate) fn al_truth(al: &[u16; CAP], base: u16, station: u16) -> u16 {
     station
         .checked_sub(base)
         .and_then(|i| al.get(usize::from(i)).copied())
@@ -136,7 +136,7 @@ fn writes(cmd: Command) -> bool {
 }
 
 /// Checks one frame produced by the machine (properties 2–4); returns the indices it used.
-fn check_tx(
+pub(crate) fn check_tx(
     frame: &[u8],
     cfg: &Config,
     al: &[u16; CAP],
@@ -204,13 +204,14 @@ fn check_tx(
 /// so configured-address datagrams to it go unanswered (WKC 0) until an APWR to 0x0010
 /// addresses it again, and its AL state falls back to INIT; a **port-time wrap** moves every
 /// latch close below 2^32 ns so the 32-bit receive times of one measurement straddle the wrap.
-struct Model {
-    k: u16,
-    latch: u32,
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(crate) struct Model {
+    pub(crate) k: u16,
+    pub(crate) latch: u32,
     /// Bit `p` set: the slave at position `p` was reset and has no station address yet.
-    unaddressed: u8,
+    pub(crate) unaddressed: u8,
     /// Added to every latch time (0, or just below 2^32 after a wrap fault).
-    wrap_base: u64,
+    pub(crate) wrap_base: u64,
 }
 
 impl Model {
@@ -218,7 +219,15 @@ impl Model {
         pos < 8 && self.unaddressed & (1u8 << pos) != 0
     }
 
-    fn answer(&mut self, cmd: u8, adp: u16, ado: u16, base: u16, now: u64, data: &mut [u8]) -> u16 {
+    pub(crate) fn answer(
+        &mut self,
+        cmd: u8,
+        adp: u16,
+        ado: u16,
+        base: u16,
+        now: u64,
+        data: &mut [u8],
+    ) -> u16 {
         let k = self.k;
         let put = |data: &mut [u8], v: u64| {
             for (b, v) in data.iter_mut().zip(v.to_le_bytes()) {

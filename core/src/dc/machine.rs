@@ -229,6 +229,25 @@ impl<const N: usize> Machine<N> {
     pub fn sync_start(&self) -> Option<SystemTime> {
         (self.sync_start != 0).then_some(SystemTime(self.sync_start))
     }
+    /// Whether a transmitted frame's datagrams are still awaited (until all came back, the
+    /// deadline passed, or `reset`/`start`). Only replies to that frame can be used.
+    pub fn is_awaiting_reply(&self) -> bool {
+        self.busy
+    }
+    /// A copy of the machine without its diagnostic counters: [`Stats`] and the frame count at
+    /// the last start (read only to report `Stats::lock_frames` and `Event::Locked::frames`)
+    /// are zeroed, and an empty event queue is rewound. Two machines whose control states are
+    /// equal react identically to every input, up to those counters. For explicit-state model
+    /// checkers (`proofs/src/model.rs` hashes its `Debug` form).
+    pub fn control_state(&self) -> Self {
+        let mut m = self.clone();
+        m.stats = Stats::default();
+        m.frames_at_start = 0;
+        if m.events.clone().pop().is_none() {
+            m.events = EventQueue::new();
+        }
+        m
+    }
 
     // ----- output ---------------------------------------------------------------------------
 

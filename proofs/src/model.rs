@@ -1,0 +1,621 @@
+//! Explicit-state model checker for REQ-PROP P6 (spec/SPEC.md §2; REQ-DC-103, REQ-DC-110,
+//! REQ-DC-113, REQ-CONV-008): breadth-first search with state hashing over
+//! (real no_std [`Machine`], emulated ring, frames on the wire, master time).
+//!
+//! A [`World`] is one global state: the machine under test, a bounded line of `k ≤ 4` ideal DC
+//! slaves (station addresses, truthful AL states, latch counter, 32-bit port-time base: the
+//! `Model` of [`crate::machine`]), the replies of the last two transmitted frames (each already
+//! processed by the ring, waiting on the wire) and the master clock. [`Action`]s are the
+//! machine's inputs and the faults: transmit (alone or after a foreign datagram in the caller's
+//! frame), deliver the newest or the older reply (reordering; a second delivery is a duplicate),
+//! deliver with every working counter 0 or +1 (wrong WKC), lose the reply, a junk frame, a
+//! foreign frame reusing our index with another command, a 10 µs tick, a jump to the machine's
+//! deadline, a slave reset (station address lost, AL back to INIT), a 32-bit port-time wrap of
+//! the next latch round, and the commands `reset`, `start`, `request_delay_measurement`.
+//!
+//! [`explore`] visits every state reachable within `depth` actions from each seed, deduplicated
+//! by a 128-bit fingerprint of the state ([`World::fingerprint`]: the machine's
+//! [`Machine::control_state`] — its diagnostic counters, which steer nothing, left out — plus
+//! ring, wire and clock), and checks on every transition:
+//!
+//! 1. no panic (`catch_unwind` around the step: a panic is a violation with its trace);
+//! 2. every transmitted frame: indices in range and distinct, 0x0920 written only by FPWR of
+//!    4/8 bytes to a station whose *current* ring AL state is INIT/PREOP/BOOT, register widths
+//!    ([`crate::machine::check_tx`]);
+//! 3. index matching: a received frame is used (not counted foreign) only if it is the reply to
+//!    the newest transmitted frame, that frame was not answered yet and no `reset`/`start`
+//!    came after it, and the machine still awaited it; a frame that is not used leaves the
+//!    control state unchanged; and the faithful reply to the frame awaited is used;
+//! 4. the machine stops awaiting a reply once the master clock passed transmission time +
+//!    `response_timeout_ns` and it was told the time;
+//!
+//! and on every state (liveness, bounded): the fault-free continuation (transmit, deliver,
+//! advance to the deadline) reaches `Cyclic` within [`LIVENESS_STEPS`] steps, or the state is
+//! `Idle` (only a `reset` leads there). Typed errors on the way are allowed (they restart).
+//!
+//! Limits: the ring has no clocks (offset *values* are checked elsewhere: P3/P4 and the harness
+//! end-to-end tests), AL states change only by a slave reset, and the depth bound is per seed.
+//! The seeds are the states of the fault-free bring-up, so every phase is a root of the search.
+
+use crate::machine::{al_truth, check_tx, script_config, Model, Outcome, Violation, CAP};
+use ecdc_core::dc::{Config, Machine, State};
+use ecdc_core::time::SystemTime;
+use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
+use std::collections::hash_map::DefaultHasher;
+use std::collections::HashSet;
+use std::hash::{Hash, Hasher};
+
+/// Bound of the fault-free continuation checked from every state.
+pub const LIVENESS_STEPS: usize = 400;
+
+/// Master time step of [`Action::Tick`], ns.
+pub const TICK_NS: u64 = 10_000;
+
+/// One input or fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Action {
+    /// `poll_transmit`; the ring processes the frame at once, its reply waits on the wire.
+    Tx,
+    /// `poll_transmit_into` a caller's frame that starts with a foreign LRW datagram.
+    TxForeign,
+    /// Deliver the reply to the newest frame (again: a duplicate).
+    DeliverNewest,
+    /// Deliver the reply to the older frame (reordering, late reply).
+    DeliverOlder,
+    /// Deliver the newest reply with every working counter 0 (not processed by any slave).
+    DeliverWkc0,
+    /// Deliver the newest reply with every working counter + 1.
+    DeliverWkcPlus,
+    /// The newest reply is lost.
+    Lose,
+    /// 8 bytes of junk arrive.
+    Junk,
+    /// A processed EtherCAT frame reusing the machine's next index with another command (LRD).
+    ForeignSameIndex,
+    /// `now += TICK_NS`, then `handle_timeout`.
+    Tick,
+    /// `now` jumps to `poll_timeout()` (if any), then `handle_timeout`.
+    ToDeadline,
+    /// The slave at this position power-cycles: station address lost, AL back to INIT.
+    SlaveReset(u8),
+    /// The next latch round's 32-bit port times straddle 2^32 ns.
+    Wrap,
+    /// `reset()`.
+    Reset,
+    /// `start()`.
+    Start,
+    /// `request_delay_measurement()`.
+    Remeasure,
+}
+
+impl Action {
+    /// Every action for a line of `k` slaves.
+    pub fn all(k: u16) -> Vec<Action> {
+        let mut v = vec![
+            Action::Tx,
+            Action::TxForeign,
+            Action::DeliverNewest,
+            Action::DeliverOlder,
+            Action::DeliverWkc0,
+            Action::DeliverWkcPlus,
+            Action::Lose,
+            Action::Junk,
+            Action::ForeignSameIndex,
+            Action::Tick,
+            Action::ToDeadline,
+            Action::Wrap,
+            Action::Reset,
+            Action::Start,
+            Action::Remeasure,
+        ];
+        for j in 0..k.min(CAP as u16) {
+            v.push(Action::SlaveReset(j as u8));
+        }
+        v
+    }
+}
+
+/// A reply waiting on the wire.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+struct OnWire {
+    reply: Vec<u8>,
+    /// Master time at transmission.
+    sent_at: u64,
+}
+
+/// One global state of the model.
+#[derive(Debug, Clone)]
+pub struct World {
+    m: Machine<CAP>,
+    cfg: Config,
+    line: Model,
+    al: [u16; CAP],
+    now: u64,
+    /// Replies of the last two transmitted frames, newest last.
+    wire: Vec<OnWire>,
+    /// The newest frame may still be answered (no reply used, no reset/start since).
+    live: bool,
+    /// What the transmitted frames showed (check_tx counters).
+    out: Outcome,
+    /// Mutation knobs for the checker's own tests (0 in real runs): bit `j` of `lie` makes
+    /// slave `j` report INIT in 0x0130 whatever its state; bit `j` of `dead` keeps slave `j`
+    /// without a station address for ever.
+    lie: u8,
+    dead: u8,
+}
+
+/// A property violation with the actions that led to it from the seed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Counterexample {
+    /// What was violated.
+    pub violation: ModelViolation,
+    /// Seed number and actions from it.
+    pub seed: usize,
+    /// The actions.
+    pub trace: Vec<Action>,
+    /// Steps of the fault-free continuation after `trace` (liveness check) before the
+    /// violation; 0 when the violation is on the last action of `trace`.
+    pub continuation: usize,
+}
+
+/// What the model checker can find.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ModelViolation {
+    /// A transmitted frame broke a P6 frame property.
+    Frame(Violation),
+    /// A method panicked.
+    Panic(String),
+    /// A frame was used that is not the reply to the frame awaited.
+    StaleAccepted(Action),
+    /// A frame that was not used changed the control state.
+    ForeignFrameUsed(Action),
+    /// The faithful reply to the awaited frame was not used.
+    LiveRejected(Action),
+    /// Still awaiting a reply after its deadline was signalled.
+    AwaitingPastDeadline,
+    /// The fault-free continuation did not reach `Cyclic` (state reached).
+    NoProgress(State),
+}
+
+impl World {
+    /// A started machine (`start` at a fixed epoch) and a line of `k` slaves with these AL
+    /// states (0x01 INIT, 0x02 PREOP, 0x04 SAFEOP, 0x08 OP, 0x14 SAFEOP+error).
+    pub fn new(k: u16, al: [u16; CAP]) -> Option<World> {
+        let cfg = script_config();
+        let mut m: Machine<CAP> = Machine::new(cfg).ok()?;
+        let now = 800_000_000_000_000_000;
+        m.start(SystemTime(now));
+        Some(World {
+            m,
+            cfg,
+            line: Model {
+                k: k.clamp(1, CAP as u16),
+                latch: 0,
+                unaddressed: 0,
+                wrap_base: 0,
+            },
+            al,
+            now,
+            wire: Vec::new(),
+            live: false,
+            out: Outcome::default(),
+            lie: 0,
+            dead: 0,
+        })
+    }
+
+    /// Mutation knob: the slaves in bit set `lie` answer "INIT" to every AL status read.
+    /// The checker must then find a 0x0920 write to a running slave (a test of the checker).
+    pub fn with_lying_slaves(mut self, lie: u8) -> World {
+        self.lie = lie;
+        self
+    }
+
+    /// Mutation knob: the slaves in bit set `dead` never get a station address back after
+    /// their reset. The bounded liveness check must then fail (a test of the checker).
+    pub fn with_dead_slaves(mut self, dead: u8) -> World {
+        self.dead = dead;
+        self
+    }
+
+    /// The machine.
+    pub fn machine(&self) -> &Machine<CAP> {
+        &self.m
+    }
+
+    /// 128-bit fingerprint of the state (machine control state, ring, wire, clock, flags).
+    pub fn fingerprint(&self) -> u128 {
+        let text = format!(
+            "{:?}|{:?}|{:?}|{}|{:?}|{}|{}|{}",
+            self.m.control_state(),
+            self.line,
+            self.al,
+            self.now,
+            self.wire,
+            self.live,
+            self.lie,
+            self.dead
+        );
+        let mut a = DefaultHasher::new();
+        0u8.hash(&mut a);
+        text.hash(&mut a);
+        let mut b = DefaultHasher::new();
+        1u8.hash(&mut b);
+        text.hash(&mut b);
+        (u128::from(a.finish()) << 64) | u128::from(b.finish())
+    }
+
+    /// The ring processes a frame: modelled answers, truthful AL status.
+    fn process(&mut self, frame: &[u8]) -> Vec<u8> {
+        let base = self.cfg.station_base;
+        let mut out = frame.to_vec();
+        let mut eth = EthernetFrame::new_unchecked(&mut out[..]);
+        eth.mark_processed_by_slave();
+        if let Ok(mut ecat) = eth.ecat_frame_mut() {
+            for mut d in ecat.iter_mut().flatten() {
+                let (cmd, adp, ado) = (d.command_raw(), d.adp(), d.ado());
+                let wkc = self
+                    .line
+                    .answer(cmd, adp, ado, base, self.now, d.data_mut());
+                if cmd == Command::Fprd.code() && ado == 0x0130 {
+                    let pos = adp.wrapping_sub(base);
+                    let lies = pos < 8 && self.lie & (1u8 << pos) != 0;
+                    let al = if lies {
+                        0x0001
+                    } else {
+                        al_truth(&self.al, base, adp)
+                    };
+                    let v = al.to_le_bytes();
+                    for (b, v) in d.data_mut().iter_mut().zip(v) {
+                        *b = v;
+                    }
+                }
+                d.set_wkc(wkc);
+            }
+        }
+        self.line.unaddressed |= self.dead;
+        out
+    }
+
+    fn transmitted(&mut self, frame: Vec<u8>, foreign: Option<u8>) -> Result<(), ModelViolation> {
+        check_tx(&frame, &self.cfg, &self.al, &mut self.out, foreign)
+            .map_err(ModelViolation::Frame)?;
+        self.out.frames += 1;
+        let reply = self.process(&frame);
+        self.wire.push(OnWire {
+            reply,
+            sent_at: self.now,
+        });
+        if self.wire.len() > 2 {
+            self.wire.remove(0);
+        }
+        self.live = true;
+        Ok(())
+    }
+
+    /// Delivers `bytes`; `newest`: it is the (possibly altered) reply to the newest frame;
+    /// `faithful`: every datagram of that reply is intact apart from working counters.
+    fn deliver(
+        &mut self,
+        a: Action,
+        bytes: &[u8],
+        newest: bool,
+        faithful: bool,
+    ) -> Result<(), ModelViolation> {
+        let awaiting = self.m.is_awaiting_reply();
+        let before = format!("{:?}", self.m.control_state());
+        let foreign_before = self.m.stats().foreign_frames;
+        self.m.handle_frame(SystemTime(self.now), bytes);
+        let used = self.m.stats().foreign_frames == foreign_before;
+        let answerable = newest && self.live && awaiting;
+        if used && !answerable {
+            return Err(ModelViolation::StaleAccepted(a));
+        }
+        if !used && format!("{:?}", self.m.control_state()) != before {
+            return Err(ModelViolation::ForeignFrameUsed(a));
+        }
+        if answerable && faithful && !used {
+            return Err(ModelViolation::LiveRejected(a));
+        }
+        if used {
+            self.live = false;
+        }
+        Ok(())
+    }
+
+    fn altered_newest(&self, f: impl Fn(u16) -> u16) -> Option<Vec<u8>> {
+        let mut bytes = self.wire.last()?.reply.clone();
+        let mut eth = EthernetFrame::new_unchecked(&mut bytes[..]);
+        if let Ok(mut ecat) = eth.ecat_frame_mut() {
+            for mut d in ecat.iter_mut().flatten() {
+                let w = d.wkc();
+                d.set_wkc(f(w));
+            }
+        }
+        Some(bytes)
+    }
+
+    fn advance(&mut self, to: u64) -> Result<(), ModelViolation> {
+        self.now = self.now.max(to);
+        self.m.handle_timeout(SystemTime(self.now));
+        if self.m.is_awaiting_reply() {
+            if let Some(w) = self.wire.last() {
+                if self.live && self.now >= w.sent_at.saturating_add(self.cfg.response_timeout_ns) {
+                    return Err(ModelViolation::AwaitingPastDeadline);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies one action; checks the transition properties.
+    pub fn step(&mut self, a: Action) -> Result<(), ModelViolation> {
+        let mut buf = [0u8; 1514];
+        match a {
+            Action::Tx => {
+                if let Some(n) = self.m.poll_transmit(SystemTime(self.now), &mut buf) {
+                    let f = buf.get(..n).unwrap_or(&[]).to_vec();
+                    self.transmitted(f, None)?;
+                }
+            }
+            Action::TxForeign => {
+                let foreign = self.cfg.index_first.wrapping_sub(1);
+                let Ok(mut b) = FrameBuilder::new(&mut buf) else {
+                    return Ok(());
+                };
+                let _ = b.push(
+                    Command::Lrw,
+                    foreign,
+                    Address::logical(0x0001_0000),
+                    &[0u8; 8],
+                );
+                if self.m.poll_transmit_into(SystemTime(self.now), &mut b) {
+                    if let Ok(n) = b.finish() {
+                        let f = buf.get(..n).unwrap_or(&[]).to_vec();
+                        self.transmitted(f, Some(foreign))?;
+                    }
+                }
+            }
+            Action::DeliverNewest => {
+                if let Some(w) = self.wire.last() {
+                    let r = w.reply.clone();
+                    self.deliver(a, &r, true, true)?;
+                }
+            }
+            Action::DeliverOlder => {
+                if self.wire.len() == 2 {
+                    if let Some(w) = self.wire.first() {
+                        let r = w.reply.clone();
+                        self.deliver(a, &r, false, true)?;
+                    }
+                }
+            }
+            Action::DeliverWkc0 => {
+                if let Some(r) = self.altered_newest(|_| 0) {
+                    self.deliver(a, &r, true, true)?;
+                }
+            }
+            Action::DeliverWkcPlus => {
+                if let Some(r) = self.altered_newest(|w| w.wrapping_add(1)) {
+                    self.deliver(a, &r, true, true)?;
+                }
+            }
+            Action::Lose => {
+                self.wire.pop();
+                // The reply to the newest frame can no longer come: the older one is not newest.
+                self.live = false;
+            }
+            Action::Junk => {
+                let junk = [0xFFu8, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x88, 0xA4];
+                self.deliver(a, &junk, false, false)?;
+            }
+            Action::ForeignSameIndex => {
+                // Processed frame (source MAC bit set) with one LRD datagram at the index the
+                // machine used last: index matches, command does not.
+                let idx = self
+                    .wire
+                    .last()
+                    .and_then(|w| {
+                        let eth = EthernetFrame::new_checked(&w.reply[..]).ok()?;
+                        let f = eth.ecat_frame().ok()?;
+                        let d = f.iter().flatten().next()?;
+                        Some(d.index())
+                    })
+                    .unwrap_or(self.cfg.index_first);
+                let Ok(mut b) = FrameBuilder::new(&mut buf) else {
+                    return Ok(());
+                };
+                let _ = b.push(Command::Lrd, idx, Address::logical(0x0002_0000), &[0u8; 4]);
+                if let Ok(n) = b.finish() {
+                    let mut f = buf.get(..n).unwrap_or(&[]).to_vec();
+                    EthernetFrame::new_unchecked(&mut f[..]).mark_processed_by_slave();
+                    self.deliver(a, &f, false, false)?;
+                }
+            }
+            Action::Tick => self.advance(self.now.saturating_add(TICK_NS))?,
+            Action::ToDeadline => {
+                if let Some(t) = self.m.poll_timeout() {
+                    self.advance(t.as_nanos())?;
+                }
+            }
+            Action::SlaveReset(j) => {
+                if let Some(x) = self.al.get_mut(usize::from(j)) {
+                    *x = 0x0001;
+                    self.line.unaddressed |= 1u8 << j;
+                }
+            }
+            Action::Wrap => {
+                let next = u64::from(self.line.latch.wrapping_add(1)) * 1_000_000;
+                let below_wrap = u32::MAX - 1_499;
+                self.line.wrap_base = u64::from(below_wrap.wrapping_sub(next as u32));
+            }
+            Action::Reset => {
+                self.m.reset();
+                self.live = false;
+            }
+            Action::Start => {
+                self.m.start(SystemTime(self.now));
+                self.live = false;
+            }
+            Action::Remeasure => self.m.request_delay_measurement(),
+        }
+        while self.m.poll_event().is_some() {}
+        self.out.reached_cyclic |= self.m.state() == State::Cyclic;
+        Ok(())
+    }
+
+    /// One step of the fault-free continuation: transmit and deliver, else go to the deadline
+    /// (or tick when nothing is scheduled).
+    fn nominal_step(&mut self) -> Result<(), ModelViolation> {
+        if self.m.is_awaiting_reply() && self.live && !self.wire.is_empty() {
+            return self.step(Action::DeliverNewest);
+        }
+        let sent = self.out.frames;
+        self.step(Action::Tx)?;
+        if self.out.frames != sent {
+            return self.step(Action::DeliverNewest);
+        }
+        match self.m.poll_timeout() {
+            Some(t) if t.as_nanos() > self.now => self.step(Action::ToDeadline),
+            _ => self.step(Action::Tick),
+        }
+    }
+}
+
+/// Runs `f` and turns a panic into a violation.
+fn guarded(f: impl FnOnce() -> Result<(), ModelViolation>) -> Result<(), ModelViolation> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(p) => Err(ModelViolation::Panic(
+            p.downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default(),
+        )),
+    }
+}
+
+/// States of the fault-free run from `w` until `Cyclic` plus `extra` steps into it.
+pub fn nominal_path(w: &World, extra: usize) -> Vec<World> {
+    let mut w = w.clone();
+    let mut v = vec![w.clone()];
+    let mut after = None;
+    for i in 0..LIVENESS_STEPS {
+        if w.nominal_step().is_err() {
+            break;
+        }
+        v.push(w.clone());
+        if w.m.state() == State::Cyclic && after.is_none() {
+            after = Some(i);
+        }
+        if after.is_some_and(|a| i >= a + extra) {
+            break;
+        }
+    }
+    v
+}
+
+/// What a search saw.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Report {
+    /// Distinct states (fingerprints) visited.
+    pub states: u64,
+    /// Transitions taken (actions applied, including to known states).
+    pub transitions: u64,
+    /// Distinct states whose machine is in `Cyclic`.
+    pub cyclic_states: u64,
+    /// Distinct machine states (`State`) seen, as a bit set over `State::ALL`.
+    pub machine_states: u32,
+    /// Transmitted frames that wrote 0x0920 (checked against the ring's AL states).
+    pub offset_writes: u64,
+    /// States whose fault-free continuation was followed to `Cyclic` (liveness).
+    pub liveness_checked: u64,
+    /// Deepest level searched.
+    pub depth: usize,
+}
+
+/// Breadth-first search from all seeds at once (level 0) up to `depth` actions, deduplicated
+/// by fingerprint: every state within `depth` actions of some seed is visited once, every
+/// transition out of it and every visited state is checked. Deterministic (one thread, fixed
+/// action order, fixed hash keys).
+pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexample>> {
+    let mut seen: HashSet<u128> = HashSet::new();
+    // Fingerprints known to reach `Cyclic` without faults (liveness memo).
+    let mut live_ok: HashSet<u128> = HashSet::new();
+    let mut r = Report::default();
+    let fail = |(violation, continuation), seed: usize, trace: &[Action]| {
+        Box::new(Counterexample {
+            violation,
+            seed,
+            trace: trace.to_vec(),
+            continuation,
+        })
+    };
+    let mut level: Vec<(World, usize, Vec<Action>)> = Vec::new();
+    for (si, seed) in seeds.iter().enumerate() {
+        if seen.insert(seed.fingerprint()) {
+            level.push((seed.clone(), si, Vec::new()));
+        }
+    }
+    for d in 0..=depth {
+        let mut next = Vec::new();
+        for (w, si, trace) in &level {
+            r.states += 1;
+            let st = w.m.state();
+            r.cyclic_states += u64::from(st == State::Cyclic);
+            if let Some(i) = State::ALL.iter().position(|s| *s == st) {
+                r.machine_states |= 1 << i;
+            }
+            liveness(w, &mut live_ok).map_err(|v| fail(v, *si, trace))?;
+            r.liveness_checked += 1;
+            if d == depth {
+                continue;
+            }
+            for a in Action::all(w.line.k) {
+                let mut w2 = w.clone();
+                let writes = w2.out.offset_writes;
+                let mut t = trace.clone();
+                t.push(a);
+                guarded(|| w2.step(a)).map_err(|v| fail((v, 0), *si, &t))?;
+                r.transitions += 1;
+                r.offset_writes += u64::from(w2.out.offset_writes - writes);
+                if seen.insert(w2.fingerprint()) {
+                    next.push((w2, *si, t));
+                }
+            }
+        }
+        r.depth = d;
+        level = next;
+        if level.is_empty() {
+            break;
+        }
+    }
+    Ok(r)
+}
+
+/// Bounded liveness from `w`: the fault-free continuation reaches `Cyclic` (or `w` is `Idle`).
+fn liveness(w: &World, ok: &mut HashSet<u128>) -> Result<(), (ModelViolation, usize)> {
+    if w.m.state() == State::Idle {
+        return Ok(());
+    }
+    let mut w = w.clone();
+    let mut path = Vec::new();
+    for _ in 0..LIVENESS_STEPS {
+        if w.m.state() == State::Cyclic {
+            break;
+        }
+        let fp = w.fingerprint();
+        if ok.contains(&fp) {
+            break;
+        }
+        path.push(fp);
+        let n = path.len();
+        guarded(|| w.nominal_step()).map_err(|v| (v, n))?;
+    }
+    let st = w.m.state();
+    if st != State::Cyclic && !path.is_empty() && !ok.contains(&w.fingerprint()) {
+        return Err((ModelViolation::NoProgress(st), path.len()));
+    }
+    ok.extend(path);
+    Ok(())
+}
