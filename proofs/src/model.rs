@@ -38,7 +38,7 @@
 //! The seeds are the states of the fault-free bring-up, so every phase is a root of the search.
 
 use crate::machine::{al_truth, check_tx, script_config, Model, Outcome, Violation, CAP};
-use ecdc_core::dc::{Config, Machine, State};
+use ecdc_core::dc::{Config, Event, Machine, State};
 use ecdc_core::time::SystemTime;
 use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
 use std::collections::hash_map::DefaultHasher;
@@ -142,6 +142,9 @@ pub struct World {
     /// without a station address for ever.
     lie: u8,
     dead: u8,
+    /// Events and the frame transmitted by the last [`World::step`] (not part of the state).
+    last_events: Vec<Event>,
+    last_tx: Option<(State, Vec<u8>)>,
 }
 
 /// A property violation with the actions that led to it from the seed.
@@ -201,6 +204,8 @@ impl World {
             out: Outcome::default(),
             lie: 0,
             dead: 0,
+            last_events: Vec::new(),
+            last_tx: None,
         })
     }
 
@@ -221,6 +226,17 @@ impl World {
     /// The machine.
     pub fn machine(&self) -> &Machine<CAP> {
         &self.m
+    }
+
+    /// Events drained by the last [`World::step`], in order.
+    pub fn last_events(&self) -> &[Event] {
+        &self.last_events
+    }
+
+    /// The frame transmitted by the last [`World::step`], with the machine state right after
+    /// the transmission.
+    pub fn last_tx(&self) -> Option<&(State, Vec<u8>)> {
+        self.last_tx.as_ref()
     }
 
     /// 128-bit fingerprint of the state (machine control state, ring, wire, clock, flags).
@@ -282,6 +298,7 @@ impl World {
             .map_err(ModelViolation::Frame)?;
         self.out.frames += 1;
         let reply = self.process(&frame);
+        self.last_tx = Some((self.m.state(), frame));
         self.wire.push(OnWire {
             reply,
             sent_at: self.now,
@@ -351,6 +368,8 @@ impl World {
     /// Applies one action; checks the transition properties.
     pub fn step(&mut self, a: Action) -> Result<(), ModelViolation> {
         let mut buf = [0u8; 1514];
+        self.last_events.clear();
+        self.last_tx = None;
         match a {
             Action::Tx => {
                 if let Some(n) = self.m.poll_transmit(SystemTime(self.now), &mut buf) {
@@ -459,7 +478,9 @@ impl World {
             }
             Action::Remeasure => self.m.request_delay_measurement(),
         }
-        while self.m.poll_event().is_some() {}
+        while let Some(e) = self.m.poll_event() {
+            self.last_events.push(e);
+        }
         self.out.reached_cyclic |= self.m.state() == State::Cyclic;
         Ok(())
     }

@@ -9,8 +9,11 @@
 //! - [`network`]: a simulation-by-definition of a latch frame walking a tree of ESCs; the oracle
 //!   for propagation delays, receive times and offsets.
 //! - [`servo`]: servo specification (owned by the servo area).
+//! - [`machine_model`]: reference model of the DC machine's observable contract (states,
+//!   allowed requests per state, events after responses).
 
 pub mod esc_dc;
+pub mod machine_model;
 pub mod network;
 pub mod register;
 pub mod seed000;
