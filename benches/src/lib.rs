@@ -1,1 +1,12 @@
-//! Benchmarks live in `benches/`; this library is empty on purpose.
+//! Fixtures shared by the criterion benches (`benches/`) and the `scale` binary.
+//!
+//! - [`cyclic`]: a DC [`Machine`](ecdc_core::dc::Machine) brought up on the emulator until
+//!   locked, plus a ring of real request/response pairs captured from it, replayed without the
+//!   emulator so a bench measures only the core's per-cycle work.
+//! - [`trees`]: network-model trees (spec crate) and the `SlaveSample`s a master would read
+//!   after one latch, for the delay-computation benches.
+//! - [`svg`]: a small line-plot writer for `benches/results/*.svg`.
+
+pub mod cyclic;
+pub mod svg;
+pub mod trees;
