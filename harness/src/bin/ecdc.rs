@@ -25,6 +25,8 @@ enum Command {
     Run(cli::run::Args),
     /// Measure round trips on a network interface (back to back and inside a cycle).
     Rtt(cli::rtt::Args),
+    /// Benchmarks: `ecdc bench dc` compares DC precision with other masters' schemes.
+    Bench(cli::bench::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -36,6 +38,7 @@ fn main() -> std::process::ExitCode {
         Command::Scan(args) => cli::scan::run(args),
         Command::Run(args) => cli::run::run(args),
         Command::Rtt(args) => cli::rtt::run(args),
+        Command::Bench(args) => cli::bench::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

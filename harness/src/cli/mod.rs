@@ -1,5 +1,6 @@
 //! One module per `ecdc` subcommand; `src/bin/ecdc.rs` only parses arguments and dispatches.
 
+pub mod bench;
 pub mod decode;
 pub mod emulate;
 pub mod link_args;

@@ -289,3 +289,206 @@ pub fn render(records: &[&Record]) -> String {
     out.push_str("</svg>\n");
     out
 }
+
+/// One scheme's curves in a `ecdc bench dc` plot.
+#[derive(Debug, Clone, Default)]
+pub struct BenchSeries {
+    /// Scheme name (legend).
+    pub name: String,
+    /// (true time ns, max |clock error| over slaves ns; `None` before the reference has a
+    /// system time), every lock-detection sample.
+    pub track: Vec<(u64, Option<u64>)>,
+    /// |SYNC0 skew| of every pair in the steady-state window, ns, sorted ascending.
+    pub skews: Vec<u64>,
+}
+
+/// Colour of a scheme in the bench plots.
+fn bench_color(name: &str, k: usize) -> &'static str {
+    match name {
+        "ecdc" => "#1f77b4",
+        "seed000" => "#d62728",
+        "igh" => "#2ca02c",
+        "ethercrab" => "#ff7f0e",
+        "uncompensated" => "#7f7f7f",
+        _ => COLORS[k % COLORS.len()],
+    }
+}
+
+/// Log-scale y axis 1 ns .. 10^`decades` ns with grid lines, for a panel at `y0`.
+fn log_axis(out: &mut String, y0: f64, pw: f64, decades: i32) -> impl Fn(f64) -> f64 {
+    let ph = PANEL_H;
+    let hi = f64::from(decades);
+    let y = move |e: f64| y0 + ph - (e.max(1.0).log10().clamp(0.0, hi) / hi) * ph;
+    let labels = [
+        "1 ns", "10 ns", "100 ns", "1 µs", "10 µs", "100 µs", "1 ms", "10 ms",
+    ];
+    for (k, label) in labels.iter().enumerate().take(decades as usize + 1) {
+        let v = 10f64.powi(k as i32);
+        let dash = if k == 2 {
+            ""
+        } else {
+            r#" stroke-dasharray="2 4""#
+        };
+        let _ = writeln!(
+            out,
+            r##"<line x1="{LEFT}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="#ccc"{dash}/><text x="{2}" y="{3:.1}" font-size="11" text-anchor="end">{label}</text>"##,
+            y(v),
+            LEFT + pw,
+            LEFT - 6.0,
+            y(v) + 4.0
+        );
+    }
+    y
+}
+
+/// The `ecdc bench dc` plot of one scenario: (1) lock — the largest |clock error| over all
+/// slaves against true time for every scheme (log scale, min/max envelope per pixel column);
+/// (2) the distribution of steady-state |SYNC0 skew| (empirical CDF, log x). `command` is
+/// written into the file.
+pub fn render_bench(title: &str, command: &str, series: &[BenchSeries]) -> String {
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let h = TOP + 2.0 * (PANEL_H + GAP) + 40.0;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(out, "<!-- produced by: {} -->", esc(command));
+    let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="20" font-size="13">{}</text>"#,
+        esc(title)
+    );
+    let _ = writeln!(
+        out,
+        r##"<text x="{LEFT}" y="{}" font-size="11" fill="#666">{}</text>"##,
+        h - 12.0,
+        esc(command)
+    );
+    // Panel 1: lock.
+    let y0 = TOP + 30.0;
+    let t_end = series
+        .iter()
+        .filter_map(|s| s.track.last().map(|p| p.0))
+        .max()
+        .unwrap_or(1)
+        .max(1) as f64;
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Lock: max |clock error| over slaves (true time, log scale)</text>"#,
+        y0 - 10.0
+    );
+    let _ = writeln!(
+        out,
+        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    );
+    let y = log_axis(&mut out, y0, pw, 6);
+    let x = |t: f64| LEFT + (t / t_end).min(1.0) * pw;
+    for k in 0..=5 {
+        let t = t_end * f64::from(k) / 5.0;
+        let _ = writeln!(
+            out,
+            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.2} s</text>"#,
+            x(t),
+            y0 + ph + 16.0,
+            t / 1e9
+        );
+    }
+    let cols = pw as usize;
+    for (k, s) in series.iter().enumerate() {
+        let mut pts = String::new();
+        let mut j = 0usize;
+        for c in 0..cols {
+            let end_t = t_end * (c + 1) as f64 / cols as f64;
+            let (mut lo, mut hi): (Option<u64>, Option<u64>) = (None, None);
+            let mut tk = 0f64;
+            while j < s.track.len() && (s.track[j].0 as f64) <= end_t {
+                if let Some(m) = s.track[j].1 {
+                    lo = Some(lo.map_or(m, |l| l.min(m)));
+                    hi = Some(hi.map_or(m, |h| h.max(m)));
+                    tk = s.track[j].0 as f64;
+                }
+                j += 1;
+            }
+            if let (Some(l), Some(h)) = (lo, hi) {
+                let _ = write!(pts, "{:.1},{:.1} ", x(tk), y(l as f64));
+                if h != l {
+                    let _ = write!(pts, "{:.1},{:.1} ", x(tk), y(h as f64));
+                }
+            }
+        }
+        series_line(&mut out, bench_color(&s.name, k), &pts, y0, pw, k, &s.name);
+    }
+    // Panel 2: skew CDF.
+    let y0 = TOP + 30.0 + PANEL_H + GAP;
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Steady-state |SYNC0 skew| vs the reference: fraction of pairs ≤ x</text>"#,
+        y0 - 10.0
+    );
+    let _ = writeln!(
+        out,
+        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    );
+    let decades = 7f64;
+    let xs = |v: f64| LEFT + (v.max(1.0).log10().clamp(0.0, decades) / decades) * pw;
+    let yf = |f: f64| y0 + ph - f.clamp(0.0, 1.0) * ph;
+    for (k, label) in [
+        "1 ns", "10 ns", "100 ns", "1 µs", "10 µs", "100 µs", "1 ms", "10 ms",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let v = 10f64.powi(k as i32);
+        let _ = writeln!(
+            out,
+            r##"<line x1="{0:.1}" y1="{y0}" x2="{0:.1}" y2="{1}" stroke="#ccc" stroke-dasharray="2 4"/><text x="{0:.1}" y="{2}" font-size="11" text-anchor="middle">{label}</text>"##,
+            xs(v),
+            y0 + ph,
+            y0 + ph + 16.0
+        );
+    }
+    for f in [0.0, 0.5, 0.99, 1.0] {
+        let _ = writeln!(
+            out,
+            r#"<text x="{}" y="{:.1}" font-size="11" text-anchor="end">{f}</text>"#,
+            LEFT - 6.0,
+            yf(f) + 4.0
+        );
+    }
+    for (k, s) in series.iter().enumerate() {
+        let n = s.skews.len();
+        let mut pts = String::new();
+        if n > 0 {
+            let steps = n.min(400);
+            for q in 0..=steps {
+                let idx = ((q * n) / steps).min(n - 1);
+                let frac = (idx + 1) as f64 / n as f64;
+                let _ = write!(pts, "{:.1},{:.1} ", xs(s.skews[idx] as f64), yf(frac));
+            }
+        }
+        let label = if n == 0 {
+            format!("{} (no pairs)", s.name)
+        } else {
+            s.name.clone()
+        };
+        series_line(&mut out, bench_color(&s.name, k), &pts, y0, pw, k, &label);
+    }
+    out.push_str("</svg>\n");
+    out
+}
+
+/// [`series`] for the bench plots (same drawing).
+fn series_line(
+    out: &mut String,
+    color: &str,
+    pts: &str,
+    y0: f64,
+    pw: f64,
+    row: usize,
+    label: &str,
+) {
+    series(out, color, pts, y0, pw, row, &esc(label));
+}

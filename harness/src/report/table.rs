@@ -174,3 +174,31 @@ pub fn render(r: &Report) -> String {
     }
     out
 }
+
+/// A GitHub-flavoured Markdown table: the header row, the separator (numeric columns, i.e. all
+/// but the first `left` ones, right-aligned) and one row per entry; `|` in cells is escaped.
+pub fn markdown(headers: &[&str], left: usize, rows: &[Vec<String>]) -> String {
+    let cell = |s: &str| s.replace('|', "\\|");
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "| {} |",
+        headers
+            .iter()
+            .map(|h| cell(h))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
+    let seps: Vec<&str> = (0..headers.len())
+        .map(|k| if k < left { "---" } else { "---:" })
+        .collect();
+    let _ = writeln!(out, "|{}|", seps.join("|"));
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "| {} |",
+            r.iter().map(|c| cell(c)).collect::<Vec<_>>().join(" | ")
+        );
+    }
+    out
+}

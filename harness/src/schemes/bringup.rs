@@ -139,19 +139,34 @@ pub fn frmw(link: &mut Link) -> anyhow::Result<u16> {
     Ok(r.first().map(|r| r.wkc).unwrap_or(0))
 }
 
-/// Reads the reference's system time, puts the first SYNC0 pulse `SYNC_START_LEAD_NS` later
+/// The SYNC0 lead for `n` slaves when one frame takes `per_frame_ns`: `SYNC_START_LEAD_NS`,
+/// unless programming the slaves (4 frames each) would take longer than half of it — then
+/// twice that programming time, so the start time is still ahead when the last slave is
+/// activated (only long lines: 512 slaves need ~1.2 s; 6 slaves ~0.3 ms keep 100 ms).
+pub fn sync0_lead(n: usize, per_frame_ns: u64) -> u64 {
+    let programming = per_frame_ns.saturating_mul(4).saturating_mul(n as u64);
+    if programming.saturating_mul(2) > SYNC_START_LEAD_NS {
+        programming.saturating_mul(2)
+    } else {
+        SYNC_START_LEAD_NS
+    }
+}
+
+/// Reads the reference's system time, puts the first SYNC0 pulse [`sync0_lead`] later
 /// on the cycle grid, and programs and activates SYNC0 on every slave (0x0981 = 0, 0x0990,
 /// 0x09A0, then 0x0980/0x0981 = AssignActivate 0x0300). Returns the start system time.
 pub fn program_sync0(link: &mut Link, n: usize, cycle_ns: u32) -> anyhow::Result<u64> {
+    let t0 = link.now;
     let d = link.one(
         Command::Fprd,
         Address::configured(station(0), reg::SYSTEM_TIME),
         &[0u8; 8],
         1,
     )?;
+    let lead = sync0_lead(n, link.now.saturating_sub(t0));
     let now = le_u64(&d);
     let cycle = u64::from(cycle_ns.max(1));
-    let start = (now.saturating_add(SYNC_START_LEAD_NS) / cycle + 1).saturating_mul(cycle);
+    let start = (now.saturating_add(lead) / cycle + 1).saturating_mul(cycle);
     for i in 0..n {
         let st = station(i);
         link.one(

@@ -11,9 +11,12 @@ use crate::sim::Sim;
 /// Slave capacity of the simulated machine.
 pub const CAPACITY: usize = 256;
 
-/// ecdc's machine on the emulator.
-pub struct Ecdc {
-    sim: Sim<CAPACITY>,
+/// ecdc's machine on the emulator, with the default capacity.
+pub type Ecdc = EcdcN<CAPACITY>;
+
+/// ecdc's machine on the emulator, for up to `N` slaves.
+pub struct EcdcN<const N: usize> {
+    sim: Sim<N>,
     dist_frames: u64,
 }
 
@@ -35,20 +38,19 @@ pub fn config(t_diff_ns: i32, cycle_ns: u32) -> Config {
     }
 }
 
-impl Ecdc {
+impl<const N: usize> EcdcN<N> {
     /// The machine with `cfg` on `net`, started at true time 0.
     pub fn new(net: Network, cfg: Config) -> anyhow::Result<Self> {
-        if net.slave_count() > CAPACITY {
+        if net.slave_count() > N {
             anyhow::bail!(
-                "ecdc simulate supports up to {CAPACITY} slaves, scenario has {}",
+                "ecdc simulate supports up to {N} slaves, scenario has {}",
                 net.slave_count()
             );
         }
-        let m: Machine<CAPACITY> =
-            Machine::new(cfg).map_err(|e| anyhow::anyhow!("ecdc config: {e:?}"))?;
+        let m: Machine<N> = Machine::new(cfg).map_err(|e| anyhow::anyhow!("ecdc config: {e:?}"))?;
         let mut sim = Sim::new(m, net);
         sim.start();
-        Ok(Ecdc {
+        Ok(EcdcN {
             sim,
             dist_frames: 0,
         })
@@ -60,7 +62,7 @@ impl Ecdc {
     }
 
     /// The machine.
-    pub fn machine(&self) -> &Machine<CAPACITY> {
+    pub fn machine(&self) -> &Machine<N> {
         &self.sim.machine
     }
 }
@@ -73,7 +75,7 @@ pub fn max_anchor(net: &Network) -> TrueTime {
         .unwrap_or(0)
 }
 
-impl Scheme for Ecdc {
+impl<const N: usize> Scheme for EcdcN<N> {
     fn name(&self) -> &'static str {
         "ecdc"
     }

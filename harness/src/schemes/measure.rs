@@ -91,13 +91,17 @@ fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     (n > 0).then(|| s / n as f64)
 }
 
-/// Computes the summary of a record.
-pub fn summarize(r: &Record) -> Summary {
+/// Start of the steady-state window (last half of the cyclic phase), if SYNC0 ever fired.
+pub fn window_start(r: &Record) -> Option<u64> {
     let cyclic_start = r.sync0.iter().map(|e| e.true_time).min();
-    let win_start = cyclic_start.map(|c| c + (r.end.saturating_sub(c)) / 2);
-    let in_win = |t: u64| win_start.is_some_and(|w| t >= w && t <= r.end);
+    cyclic_start.map(|c| c + (r.end.saturating_sub(c)) / 2)
+}
 
-    // Skew per pulse.
+/// Every (slave, signed skew in ns) pair of the steady-state window, in pulse order (the pairs
+/// the skew statistics are computed over).
+pub fn window_skews(r: &Record) -> Vec<(usize, i64)> {
+    let win_start = window_start(r);
+    let in_win = |t: u64| win_start.is_some_and(|w| t >= w && t <= r.end);
     let mut pulses: BTreeMap<u64, Vec<(usize, u64)>> = BTreeMap::new();
     for e in &r.sync0 {
         pulses
@@ -105,9 +109,7 @@ pub fn summarize(r: &Record) -> Summary {
             .or_default()
             .push((e.slave, e.true_time));
     }
-    let mut all: Vec<u64> = Vec::new();
-    let mut signed_sum = 0f64;
-    let mut per_slave: Vec<Vec<u64>> = vec![Vec::new(); r.slaves];
+    let mut out = Vec::new();
     for edges in pulses.values() {
         let Some(&(_, tref)) = edges.iter().find(|(s, _)| *s == r.reference) else {
             continue;
@@ -119,12 +121,27 @@ pub fn summarize(r: &Record) -> Summary {
             if s == r.reference {
                 continue;
             }
-            let d = t as i64 - tref as i64;
-            signed_sum += d as f64;
-            all.push(d.unsigned_abs());
-            if let Some(v) = per_slave.get_mut(s) {
-                v.push(d.unsigned_abs());
-            }
+            out.push((s, t as i64 - tref as i64));
+        }
+    }
+    out
+}
+
+/// Computes the summary of a record.
+pub fn summarize(r: &Record) -> Summary {
+    let cyclic_start = r.sync0.iter().map(|e| e.true_time).min();
+    let win_start = window_start(r);
+    let in_win = |t: u64| win_start.is_some_and(|w| t >= w && t <= r.end);
+
+    // Skew per pulse.
+    let mut all: Vec<u64> = Vec::new();
+    let mut signed_sum = 0f64;
+    let mut per_slave: Vec<Vec<u64>> = vec![Vec::new(); r.slaves];
+    for (s, d) in window_skews(r) {
+        signed_sum += d as f64;
+        all.push(d.unsigned_abs());
+        if let Some(v) = per_slave.get_mut(s) {
+            v.push(d.unsigned_abs());
         }
     }
     let skew_mean = mean(all.iter().map(|&x| x as f64));

@@ -4,13 +4,17 @@
 //! - [`ecdc::Ecdc`]: ecdc's state machine through the simulation driver;
 //! - [`seed000::Seed000`]: an independent reproduction of the seed 000 scheme (eq. 23 as
 //!   printed, eq. 24 without delay folding, fixed 15 000-frame burst, one FRMW per cycle);
-//! - [`uncompensated::Uncompensated`]: offsets only, no delay and no drift compensation.
+//! - [`uncompensated::Uncompensated`]: offsets only, no delay and no drift compensation;
+//! - [`igh::Igh`] and [`ethercrab::Ethercrab`] (used by `ecdc bench dc`): reproductions of the
+//!   IgH and ethercrab DC bring-ups as documented in `../shared/reference/masters.md`.
 //!
 //! [`run::run_scheme`] drives any of them under one recorder (true clock errors, 0x092C,
 //! SYNC0 edges, lock), and [`measure`] turns the record into the reported numbers.
 
 pub mod bringup;
 pub mod ecdc;
+pub mod ethercrab;
+pub mod igh;
 pub mod link;
 pub mod measure;
 pub mod run;

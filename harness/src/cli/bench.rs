@@ -1,0 +1,533 @@
+//! `ecdc bench dc`: DC precision of ecdc against reproductions of other masters' schemes, on
+//! four emulated networks, every scheme on its own copy of the same network (one `Scenario`,
+//! same seed). Measured exactly as `ecdc simulate` measures (true time, [`run_scheme`] and
+//! [`summarize`]; definitions in docs/simulate.md). Writes `dc.md` (Markdown tables),
+//! `dc.json` and one `dc-<scenario>.svg` per scenario into `--out`; each file states the command
+//! that produced it. Deterministic: no wall-clock value goes into a file. Schemes: docs/bench.md.
+
+use std::io::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+
+use crate::emu::{Network, Scenario};
+use crate::report::svg::{render_bench, BenchSeries};
+use crate::report::table::markdown;
+use crate::schemes::ecdc::{self, Ecdc, EcdcN};
+use crate::schemes::ethercrab::Ethercrab;
+use crate::schemes::igh::Igh;
+use crate::schemes::measure::{lock_index, summarize, window_skews, Summary};
+use crate::schemes::run::{run_scheme, RunOpts};
+use crate::schemes::seed000::Seed000;
+use crate::schemes::uncompensated::Uncompensated;
+use crate::schemes::Scheme;
+
+/// Arguments of `ecdc bench`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub cmd: BenchCmd,
+}
+
+/// The benchmarks.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum BenchCmd {
+    /// DC precision (lock, SYNC0 skew) of ecdc vs the seed 000, IgH-like, ethercrab-like and
+    /// uncompensated schemes on four emulated networks.
+    Dc(DcArgs),
+}
+
+/// The bench scenarios.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BenchScenario {
+    /// Seed 000's six-slave line (the `ecdc simulate` default).
+    Seed000Line6,
+    /// Seed 003's two-slave setup.
+    Seed003Line2,
+    /// A 100-slave tree with 10 non-DC slaves.
+    Tree100Nondc,
+    /// 512 slaves in one line.
+    Line512,
+}
+
+/// The compared schemes, in report order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum SchemeName {
+    Ecdc,
+    Seed000,
+    Igh,
+    Ethercrab,
+    Uncompensated,
+}
+
+/// Arguments of `ecdc bench dc`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DcArgs {
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "benches/results")]
+    pub out: PathBuf,
+    /// Run only these scenarios (repeatable) [default: all four].
+    #[arg(long = "scenario", value_enum)]
+    pub scenarios: Vec<BenchScenario>,
+    /// Run only these schemes (repeatable) [default: all five].
+    #[arg(long = "scheme", value_enum)]
+    pub schemes: Vec<SchemeName>,
+    /// Override every scenario's simulated duration, ms.
+    #[arg(long)]
+    pub duration_ms: Option<u64>,
+}
+
+impl Default for DcArgs {
+    fn default() -> Self {
+        DcArgs {
+            out: PathBuf::from("benches/results"),
+            scenarios: Vec::new(),
+            schemes: Vec::new(),
+            duration_ms: None,
+        }
+    }
+}
+
+impl BenchScenario {
+    /// All scenarios, in report order.
+    pub const ALL: [BenchScenario; 4] = [
+        BenchScenario::Seed000Line6,
+        BenchScenario::Seed003Line2,
+        BenchScenario::Tree100Nondc,
+        BenchScenario::Line512,
+    ];
+
+    /// The name used on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            BenchScenario::Seed000Line6 => "seed000-line6",
+            BenchScenario::Seed003Line2 => "seed003-line2",
+            BenchScenario::Tree100Nondc => "tree100-nondc",
+            BenchScenario::Line512 => "line512",
+        }
+    }
+
+    /// One-line description.
+    pub fn title(self) -> &'static str {
+        match self {
+            BenchScenario::Seed000Line6 => {
+                "seed 000 §4: 6 slaves in a line, 1 ms cycle, ±50 ppm (the `ecdc simulate` default)"
+            }
+            BenchScenario::Seed003Line2 => {
+                "seed 003 §2.1: master + 2 servo drives in a line, 1 ms cycle, ±50 ppm \
+                 (harness/scenarios/bench_seed003.toml)"
+            }
+            BenchScenario::Tree100Nondc => {
+                "100-slave tree (3- and 4-port junctions), 10 of them without DC, 1 ms cycle, \
+                 ±50 ppm (harness/scenarios/bench_tree100.toml)"
+            }
+            BenchScenario::Line512 => {
+                "512 slaves in a line, 1 ms cycle, ±50 ppm (harness/scenarios/bench_line512.toml)"
+            }
+        }
+    }
+
+    /// The emulator scenario.
+    pub fn scenario(self) -> anyhow::Result<Scenario> {
+        let text = match self {
+            BenchScenario::Seed000Line6 => return Ok(Scenario::line(6)),
+            BenchScenario::Seed003Line2 => include_str!("../../scenarios/bench_seed003.toml"),
+            BenchScenario::Tree100Nondc => include_str!("../../scenarios/bench_tree100.toml"),
+            BenchScenario::Line512 => include_str!("../../scenarios/bench_line512.toml"),
+        };
+        Scenario::from_toml_str(text).map_err(|e| anyhow::anyhow!("{}: {e}", self.name()))
+    }
+
+    /// Simulated duration, ms: 10 s (seed 000's Fig. 10 length); 20 s on the 512-slave line,
+    /// where one frame takes ~0.6 ms and the fixed bursts alone last 6–9 s.
+    pub fn duration_ms(self) -> u64 {
+        match self {
+            BenchScenario::Line512 => 20_000,
+            _ => 10_000,
+        }
+    }
+}
+
+impl SchemeName {
+    /// All schemes, in report order.
+    pub const ALL: [SchemeName; 5] = [
+        SchemeName::Ecdc,
+        SchemeName::Seed000,
+        SchemeName::Igh,
+        SchemeName::Ethercrab,
+        SchemeName::Uncompensated,
+    ];
+}
+
+/// One scheme's numbers in one scenario.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SchemeResult {
+    pub name: String,
+    /// Why the scheme stopped (e.g. "not a line"), if it did.
+    pub error: Option<String>,
+    pub lock_frames: Option<u64>,
+    pub lock_ms: Option<f64>,
+    pub static_drift_frames: Option<u64>,
+    pub dist_frames: u64,
+    pub skew_mean_ns: Option<f64>,
+    pub skew_p99_ns: Option<u64>,
+    pub skew_max_ns: Option<u64>,
+    pub skew_signed_mean_ns: Option<f64>,
+    pub skew_pairs: usize,
+    /// Slaves (reference included) with a SYNC0 edge in the steady-state window.
+    pub sync0_slaves: usize,
+    pub window_start_ns: Option<u64>,
+    pub window_end_ns: u64,
+}
+
+impl SchemeResult {
+    fn from_summary(s: &Summary, sync0_slaves: usize) -> Self {
+        SchemeResult {
+            name: s.name.clone(),
+            error: s.error.clone(),
+            lock_frames: s.lock_frames,
+            lock_ms: s.lock_ms,
+            static_drift_frames: s.static_drift_frames,
+            dist_frames: s.dist_frames,
+            skew_mean_ns: s.skew_mean_ns,
+            skew_p99_ns: s.skew_p99_ns,
+            skew_max_ns: s.skew_max_ns,
+            skew_signed_mean_ns: s.skew_signed_mean_ns,
+            skew_pairs: s.skew_samples,
+            sync0_slaves,
+            window_start_ns: s.window_start_ns,
+            window_end_ns: s.window_end_ns,
+        }
+    }
+}
+
+/// One scenario's setup and results.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ScenarioResult {
+    pub name: String,
+    pub title: String,
+    pub slaves: usize,
+    /// Slaves with a DC system time.
+    pub dc_slaves: usize,
+    pub cycle_ns: u32,
+    pub duration_ns: u64,
+    pub seed: u64,
+    /// Nominal t_P − t_F given to ecdc and the seed 000 scheme, ns.
+    pub t_diff_ns: i64,
+    /// Smallest and largest crystal error drawn, ppm.
+    pub crystal_ppm_min: f64,
+    pub crystal_ppm_max: f64,
+    pub schemes: Vec<SchemeResult>,
+}
+
+/// Everything `ecdc bench dc` writes into dc.json.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct DcReport {
+    pub command: String,
+    pub definitions: std::collections::BTreeMap<&'static str, &'static str>,
+    pub scenarios: Vec<ScenarioResult>,
+}
+
+/// The command line that reproduces a run with `args`.
+pub fn command(args: &DcArgs) -> String {
+    let mut c = format!(
+        "cargo run --release -p ecdc-harness --bin ecdc -- bench dc --out {}",
+        args.out.display()
+    );
+    for s in &args.scenarios {
+        c.push_str(&format!(" --scenario {}", s.name()));
+    }
+    for s in &args.schemes {
+        c.push_str(&format!(" --scheme {}", scheme_label(*s)));
+    }
+    if let Some(d) = args.duration_ms {
+        c.push_str(&format!(" --duration-ms {d}"));
+    }
+    c
+}
+
+fn scheme_label(s: SchemeName) -> &'static str {
+    match s {
+        SchemeName::Ecdc => "ecdc",
+        SchemeName::Seed000 => "seed000",
+        SchemeName::Igh => "igh",
+        SchemeName::Ethercrab => "ethercrab",
+        SchemeName::Uncompensated => "uncompensated",
+    }
+}
+
+fn build(
+    which: SchemeName,
+    sc: &Scenario,
+    t_diff: i64,
+    cycle: u32,
+) -> anyhow::Result<Box<dyn Scheme>> {
+    let net = Network::new(sc).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let n = net.slave_count();
+    Ok(match which {
+        SchemeName::Ecdc => {
+            let cfg = ecdc::config(i32::try_from(t_diff)?, cycle);
+            if n <= ecdc::CAPACITY {
+                Box::new(Ecdc::new(net, cfg)?)
+            } else {
+                Box::new(EcdcN::<1024>::new(net, cfg)?)
+            }
+        }
+        SchemeName::Seed000 => Box::new(Seed000::new(net, t_diff, cycle)),
+        SchemeName::Igh => Box::new(Igh::new(net, cycle)),
+        SchemeName::Ethercrab => Box::new(Ethercrab::new(net, cycle)),
+        SchemeName::Uncompensated => Box::new(Uncompensated::new(net, cycle)),
+    })
+}
+
+/// Runs one scenario with the given schemes; returns its results and plot series. Progress
+/// (with wall times) goes to stderr only.
+pub fn run_scenario(
+    which: BenchScenario,
+    schemes: &[SchemeName],
+    duration_ms: Option<u64>,
+) -> anyhow::Result<(ScenarioResult, Vec<BenchSeries>)> {
+    let sc = which.scenario()?;
+    sc.resolve().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cycle: u32 = 1_000_000;
+    let t_diff = i64::try_from(sc.defaults.t_p_ns)? - i64::try_from(sc.defaults.t_f_ns)?;
+    let duration_ns = duration_ms
+        .unwrap_or_else(|| which.duration_ms())
+        .saturating_mul(1_000_000);
+    let opts = RunOpts {
+        duration_ns,
+        sample_ns: u64::from(cycle) / 10,
+        cycle_ns: u64::from(cycle),
+    };
+    let probe = Network::new(&sc).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let infos: Vec<_> = (0..probe.slave_count())
+        .filter_map(|i| probe.slave_info(i).cloned())
+        .collect();
+    drop(probe);
+    let ppm = infos.iter().map(|s| s.ppm);
+    let mut result = ScenarioResult {
+        name: which.name().to_string(),
+        title: which.title().to_string(),
+        slaves: infos.len(),
+        dc_slaves: infos.iter().filter(|s| s.kind.has_system_time()).count(),
+        cycle_ns: cycle,
+        duration_ns,
+        seed: sc.seed,
+        t_diff_ns: t_diff,
+        crystal_ppm_min: ppm.clone().fold(f64::INFINITY, f64::min),
+        crystal_ppm_max: ppm.fold(f64::NEG_INFINITY, f64::max),
+        schemes: Vec::new(),
+    };
+    let mut series = Vec::new();
+    for &s in schemes {
+        let wall = Instant::now();
+        let mut scheme = build(s, &sc, t_diff, cycle)?;
+        let name = scheme.name();
+        let rec = run_scheme(scheme.as_mut(), opts, &mut |_| {})
+            .with_context(|| format!("{} / {name}", which.name()))?;
+        drop(scheme);
+        let summary = summarize(&rec);
+        let mut skews: Vec<u64> = window_skews(&rec)
+            .into_iter()
+            .map(|(_, d)| d.unsigned_abs())
+            .collect();
+        skews.sort_unstable();
+        series.push(BenchSeries {
+            name: name.to_string(),
+            track: rec.track.iter().map(|&(t, _, m)| (t, m)).collect(),
+            skews,
+        });
+        debug_assert_eq!(
+            lock_index(&rec.track).map(|i| rec.track[i].1),
+            summary.lock_frames
+        );
+        let w0 = summary.window_start_ns.unwrap_or(u64::MAX);
+        let fired: std::collections::BTreeSet<usize> = rec
+            .sync0
+            .iter()
+            .filter(|e| e.true_time >= w0 && e.true_time <= rec.end)
+            .map(|e| e.slave)
+            .collect();
+        result
+            .schemes
+            .push(SchemeResult::from_summary(&summary, fired.len()));
+        let mut e = std::io::stderr().lock();
+        let _ = writeln!(
+            e,
+            "[bench dc] {:<14} {:<13} {:.1} s simulated in {:.2} s wall",
+            which.name(),
+            name,
+            duration_ns as f64 / 1e9,
+            wall.elapsed().as_secs_f64()
+        );
+    }
+    Ok((result, series))
+}
+
+fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
+    v.map_or("–".to_string(), |v| v.to_string())
+}
+
+fn optf(v: Option<f64>, prec: usize) -> String {
+    v.map_or("–".to_string(), |v| format!("{v:.prec$}"))
+}
+
+/// The table rows of one scenario.
+fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
+    r.schemes
+        .iter()
+        .map(|s| {
+            let mut row = Vec::new();
+            if with_scenario {
+                row.push(r.name.clone());
+            }
+            row.extend([
+                s.name.clone(),
+                opt(s.lock_frames),
+                optf(s.lock_ms, 1),
+                opt(s.static_drift_frames),
+                optf(s.skew_mean_ns, 1),
+                opt(s.skew_p99_ns),
+                opt(s.skew_max_ns),
+                s.skew_pairs.to_string(),
+                format!("{}/{}", s.sync0_slaves, r.dc_slaves),
+            ]);
+            if let Some(e) = &s.error {
+                let short: String = e.chars().take(90).collect();
+                row[if with_scenario { 1 } else { 0 }] = format!("{} (stopped: {short})", s.name);
+            }
+            row
+        })
+        .collect()
+}
+
+const HEADERS: [&str; 9] = [
+    "scheme",
+    "lock frames",
+    "lock ms",
+    "static drift frames",
+    "skew mean |.| ns",
+    "p99 |.| ns",
+    "max |.| ns",
+    "pairs",
+    "SYNC0 slaves",
+];
+
+/// The Markdown report.
+pub fn markdown_report(rep: &DcReport) -> String {
+    let mut out = String::new();
+    out.push_str("# `ecdc bench dc`: DC precision, ecdc vs other masters' schemes\n\n");
+    out.push_str(&format!(
+        "Produced by `{}` (deterministic: the same command writes the same files). \
+         What each scheme reproduces: [docs/bench.md](../../docs/bench.md). Definitions \
+         (true-time skew, steady-state window = last half of the cyclic phase, lock = every slave \
+         within 100 ns of the reference for the rest of the run): \
+         [docs/simulate.md](../../docs/simulate.md).\n\n",
+        rep.command
+    ));
+    out.push_str(
+        "– = none: no lock within the run, no static drift phase, or no SYNC0 pairs in the \
+         window. `lock frames` counts the frames that carry the reference time (static drift + \
+         cyclic) sent until lock; `pairs` the (slave, pulse) skew samples; `SYNC0 slaves` the \
+         slaves that fired SYNC0 in the window out of those with a DC system time (fewer = some \
+         slaves never started SYNC0, their skew is not in the statistics).\n\n## All scenarios\n\n",
+    );
+    let mut headers = vec!["scenario"];
+    headers.extend(HEADERS);
+    let all: Vec<Vec<String>> = rep.scenarios.iter().flat_map(|r| rows(r, true)).collect();
+    out.push_str(&markdown(&headers, 2, &all));
+    for r in &rep.scenarios {
+        out.push_str(&format!("\n## {}\n\n{}.\n\n", r.name, r.title));
+        out.push_str(&format!(
+            "{} slaves ({} with a DC system time), cycle {} ns, {:.1} s simulated, seed {}, \
+             t_DIFF {} ns, crystals {:+.1} … {:+.1} ppm.\n\n",
+            r.slaves,
+            r.dc_slaves,
+            r.cycle_ns,
+            r.duration_ns as f64 / 1e9,
+            r.seed,
+            r.t_diff_ns,
+            r.crystal_ppm_min,
+            r.crystal_ppm_max
+        ));
+        out.push_str(&markdown(&HEADERS, 1, &rows(r, false)));
+        let errs: Vec<String> = r
+            .schemes
+            .iter()
+            .filter_map(|s| s.error.as_ref().map(|e| format!("- {}: {e}", s.name)))
+            .collect();
+        if !errs.is_empty() {
+            out.push_str("\nStopped early:\n\n");
+            out.push_str(&errs.join("\n"));
+            out.push('\n');
+        }
+        out.push_str(&format!(
+            "\n![{0}: lock and skew distribution](dc-{0}.svg)\n",
+            r.name
+        ));
+    }
+    out
+}
+
+/// Runs `ecdc bench dc` and writes its files; returns the report.
+pub fn run_dc(args: &DcArgs) -> anyhow::Result<DcReport> {
+    let mut scenarios = if args.scenarios.is_empty() {
+        BenchScenario::ALL.to_vec()
+    } else {
+        args.scenarios.clone()
+    };
+    scenarios.sort();
+    scenarios.dedup();
+    let mut schemes = if args.schemes.is_empty() {
+        SchemeName::ALL.to_vec()
+    } else {
+        args.schemes.clone()
+    };
+    schemes.sort();
+    schemes.dedup();
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let cmd = command(args);
+    let mut rep = DcReport {
+        command: cmd.clone(),
+        definitions: crate::report::definitions(),
+        scenarios: Vec::new(),
+    };
+    for which in scenarios {
+        let (r, series) = run_scenario(which, &schemes, args.duration_ms)?;
+        let title = format!("ecdc bench dc — {}: {}", r.name, r.title);
+        let svg = render_bench(&title, &format!("produced by: {cmd}"), &series);
+        let p = args.out.join(format!("dc-{}.svg", r.name));
+        std::fs::write(&p, svg).with_context(|| format!("writing {}", p.display()))?;
+        rep.scenarios.push(r);
+    }
+    let p = args.out.join("dc.md");
+    std::fs::write(&p, markdown_report(&rep))
+        .with_context(|| format!("writing {}", p.display()))?;
+    let p = args.out.join("dc.json");
+    std::fs::write(&p, serde_json::to_string_pretty(&rep)? + "\n")
+        .with_context(|| format!("writing {}", p.display()))?;
+    Ok(rep)
+}
+
+/// Runs `ecdc bench`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    match &args.cmd {
+        BenchCmd::Dc(a) => {
+            let wall = Instant::now();
+            let rep = run_dc(a)?;
+            let all: Vec<Vec<String>> = rep.scenarios.iter().flat_map(|r| rows(r, true)).collect();
+            let mut headers = vec!["scenario"];
+            headers.extend(HEADERS);
+            print!("{}", markdown(&headers, 2, &all));
+            println!(
+                "\nwrote {}/dc.md, dc.json and dc-*.svg ({:.1} s wall)",
+                a.out.display(),
+                wall.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+    }
+}

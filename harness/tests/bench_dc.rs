@@ -1,0 +1,159 @@
+//! `ecdc bench dc` on seed 003's two-slave setup with a short window: the behaviour of each
+//! scheme (ecdc locks and starts SYNC0 everywhere, the fixed bursts have their documented
+//! lengths, IgH's gate ends its static phase long before a 10 000-frame burst would, the
+//! uncompensated clock error grows) and the files the command writes (Markdown table, JSON,
+//! SVG, each naming the command).
+
+use std::process::Command;
+
+use ecdc_harness::cli::bench::{run_scenario, BenchScenario, SchemeName};
+
+fn scheme<'a>(
+    r: &'a ecdc_harness::cli::bench::ScenarioResult,
+    name: &str,
+) -> &'a ecdc_harness::cli::bench::SchemeResult {
+    r.schemes.iter().find(|s| s.name == name).unwrap()
+}
+
+#[test]
+fn two_slave_scenario_behaviour() {
+    let (r, series) =
+        run_scenario(BenchScenario::Seed003Line2, &SchemeName::ALL, Some(2_000)).unwrap();
+    assert_eq!(r.slaves, 2);
+    assert_eq!(r.schemes.len(), 5);
+    for s in &r.schemes {
+        assert!(s.error.is_none(), "{}: {:?}", s.name, s.error);
+    }
+    let e = scheme(&r, "ecdc");
+    assert!(e.lock_frames.is_some(), "{e:?}");
+    assert_eq!(e.sync0_slaves, 2, "{e:?}");
+    assert!(e.skew_max_ns.unwrap() < 100, "{e:?}");
+    // The fixed bursts are exactly their documented length, ungated.
+    assert_eq!(scheme(&r, "seed000").static_drift_frames, Some(15_000));
+    assert_eq!(scheme(&r, "ethercrab").static_drift_frames, Some(10_000));
+    // IgH has no burst: its 10 µs gate ends the static phase after a few cyclic frames.
+    let igh = scheme(&r, "igh").static_drift_frames.unwrap();
+    assert!(igh < 1_000, "igh static frames {igh}");
+    // No compensation: no reference-time frames, and the clock error grows with time.
+    let u = scheme(&r, "uncompensated");
+    assert_eq!(u.dist_frames, 0);
+    assert!(u.lock_frames.is_none());
+    let track = &series
+        .iter()
+        .find(|s| s.name == "uncompensated")
+        .unwrap()
+        .track;
+    let at = |t: u64| track.iter().find(|p| p.0 >= t).and_then(|p| p.1).unwrap();
+    assert!(
+        at(1_900_000_000) > 2 * at(500_000_000),
+        "{} vs {}",
+        at(1_900_000_000),
+        at(500_000_000)
+    );
+    assert!(u.skew_mean_ns.unwrap() > 100.0 * e.skew_mean_ns.unwrap().max(1.0));
+    // Every scheme's skew distribution is sorted and matches its pair count.
+    for (s, res) in series.iter().zip(&r.schemes) {
+        assert_eq!(s.skews.len(), res.skew_pairs, "{}", s.name);
+        assert!(s.skews.windows(2).all(|w| w[0] <= w[1]));
+        assert_eq!(s.skews.last().copied(), res.skew_max_ns);
+    }
+}
+
+/// Tags of an SVG are balanced (a minimal well-formedness check).
+fn balanced(svg: &str) -> bool {
+    let mut stack: Vec<String> = Vec::new();
+    let mut rest = svg;
+    while let Some(i) = rest.find('<') {
+        rest = &rest[i + 1..];
+        let Some(j) = rest.find('>') else {
+            return false;
+        };
+        let tag = &rest[..j];
+        rest = &rest[j + 1..];
+        if tag.starts_with("!--") {
+            continue;
+        }
+        if let Some(name) = tag.strip_prefix('/') {
+            if stack.pop().as_deref() != Some(name.trim()) {
+                return false;
+            }
+        } else if !tag.ends_with('/') {
+            stack.push(tag.split_whitespace().next().unwrap_or("").to_string());
+        }
+    }
+    stack.is_empty()
+}
+
+#[test]
+fn command_writes_table_json_and_svg() {
+    let dir = std::env::temp_dir().join(format!("ecdc-bench-dc-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new(env!("CARGO_BIN_EXE_ecdc"))
+        .args([
+            "bench",
+            "dc",
+            "--scenario",
+            "seed003-line2",
+            "--duration-ms",
+            "1500",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cmd = format!(
+        "cargo run --release -p ecdc-harness --bin ecdc -- bench dc --out {} --scenario seed003-line2 --duration-ms 1500",
+        dir.display()
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("dc.json")).unwrap()).unwrap();
+    assert_eq!(json["command"], cmd.as_str());
+    let schemes = json["scenarios"][0]["schemes"].as_array().unwrap();
+    let names: Vec<&str> = schemes
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        ["ecdc", "seed000", "igh", "ethercrab", "uncompensated"]
+    );
+
+    let md = std::fs::read_to_string(dir.join("dc.md")).unwrap();
+    assert!(md.contains(&cmd), "{md}");
+    // The summary table: header, separator, one row per scheme with every column, and the
+    // numbers agree with the JSON.
+    let table: Vec<Vec<&str>> = md
+        .lines()
+        .skip_while(|l| !l.starts_with("| scenario"))
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
+        .collect();
+    assert_eq!(table.len(), 2 + 5, "{md}");
+    let seps = table[1][0].split('|').count();
+    assert_eq!(seps, table[0].len(), "{md}");
+    assert!(
+        table.iter().skip(2).all(|r| r.len() == table[0].len()),
+        "{md}"
+    );
+    for (row, s) in table[2..].iter().zip(schemes) {
+        assert_eq!(row[0], "seed003-line2");
+        assert_eq!(row[1], s["name"].as_str().unwrap());
+        let mean = s["skew_mean_ns"].as_f64().unwrap();
+        assert_eq!(row[5], format!("{mean:.1}"));
+    }
+
+    let svg = std::fs::read_to_string(dir.join("dc-seed003-line2.svg")).unwrap();
+    assert!(svg.starts_with("<svg"));
+    assert!(svg.contains(&cmd));
+    assert!(balanced(&svg));
+    for name in ["ecdc", "seed000", "igh", "ethercrab", "uncompensated"] {
+        assert!(svg.contains(&format!(">{name}</text>")), "legend {name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
