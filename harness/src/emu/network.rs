@@ -13,8 +13,6 @@ use super::topology::Topology;
 use super::{EmuError, TrueTime};
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use std::cmp::Reverse;
-use std::collections::binary_heap::{BinaryHeap, PeekMut};
 
 /// A frame that came back to the master.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -142,6 +140,107 @@ fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
+/// Sorts `buf` stably by true time: an LSD radix sort (11-bit digits, stable) of keys that
+/// hold the true time relative to the earliest in the upper 32 bits and the record's position
+/// in the lower 32, then a gather. Equal times keep their order in `buf`. Returns false
+/// (leaving `buf` alone) if the times span 2^32 ns or more.
+fn sort_by_time(
+    buf: &mut Vec<SyncEdge>,
+    scratch: &mut Vec<SyncEdge>,
+    keys: &mut Vec<u64>,
+    keys2: &mut Vec<u64>,
+) -> bool {
+    const DIGIT: u32 = 11;
+    const BUCKETS: usize = 1 << DIGIT;
+    let n = buf.len();
+    if n < 2 {
+        return true;
+    }
+    if u32::try_from(n).is_err() {
+        return false;
+    }
+    let (mut lo, mut hi) = (u64::MAX, 0);
+    for e in buf.iter() {
+        lo = lo.min(e.true_time);
+        hi = hi.max(e.true_time);
+    }
+    let Ok(span) = u32::try_from(hi - lo) else {
+        return false;
+    };
+    keys.clear();
+    keys.extend(
+        buf.iter()
+            .enumerate()
+            .map(|(i, e)| ((e.true_time - lo) << 32) | i as u64),
+    );
+    let passes = (u32::BITS - span.leading_zeros()).div_ceil(DIGIT);
+    keys2.clear();
+    keys2.resize(n, 0);
+    for p in 0..passes {
+        let shift = 32 + p * DIGIT;
+        let digit = |k: u64| ((k >> shift) as usize) & (BUCKETS - 1);
+        let mut count = [0u32; BUCKETS];
+        for &k in keys.iter() {
+            count[digit(k)] += 1;
+        }
+        let mut sum = 0;
+        for c in count.iter_mut() {
+            let x = *c;
+            *c = sum;
+            sum += x;
+        }
+        for &k in keys.iter() {
+            let d = digit(k);
+            keys2[count[d] as usize] = k;
+            count[d] += 1;
+        }
+        core::mem::swap(keys, keys2);
+    }
+    scratch.clear();
+    scratch.extend(keys.iter().map(|k| buf[(k & 0xFFFF_FFFF) as usize]));
+    core::mem::swap(buf, scratch);
+    true
+}
+
+/// Stably merges the sorted runs `buf[bounds[i]..bounds[i + 1]]` (by true time; the earlier
+/// run wins ties) into one sorted run, pairwise and bottom-up, ping-ponging with `scratch`.
+fn merge_runs(buf: &mut Vec<SyncEdge>, scratch: &mut Vec<SyncEdge>, bounds: &mut Vec<usize>) {
+    while bounds.len() > 2 {
+        scratch.clear();
+        scratch.reserve(buf.len());
+        let runs = bounds.len() - 1;
+        let mut w = 1;
+        let mut i = 0;
+        while i < runs {
+            let lo = bounds[i];
+            let mid = bounds[i + 1];
+            if i + 1 < runs {
+                let hi = bounds[i + 2];
+                let (a, b) = (&buf[lo..mid], &buf[mid..hi]);
+                let (mut x, mut y) = (0, 0);
+                while x < a.len() && y < b.len() {
+                    if b[y].true_time < a[x].true_time {
+                        scratch.push(b[y]);
+                        y += 1;
+                    } else {
+                        scratch.push(a[x]);
+                        x += 1;
+                    }
+                }
+                scratch.extend_from_slice(&a[x..]);
+                scratch.extend_from_slice(&b[y..]);
+            } else {
+                scratch.extend_from_slice(&buf[lo..mid]);
+            }
+            bounds[w] = scratch.len();
+            w += 1;
+            i += 2;
+        }
+        bounds.truncate(w);
+        core::mem::swap(buf, scratch);
+    }
+}
+
 /// The emulated slave chain.
 #[derive(Debug)]
 pub struct Network {
@@ -150,8 +249,11 @@ pub struct Network {
     topo: Topology,
     /// SYNC edges per slave (each in time order), merged on `take_sync_edges`.
     edges: Vec<Vec<SyncEdge>>,
-    /// Scratch of `take_sync_edges`: due edges per slave.
+    /// Scratch of `take_sync_edges`: due edges per slave, run bounds, merge buffer.
     due: Vec<usize>,
+    bounds: Vec<usize>,
+    edge_scratch: Vec<SyncEdge>,
+    sort_keys: (Vec<u64>, Vec<u64>),
     /// Per-slave hop parameters, kept compact for the frame walk.
     hops: Vec<Hop>,
     /// Some slave has written DL control loop bits (else the walk skips that check).
@@ -246,6 +348,9 @@ impl Network {
             topo: Topology::new(parents, cables),
             edges: vec![Vec::new(); n],
             due: Vec::with_capacity(n),
+            bounds: Vec::with_capacity(n + 1),
+            edge_scratch: Vec::new(),
+            sort_keys: (Vec::new(), Vec::new()),
             hops: Vec::new(),
             any_forced: false,
             now: 0,
@@ -433,15 +538,14 @@ impl Network {
     pub fn take_sync_edges(&mut self) -> Vec<SyncEdge> {
         let now = self.now;
         // Each slave's log is put in (true time, signal) order — it almost always is already:
-        // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns — and the due
-        // prefixes are merged by (true time, slave) through a heap straight into the output.
-        // Same order as sorting everything by (true time, slave, signal, log position), with
-        // no scratch copy of the records (large fresh buffers cost page faults).
-        let mut heap = BinaryHeap::with_capacity(self.escs.len());
+        // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns. The due prefixes
+        // are appended in slave order and stably sorted by true time: the same order as
+        // sorting everything by (true time, slave, signal, log position). The sort finds the
+        // per-slave runs and merges them (cheaper than a heap merge).
         let mut due = core::mem::take(&mut self.due);
         due.clear();
         let mut total = 0;
-        for (s, (e, log)) in self.escs.iter_mut().zip(self.edges.iter_mut()).enumerate() {
+        for (e, log) in self.escs.iter_mut().zip(self.edges.iter_mut()) {
             if e.anchor() <= now {
                 e.advance_to(now, log);
             }
@@ -450,27 +554,31 @@ impl Network {
                 log.sort_by_key(key);
             }
             let n = log.partition_point(|x| x.true_time <= now);
-            if let Some(first) = log.first().filter(|_| n > 0) {
-                heap.push(Reverse((first.true_time, s, 0usize)));
-            }
             due.push(n);
             total += n;
         }
         let mut out = Vec::with_capacity(total);
-        while let Some(mut top) = heap.peek_mut() {
-            let Reverse((_, s, i)) = *top;
-            let log = &self.edges[s];
-            out.push(log[i]);
-            if i + 1 < due[s] {
-                *top = Reverse((log[i + 1].true_time, s, i + 1));
-            } else {
-                PeekMut::pop(top);
-            }
-        }
+        let mut bounds = core::mem::take(&mut self.bounds);
+        bounds.clear();
+        bounds.push(0);
         // Drain in place so each log keeps its capacity for the next interval.
         for (log, n) in self.edges.iter_mut().zip(&due) {
-            log.drain(..*n);
+            if *n > 0 {
+                out.extend(log.drain(..*n));
+                bounds.push(out.len());
+            }
         }
+        let mut scratch = core::mem::take(&mut self.edge_scratch);
+        if !sort_by_time(
+            &mut out,
+            &mut scratch,
+            &mut self.sort_keys.0,
+            &mut self.sort_keys.1,
+        ) {
+            merge_runs(&mut out, &mut scratch, &mut bounds);
+        }
+        self.edge_scratch = scratch;
+        self.bounds = bounds;
         self.due = due;
         out
     }
@@ -763,5 +871,74 @@ impl Network {
         }
         self.visits = saved;
         out
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::emu::SyncSignal;
+
+    /// Random per-slave logs (sorted by time, with ties inside and across slaves), as
+    /// `take_sync_edges` concatenates them, and their run bounds.
+    fn logs(seed: u64, slaves: usize, span: u64) -> (Vec<SyncEdge>, Vec<usize>) {
+        let mut r = ChaCha8Rng::seed_from_u64(seed);
+        let mut out = Vec::new();
+        let mut bounds = vec![0];
+        for s in 0..slaves {
+            let mut t = r.gen_range(0..span.min(1000) + 1);
+            for k in 0..r.gen_range(0..40) {
+                t += r.gen_range(0..=span / 20);
+                out.push(SyncEdge {
+                    slave: s,
+                    signal: if k % 3 == 0 {
+                        SyncSignal::Sync1
+                    } else {
+                        SyncSignal::Sync0
+                    },
+                    true_time: t,
+                    system_time: r.gen(),
+                });
+            }
+            if out.len() > *bounds.last().unwrap() {
+                bounds.push(out.len());
+            }
+        }
+        (out, bounds)
+    }
+
+    /// Both orderings of `take_sync_edges` equal a stable sort by true time of the
+    /// slave-major concatenation; the radix sort declines spans of 2^32 ns or more.
+    #[test]
+    fn edge_sorts_match_stable_sort() {
+        for seed in 0..300 {
+            let span = match seed % 3 {
+                0 => 50,
+                1 => 200_000_000,
+                _ => 1 << 34,
+            };
+            let (buf, bounds) = logs(seed, 1 + seed as usize % 37, span);
+            let mut want = buf.clone();
+            want.sort_by_key(|e| e.true_time);
+            let mut a = buf.clone();
+            let (mut k1, mut k2, mut scratch) = (Vec::new(), Vec::new(), Vec::new());
+            let hi = buf.iter().map(|e| e.true_time).max().unwrap_or(0);
+            let lo = buf.iter().map(|e| e.true_time).min().unwrap_or(0);
+            let fits = hi - lo < 1 << 32;
+            assert_eq!(
+                sort_by_time(&mut a, &mut scratch, &mut k1, &mut k2),
+                fits,
+                "seed {seed}"
+            );
+            if fits {
+                assert_eq!(a, want, "radix, seed {seed}");
+            } else {
+                assert_eq!(a, buf, "declined, seed {seed}");
+            }
+            let mut b = buf.clone();
+            let mut bo = bounds.clone();
+            merge_runs(&mut b, &mut scratch, &mut bo);
+            assert_eq!(b, want, "merge, seed {seed}");
+        }
     }
 }
