@@ -3,10 +3,10 @@
 # (libz3-dev) and its bindings are generated with bindgen, which needs libclang.
 smt_ready=1
 [ -e /usr/include/z3.h ] || smt_ready=0
-if ! ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1; then
+if ! ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1; then
     # Normally installed by .ci/install.sh; repeated here so this layer is self-sufficient.
     { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libclang-dev; } >/dev/null 2>&1 || true
-    ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1 || smt_ready=0
+    ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1 || smt_ready=0
 fi
 if [ "$smt_ready" = 0 ]; then
     layer smt "failed: libz3-dev or libclang-dev missing (see .ci/install.sh)"

@@ -362,6 +362,34 @@ pub fn sign_magnitude_decode<W: Word>(v: W) -> W::Signed {
     W::select(neg, wrapping_neg(mag), mag).to_signed()
 }
 
+// ------------------------------------------------------------------ offset arithmetic (P4)
+
+/// REQ-DC-021, REQ-DC-023 (P4): the System Time Offset `o` with `local + o ≡ target`
+/// (mod 2^N). A 32-bit slave keeps the low 32 bits of a 64-bit result, which is the N = 32
+/// result of the low halves (add/sub carry only upwards).
+#[inline]
+pub fn offset_to<W: Word>(target: W, local: W) -> W {
+    target.wrapping_sub(local)
+}
+
+/// REQ-DC-024 (P4): re-offset without a new latch. A slave whose offset is `current` read
+/// `read` (= its local time + `current`) when the reference read `reference`; the new offset
+/// makes that local time + offset ≡ reference (mod 2^N).
+#[inline]
+pub fn corrected_offset<W: Word>(current: W, read: W, reference: W) -> W {
+    current.wrapping_add(reference.wrapping_sub(read))
+}
+
+/// REQ-DC-022 (P4): the N-bit (N > 32) local time at which a frame entered a slave whose EPU
+/// stamp is `epu` (full width) and whose entry-port stamp is the 32-bit `entry` (zero-extended):
+/// `epu − ((epu − entry) mod 2^32)`. Exact whenever the EPU stamp follows the entry stamp by
+/// less than 2^32 ns.
+#[inline]
+pub fn entry_local<W: Word>(epu: W, entry: W) -> W {
+    let low_mask = W::lit(1).shl(32).wrapping_sub(W::lit(1));
+    epu.wrapping_sub(epu.wrapping_sub(entry).bit_and(low_mask))
+}
+
 // ------------------------------------------------------------------ width conversion
 
 /// REQ-TIME-013: the low 32 bits of a 64-bit word (what a 32-bit DC slave keeps).

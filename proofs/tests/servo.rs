@@ -43,6 +43,8 @@ proptest! {
         let i_max = ((y as f64 * frac) as i64).clamp(1, y);
         p::prop_pi_step_bounded(kp, ki, y, i_max, i.clamp(-i_max, i_max), th);
         p::prop_pi_intermediates_fit(kp, ki, y, i, th);
+        // The SMT-proved transcription equals the shipped kernel (any I, not only |I| ≤ I_max).
+        let _ = p::prop_pi_update_matches(kp, ki, y, i_max, i, th);
     }
 
     /// REQ-SERVO-002: accepted gains are stable.
@@ -402,4 +404,49 @@ fn master_loop_numbers() {
         // narrow tracking gains.
         assert_eq!(m.mode(), Mode::Tracking);
     }
+}
+
+/// The SMT-proved PI transcription (`ecdc_proofs::servo::pi_update`) equals `pi_step` on the
+/// boundary grid: admissible extreme gains and limits, I and θ at and around every clamp edge.
+#[test]
+fn pi_update_transcription_matches_on_boundaries() {
+    // Extremes of the admitted region: MARGIN ≤ Kp ≤ 2 − MARGIN, Ki ≥ 1, 2·Kp + Ki ≤ 4 − MARGIN.
+    let m = ecdc_core::servo::gains::MARGIN;
+    let gains = [
+        (m, 1),
+        (ONE, ONE / 2),
+        (2 * ONE - m, 1),
+        (m, 4 * ONE - 3 * m),
+        (ONE, 2 * ONE - m),
+    ];
+    let limits = [
+        (1, 1),
+        (1 << 60, 1 << 60),
+        (1 << 60, 1),
+        (1000 * ONE, 10 * ONE),
+    ];
+    let thetas = [
+        0,
+        1,
+        -1,
+        1 << 28,
+        -(1 << 28),
+        (1 << 28) + 1,
+        i64::MIN,
+        i64::MAX,
+        12_345,
+    ];
+    let mut n = 0u32;
+    for (kp, ki) in gains {
+        for (y, im) in limits {
+            let is = [0, 1, -1, im, -im, im + 1, -im - 1, i64::MIN, i64::MAX, y];
+            for i in is {
+                for th in thetas {
+                    n += u32::from(p::prop_pi_update_matches(kp, ki, y, im, i, th));
+                }
+            }
+        }
+    }
+    // Every gain pair and limit pair above is admissible: nothing was skipped.
+    assert_eq!(n, 5 * 4 * 10 * 9);
 }

@@ -318,3 +318,24 @@ fn kernels_agree_on_constants() {
         }
     }
 }
+
+/// P4, REQ-DC-021..024: the offset kernels `core/src/dc/offset.rs` calls, at full width.
+#[test]
+fn p4_offset_arithmetic() {
+    check("offset_to @32", props::offset_to::<32>());
+    check("offset_to @64", props::offset_to::<64>());
+    check(
+        "initial offset, 64- and 32-bit slaves",
+        props::initial_offset_both_widths(),
+    );
+    check("corrected_offset @32", props::corrected_offset::<32>());
+    check("corrected_offset @64", props::corrected_offset::<64>());
+    check("entry_local @64", props::entry_local());
+}
+
+/// P5, REQ-SERVO-011..013: one-step inductive bound of the PI update at 64 bits (products
+/// abstracted to their ranges; the transcription is checked against `pi_step` in tests/servo.rs).
+#[test]
+fn p5_pi_update_bounded() {
+    check("pi_update bound @64", props::pi_update_bounded());
+}

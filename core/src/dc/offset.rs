@@ -124,8 +124,8 @@ impl WidthValue {
 /// `entry`. Exact whenever the EPU stamp follows the entry stamp by less than 2^32 ns (it
 /// follows by at most one round trip through the slave's subtree).
 pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
-    let back = low32(latches.epu).wrapping_sub(latches.at(entry).raw());
-    latches.epu.wrapping_sub(u64::from(back))
+    // = epu − (low32(epu) − entry stamp mod 2^32); the kernel is SMT-proved (P4).
+    crate::num::entry_local(latches.epu, u64::from(latches.at(entry).raw()))
 }
 
 /// REQ-DC-021, REQ-DC-023: the System Time Offset for a slave whose latch frame entered at local time
@@ -139,7 +139,7 @@ pub fn initial_offset(
     width: ClockWidth,
 ) -> WidthValue {
     let target = master_time.wrapping_add_signed(delay_ns);
-    WidthValue::new(target.as_nanos().wrapping_sub(entry_local), width)
+    WidthValue::new(crate::num::offset_to(target.as_nanos(), entry_local), width)
 }
 
 /// REQ-DC-024: re-offset without a new latch (IgH style): given the offset currently in 0x0920
@@ -150,10 +150,16 @@ pub fn corrected_offset(
     read_system_time: u64,
     reference_time: SystemTime,
 ) -> WidthValue {
-    let step = reference_time.as_nanos().wrapping_sub(read_system_time);
+    let (read, reference) = (read_system_time, reference_time.as_nanos());
     match current {
-        WidthValue::Bits32(v) => WidthValue::Bits32(v.wrapping_add(low32(step))),
-        WidthValue::Bits64(v) => WidthValue::Bits64(v.wrapping_add(step)),
+        WidthValue::Bits32(v) => WidthValue::Bits32(crate::num::corrected_offset(
+            v,
+            low32(read),
+            low32(reference),
+        )),
+        WidthValue::Bits64(v) => {
+            WidthValue::Bits64(crate::num::corrected_offset(v, read, reference))
+        }
     }
 }
 

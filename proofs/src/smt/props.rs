@@ -303,3 +303,94 @@ pub fn sign_magnitude<const N: u32>() -> Goal {
     ]);
     (t(), claim)
 }
+
+// ------------------------------------------------------------------ P4: offset arithmetic
+
+/// P4 / REQ-DC-021, REQ-DC-023: `local + offset_to(target, local) ≡ target (mod 2^N)` for every
+/// target and local time.
+pub fn offset_to<const N: u32>() -> Goal {
+    let (target, local) = (Sym::<N>::var("target"), Sym::<N>::var("local"));
+    let o = k::offset_to(target, local);
+    (t(), local.wrapping_add(o).bv()._eq(target.bv()))
+}
+
+/// P4 / REQ-DC-021, REQ-DC-023 for both clock widths, as `initial_offset` computes it: target =
+/// master time + delay (any 64-bit master time, any signed 64-bit delay, wrapping), offset from
+/// the 64-bit entry local time; a 64-bit slave gets the offset, a 32-bit slave its low half and
+/// counts with the low half of its local time. Claims: local + offset ≡ target (mod 2^64) and
+/// low32(local) + low32(offset) ≡ low32(target) (mod 2^32).
+pub fn initial_offset_both_widths() -> Goal {
+    let (m, d, local) = (
+        Sym::<64>::var("master"),
+        Sym::<64>::var("delay"),
+        Sym::<64>::var("local"),
+    );
+    let target = m.wrapping_add(d);
+    let o = k::offset_to(target, local);
+    let lo = |x: &BV<'static>| x.extract(31, 0);
+    let claim = and(&[
+        &local.wrapping_add(o).bv()._eq(target.bv()),
+        &lo(local.bv()).bvadd(&lo(o.bv()))._eq(&lo(target.bv())),
+    ]);
+    (t(), claim)
+}
+
+/// P4 / REQ-DC-024: with the slave reading `read = local + current` when the reference read
+/// `reference`, `local + corrected_offset(current, read, reference) ≡ reference (mod 2^N)`.
+pub fn corrected_offset<const N: u32>() -> Goal {
+    let (local, cur, reference) = (
+        Sym::<N>::var("local"),
+        Sym::<N>::var("current"),
+        Sym::<N>::var("reference"),
+    );
+    let read = local.wrapping_add(cur);
+    let new = k::corrected_offset(cur, read, reference);
+    (t(), local.wrapping_add(new).bv()._eq(reference.bv()))
+}
+
+/// P4 / REQ-DC-022: a frame entered at true 64-bit local time E and the EPU stamp follows e <
+/// 2^32 ns later; the entry port keeps only low32(E). Then entry_local(E + e, low32(E)) = E.
+pub fn entry_local() -> Goal {
+    let (e_true, e) = (Sym::<64>::var("entry"), Sym::<64>::var("elapsed"));
+    let pre = e.bv().bvult(&int(1i128 << 32, 64));
+    let epu = e_true.wrapping_add(e);
+    let stamp = Sym::<64>::of(e_true.bv().extract(31, 0).zero_ext(32));
+    let r = k::entry_local(epu, stamp);
+    (pre, r.bv()._eq(e_true.bv()))
+}
+
+// ------------------------------------------------------------------ P5: PI step bound
+
+/// P5 / REQ-SERVO-011..013, one-step inductive bound at 64 bits on the add/compare/clamp part of
+/// the PI step (`crate::servo::pi_update`), the products Kp·θ and Ki·θ being free values
+/// within their proven ranges (|Kp·θ| ≤ 2^61 from Kp < 2^33, |θ| ≤ 2^28; |Ki·θ| ≤ 2^62 from
+/// Ki < 2^34): for every integrator I (clamped on entry) and limits 0 < I_max ≤ y_max ≤ 2^60,
+/// |y| ≤ y_max, |I'| ≤ I_max, and the 64-bit sum v equals the exact 66-bit sum (no wrap).
+pub fn pi_update_bounded() -> Goal {
+    let v64 = |n: &str| Sym::<64>::var(n);
+    let (i, p, it, ym, im) = (v64("I"), v64("p"), v64("it"), v64("y_max"), v64("i_max"));
+    // −b ≤ x ≤ b (b ≥ 0 and small here, so −b does not wrap; unlike |x| ≤ b it is false
+    // for x = −2^63).
+    let abs_le = |x: &BV<'static>, b: &BV<'static>| and(&[&x.bvsle(b), &b.bvneg().bvsle(x)]);
+    let pre = and(&[
+        &int(0, 64).bvslt(im.bv()),
+        &im.bv().bvsle(ym.bv()),
+        &ym.bv().bvsle(&int(1i128 << 60, 64)),
+        &abs_le(p.bv(), &int(1i128 << 61, 64)),
+        &abs_le(it.bv(), &int(1i128 << 62, 64)),
+    ]);
+    let (y, i2, sat, v) = crate::servo::pi_update(i, p, it, ym, im);
+    let ic = i.bv().bvslt(&im.bv().bvneg()).ite(
+        &im.bv().bvneg(),
+        &i.bv().bvsgt(im.bv()).ite(im.bv(), i.bv()),
+    );
+    let x = |b: &BV<'static>| b.sign_ext(2);
+    let exact = x(p.bv()).bvadd(&x(&ic)).bvadd(&x(it.bv()));
+    let claim = and(&[
+        &abs_le(y.bv(), ym.bv()),
+        &abs_le(i2.bv(), im.bv()),
+        &x(v.bv())._eq(&exact),
+        &sat.b()._eq(&abs_le(v.bv(), ym.bv()).not()),
+    ]);
+    (pre, claim)
+}
