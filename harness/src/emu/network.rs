@@ -269,6 +269,8 @@ pub struct Network {
     loss_rng: ChaCha8Rng,
     visits: Vec<Visit>,
     spans: Vec<DgSpan>,
+    /// Scratch of `walk_static`: (slave, next port index, port) per level.
+    walk_stack: Vec<(usize, usize, u8)>,
     latch: Vec<bool>,
     stats: Stats,
 }
@@ -364,6 +366,7 @@ impl Network {
             loss_rng: ChaCha8Rng::seed_from_u64(sub_seed(sc.seed, 4)),
             visits: Vec::with_capacity(4 * n + 4),
             spans: Vec::with_capacity(16),
+            walk_stack: Vec::new(),
             latch: vec![false; n],
             stats: Stats::default(),
         };
@@ -595,6 +598,7 @@ impl Network {
         Ok(self.escs[i].ppb())
     }
 
+    #[inline]
     fn jitter(&mut self, on: bool) -> u64 {
         if on && self.phy_jitter_ns > 0 {
             // Multiply-shift mapping of a 32-bit draw onto [0, J] (bias < 2^-20 for small J).
@@ -717,6 +721,61 @@ impl Network {
         }
     }
 
+    /// [`Network::walk`] from the master for the common case: no link or power change
+    /// scheduled and no forced DL loop, so exactly the cabled ports are open, port 0 is always
+    /// open and nothing circulates. Iterative; the visits and the jitter draws come in the same
+    /// order as the recursive walk's. Returns the time the frame leaves slave 0's port 0.
+    fn walk_static(&mut self, t_in: u64, jit: bool) -> u64 {
+        const ORDER: [u8; 3] = [3, 1, 2];
+        let mut stack = core::mem::take(&mut self.walk_stack);
+        stack.clear();
+        let mut s = 0;
+        let mut t = t_in;
+        self.visits.push(Visit::Epu {
+            slave: 0,
+            t,
+            set_c: false,
+        });
+        t += self.hops[0].t_p;
+        let mut qi = 0;
+        let back = loop {
+            if let Some(&q) = ORDER.get(qi) {
+                qi += 1;
+                if q >= self.hops[s].ports {
+                    continue;
+                }
+                let Some(child) = self.topo.children[s][usize::from(q)] else {
+                    continue;
+                };
+                let down = t + self.topo.cable_ns[child] + self.jitter(jit);
+                stack.push((s, qi, q));
+                s = child;
+                self.visits.push(Visit::Epu {
+                    slave: s,
+                    t: down,
+                    set_c: false,
+                });
+                t = down + self.hops[s].t_p;
+                qi = 0;
+                continue;
+            }
+            let Some((parent, pqi, q)) = stack.pop() else {
+                break t;
+            };
+            let rx = t + self.topo.cable_ns[s] + self.jitter(jit);
+            self.visits.push(Visit::Rx {
+                slave: parent,
+                port: q,
+                t: rx,
+            });
+            s = parent;
+            t = rx + self.hops[s].t_f;
+            qi = pqi;
+        };
+        self.walk_stack = stack;
+        back
+    }
+
     /// Sends `frame` with its first bit leaving the master at `send_time` (≥ now) and returns
     /// what comes back. All slave effects of the frame happen at their true times.
     pub fn transact(&mut self, frame: &[u8], send_time: TrueTime) -> Result<Delivery, EmuError> {
@@ -748,8 +807,12 @@ impl Network {
         };
         self.visits.clear();
         let t_in = t0 + self.master_cable_ns + self.jitter(true);
-        let mut budget = 8 * self.escs.len() + 8;
-        let back = self.walk(0, t_in, &mut c, &mut budget, true);
+        let back = if !self.any_forced && self.topo.is_static() {
+            Some(self.walk_static(t_in, true))
+        } else {
+            let mut budget = 8 * self.escs.len() + 8;
+            self.walk(0, t_in, &mut c, &mut budget, true)
+        };
         // REQ-ESC-092: a lost frame is cut at a uniformly chosen visit; later ones commit
         // nothing and the master gets nothing.
         let injected = self.loss_rate > 0.0 && self.loss_rng.gen::<f64>() < self.loss_rate;
@@ -877,7 +940,7 @@ impl Network {
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::emu::SyncSignal;
+    use crate::emu::{SlaveSpec, SyncSignal};
 
     /// Random per-slave logs (sorted by time, with ties inside and across slaves), as
     /// `take_sync_edges` concatenates them, and their run bounds.
@@ -939,6 +1002,49 @@ mod test {
             let mut bo = bounds.clone();
             merge_runs(&mut b, &mut scratch, &mut bo);
             assert_eq!(b, want, "merge, seed {seed}");
+        }
+    }
+
+    /// The iterative walk for static topologies visits, stamps and draws jitter exactly like
+    /// the general recursive walk (random trees of 2..4-port slaves).
+    #[test]
+    fn static_walk_matches_recursive_walk() {
+        let mut r = ChaCha8Rng::seed_from_u64(5);
+        for case in 0..200 {
+            let n = r.gen_range(1..40);
+            let mut sc = Scenario::default();
+            sc.seed = case;
+            let mut free: Vec<(usize, u8)> = Vec::new();
+            for i in 0..n {
+                let ports = r.gen_range(2..=4u8);
+                let mut spec = SlaveSpec {
+                    ports: Some(ports),
+                    cable_m: Some(r.gen_range(0.0..100.0)),
+                    ..SlaveSpec::default()
+                };
+                if i > 0 {
+                    let (p, q) = free.swap_remove(r.gen_range(0..free.len()));
+                    spec.parent = Some(p);
+                    spec.port = Some(q);
+                }
+                free.extend((1..ports).map(|q| (i, q)));
+                sc = sc.with_slave(spec);
+            }
+            let mut net = Network::new(&sc).expect("scenario");
+            let rng = net.jitter_rng.clone();
+            let t = r.gen_range(0..1_000_000_000);
+            let fast = net.walk_static(t, true);
+            let fast_visits = core::mem::take(&mut net.visits);
+            net.jitter_rng = rng;
+            let (mut c, mut budget) = (false, 8 * n + 8);
+            let slow = net.walk(0, t, &mut c, &mut budget, true);
+            assert_eq!(Some(fast), slow, "case {case}");
+            assert_eq!(
+                format!("{fast_visits:?}"),
+                format!("{:?}", net.visits),
+                "case {case}"
+            );
+            assert_eq!(net.visits.len(), 2 * n - 1, "case {case}");
         }
     }
 }
