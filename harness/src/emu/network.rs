@@ -1012,8 +1012,10 @@ mod test {
         let mut r = ChaCha8Rng::seed_from_u64(5);
         for case in 0..200 {
             let n = r.gen_range(1..40);
-            let mut sc = Scenario::default();
-            sc.seed = case;
+            let mut sc = Scenario {
+                seed: case,
+                ..Scenario::default()
+            };
             let mut free: Vec<(usize, u8)> = Vec::new();
             for i in 0..n {
                 let ports = r.gen_range(2..=4u8);
