@@ -79,7 +79,8 @@ fn line_latches<const N: usize>(line: &Line<N>) -> ([SlaveSample; N], [i64; N]) 
     (samples, arrival)
 }
 
-/// P3 on lines (REQ-DC-014..020): for every line within capacity and every clock phase, the
+/// P3 on lines (REQ-DC-014..020): for every line within capacity and every clock phase (any
+/// 32-bit phase, so stamps wrap inside the latch: REQ-DC-016), the
 /// computed delays exist (no overflow, no error), are ≥ 0, are bounded by the reference's round
 /// trip, increase along the processing order, equal seed 000 eq. 23 (derived form, i128) and
 /// equal the true propagation delays.

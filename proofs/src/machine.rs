@@ -9,10 +9,10 @@
 //! 2. index matching: every datagram of the machine carries an index of its configured range,
 //!    distinct within the frame; a frame without any datagram matching one the machine sent
 //!    leaves the machine's observable state unchanged and is counted as foreign;
-//! 3. REQ-DC-103: 0x0920 is written only by FPWR, with 4 or 8 bytes, and only to a station
-//!    whose (truthful) AL status is INIT, PRE-OP or BOOT; nothing else ever covers 0x0920;
-//! 4. REQ-CONV-003 widths: 0x0990 with 4 or 8 bytes, 0x09A0/0x09A4/0x0928 with 4 bytes, 0x0982
-//!    never written.
+//! 3. REQ-DC-103, REQ-DC-030: 0x0920 is written only by FPWR, with 4 or 8 bytes, and only to a
+//!    station whose (truthful) AL status is INIT, PRE-OP or BOOT; nothing else ever covers 0x0920;
+//! 4. REQ-CONV-003 widths: 0x0990 with 4 or 8 bytes, 0x09A0/0x09A4/0x0928 with 4 bytes
+//!    (REQ-DC-053), 0x0982 never written (REQ-DC-035).
 //!
 //! The simulated slaves are truthful about one thing only: every FPRD 0x0130 (AL status) reply
 //! carries the station's fixed AL state chosen at the start of the script. Everything else

@@ -22,8 +22,8 @@
 //! 2. every transmitted frame: indices in range and distinct, 0x0920 written only by FPWR of
 //!    4/8 bytes to a station whose *current* ring AL state is INIT/PREOP/BOOT, register widths
 //!    ([`crate::machine::check_tx`]);
-//! 3. index matching: a received frame is used (not counted foreign) only if it is the reply to
-//!    the newest transmitted frame, that frame was not answered yet and no `reset`/`start`
+//! 3. index matching (REQ-DC-032): a received frame is used (not counted foreign) only if it
+//!    is the reply to the newest transmitted frame, that frame was not answered yet and no `reset`/`start`
 //!    came after it, and the machine still awaited it; a frame that is not used leaves the
 //!    control state unchanged; and the faithful reply to the frame awaited is used;
 //! 4. the machine stops awaiting a reply once the master clock passed transmission time +

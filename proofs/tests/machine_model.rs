@@ -1,6 +1,14 @@
 //! Model-based test (proptest-state-machine) of the DC machine against the reference model of
 //! its observable contract, `ecdc_spec::machine_model` (REQ-DC-110, REQ-DC-111, REQ-DC-113, P6).
 //!
+//! Requirements checked here: the bring-up order and its requests — discovery (REQ-DC-100),
+//! latch, offsets only to writable slaves (REQ-DC-030), loop reset 0x0934 before 0x0930
+//! (REQ-DC-031), drift gate before any SYNC write (REQ-DC-033, REQ-DC-104), 0x0981 cleared
+//! before 0x0990/0x09A0/0x09A4 and 0x0980 last (REQ-DC-034), 0x0982 never written
+//! (REQ-DC-035), one start for all from one reference read (REQ-DC-036), cyclic requests and
+//! lost cycles coasted up to the limit (REQ-DC-106); stale replies and junk change nothing
+//! (REQ-DC-032).
+//!
 //! Random sequences of abstract inputs (complete exchange, stale reply then exchange, lost
 //! frame, junk, `reset`, `start`) run on the reference model and on the real machine driven
 //! against the emulated line of `ecdc_proofs::model::World` (which also checks the P6 frame and
@@ -161,14 +169,40 @@ impl StateMachineTest for MachineTest {
         for (state, frame) in &sent {
             let eth = EthernetFrame::new_checked(&frame[..]).expect("machine frame parses");
             let ecat = eth.ecat_frame().expect("EtherCAT frame");
+            // REQ-DC-031: per station, 0x0934 (filter depth) before 0x0930 (speed counter start).
+            let mut depth_written: Vec<u16> = Vec::new();
+            // REQ-DC-036: one start time for all, from one reference read.
+            let mut starts: Vec<Vec<u8>> = Vec::new();
+            let mut datagrams = 0;
             for d in ecat.iter() {
                 let d = d.expect("datagram");
+                datagrams += 1;
                 let cmd = d.command().expect("command");
+                match d.ado() {
+                    0x0934 => depth_written.push(d.adp()),
+                    0x0930 => assert!(
+                        depth_written.contains(&d.adp()),
+                        "0x0930 before 0x0934 at station {:#06x}",
+                        d.adp()
+                    ),
+                    0x0990 => starts.push(d.data().to_vec()),
+                    _ => {}
+                }
                 assert!(
                     allowed_request(*state, cmd, d.ado(), d.data_len()),
                     "{cmd:?} 0x{:04X} ({} bytes) sent in {state:?}",
                     d.ado(),
                     d.data_len()
+                );
+            }
+            assert!(
+                starts.windows(2).all(|w| w[0] == w[1]),
+                "SYNC starts differ"
+            );
+            if *state == State::ReadReferenceTime {
+                assert_eq!(
+                    datagrams, 1,
+                    "one reference read, no per-slave 0x0910 reads"
                 );
             }
         }

@@ -36,7 +36,8 @@ fn theta() -> impl Strategy<Value = i64> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(4000))]
 
-    /// P5 / REQ-SERVO-012/013: one-step inductive bound and equality with the i128 rule.
+    /// P5 / REQ-SERVO-012, REQ-SERVO-013: one-step inductive bound and equality with the i128
+    /// rule of the law (REQ-SERVO-010); no intermediate overflows (checked arithmetic).
     #[test]
     fn pi_step_bounded_and_exact(kp in q32(), ki in q32(), y in 1i64..=(1 << 60), frac in 0.0f64..=1.0,
                                  i in any::<i64>(), th in theta()) {
@@ -121,7 +122,9 @@ proptest! {
         p::prop_engine_bounded(cfg, &ins);
     }
 
-    /// P5 / REQ-SERVO-101/102 through the master adapter, 32- and 64-bit references.
+    /// P5 / REQ-SERVO-101, REQ-SERVO-102 through the master adapter, 32- and 64-bit references:
+    /// θ = fold(raw, P) with raw = (app − ref) − target wrap-safe in the reference's width
+    /// (REQ-SERVO-100, sign measured − target: REQ-CONV-007), app steps whole periods.
     #[test]
     fn master_bounded(ins in proptest::collection::vec((any::<bool>(), any::<u64>(), any::<u64>(),
                           prop_oneof![any::<u64>(), Just(1u64 << 63), Just((1u64 << 63) - 1), Just(0u64),
@@ -137,7 +140,7 @@ proptest! {
         }
     }
 
-    /// REQ-SERVO-020/021: 1588 offset and delay equal the i128 definitions (no wrap).
+    /// REQ-SERVO-020, REQ-SERVO-021: 1588 offset and delay equal the i128 definitions (no wrap).
     #[test]
     fn ptp_offset_delay(t1 in any::<u64>(), d_ms in -(1i64 << 40)..(1 << 40), gap in 0i64..(1 << 40), d_sm in -(1i64 << 40)..(1 << 40)) {
         let t2 = t1.wrapping_add_signed(d_ms);
@@ -266,8 +269,8 @@ proptest! {
     }
 }
 
-/// Outliers: a heavy-tailed burst (every 50th sample +200 µs) is rejected in tracking and the
-/// loop stays locked; the learned drift is not dragged.
+/// Outliers (REQ-SERVO-050): a heavy-tailed burst (every 50th sample +200 µs) is rejected in
+/// tracking and the loop stays locked; the learned drift is not dragged.
 #[test]
 fn master_gate_rejects_outliers() {
     let p = 1_000_000i128;

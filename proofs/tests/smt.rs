@@ -24,7 +24,7 @@ fn p2_wrapping_diff_32() {
         props::wrapping_diff_true::<32>(),
     );
 }
-/// P2, REQ-TIME-003, REQ-TIME-004.
+/// P2, REQ-TIME-003, REQ-TIME-004; 64-bit system time wrapping modulo 2^64 (REQ-CONV-002).
 #[test]
 fn p2_wrapping_diff_64() {
     check(
@@ -101,7 +101,7 @@ fn half_32_64() {
     check("half_toward_zero @32", props::half::<32>());
     check("half_toward_zero @64", props::half::<64>());
 }
-/// REQ-TIME-012 (0x092C encoding).
+/// REQ-TIME-012 (0x092C encoding; bit 31 set ⇔ Δt < 0, REQ-CONV-006).
 #[test]
 fn sign_magnitude_32_64() {
     check("sign-magnitude @32", props::sign_magnitude::<32>());
@@ -319,7 +319,8 @@ fn kernels_agree_on_constants() {
     }
 }
 
-/// P4, REQ-DC-021..024: the offset kernels `core/src/dc/offset.rs` calls, at full width.
+/// P4, REQ-DC-021..024 (REQ-DC-022, REQ-DC-023, REQ-DC-024): the offset kernels
+/// `core/src/dc/offset.rs` calls, at full width; local + offset ≡ system time (REQ-CONV-004).
 #[test]
 fn p4_offset_arithmetic() {
     check("offset_to @32", props::offset_to::<32>());

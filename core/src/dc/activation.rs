@@ -3,7 +3,8 @@
 //! clock) on a grid anchored at the DC epoch plus the shift; 0x0981 cleared first; 0x0990 with
 //! the slave's exact width, 0x09A0 and 0x09A4 with 4 bytes; activation by the 2-byte
 //! AssignActivate word at 0x0980. Running slaves (SAFEOP/OP) keep their SYNC unit untouched.
-//! 0x0982 (pulse length) is never written.
+//! 0x0982 (pulse length) is never written (REQ-DC-035); every slave gets the same start, from
+//! one reference read (REQ-DC-036).
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;

@@ -1,7 +1,7 @@
 //! Offset and delay writes (REQ-DC-103): read AL status, write 0x0920 with the slave's exact
 //! width only to slaves that are provably not running, write 0x0928 to every slave with a
 //! system time, then reset the loop of every slave whose offset changed (0x0934, then 0x0930,
-//! ETG1020 §22.2.4 order as ethercrab and KickCAT).
+//! ETG1020 §22.2.4 order as ethercrab and KickCAT; REQ-DC-031).
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;

@@ -1,7 +1,8 @@
 //! Static drift compensation with a convergence gate (REQ-DC-104): bursts of FRMW 0x0910 (one
 //! per frame, each a loop sample in every slave) interleaved with 0x092C checks (per-slave FPRD
 //! and/or the BRD upper bound). Done when every check of `consecutive` checks in a row is below
-//! `threshold_ns`; a `NotConverged` error with the worst slave after `max_frames`.
+//! `threshold_ns`; a `NotConverged` error with the worst slave after `max_frames`. SYNC is
+//! programmed only after this gate passed (REQ-DC-033).
 
 use crate::dc::config::DriftCheck;
 use crate::dc::error::Error;

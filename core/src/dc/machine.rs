@@ -339,7 +339,8 @@ impl<const N: usize> Machine<N> {
     }
 
     /// Handles one received Ethernet frame (any bytes). Datagrams matched to requests in flight
-    /// are used; everything else is counted in `Stats` and ignored.
+    /// (index, command, register, station, length: REQ-DC-032) are used; everything else is
+    /// counted in `Stats` and ignored.
     pub fn handle_frame(&mut self, now: SystemTime, bytes: &[u8]) {
         let now = now.0;
         self.stats.frames_received = self.stats.frames_received.saturating_add(1);
