@@ -150,8 +150,9 @@ fn command_writes_table_json_and_svg() {
 
     let svg = std::fs::read_to_string(dir.join("dc-seed003-line2.svg")).unwrap();
     assert!(svg.starts_with("<svg"));
-    assert!(svg.contains(&cmd));
+    assert!(svg.contains(&format!("<desc>produced by: {cmd}</desc>")));
     assert!(balanced(&svg));
+    assert!(!svg.contains("<!--"), "an XML comment cannot hold the command's `--`");
     for name in ["ecdc", "seed000", "igh", "ethercrab", "uncompensated"] {
         assert!(svg.contains(&format!(">{name}</text>")), "legend {name}");
     }

@@ -374,6 +374,15 @@ fn optf(v: Option<f64>, prec: usize) -> String {
     v.map_or("–".to_string(), |v| format!("{v:.prec$}"))
 }
 
+/// Lock time, marked `*` when the lock came in the last 10 % of the run (it held only until
+/// the run ended, too short a stretch to call it settled).
+fn lock_ms_cell(lock_ms: Option<f64>, duration_ns: u64) -> String {
+    match lock_ms {
+        Some(v) if v * 1e6 > 0.9 * duration_ns as f64 => format!("{v:.1} *"),
+        v => optf(v, 1),
+    }
+}
+
 /// The table rows of one scenario.
 fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
     r.schemes
@@ -386,7 +395,7 @@ fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
             row.extend([
                 s.name.clone(),
                 opt(s.lock_frames),
-                optf(s.lock_ms, 1),
+                lock_ms_cell(s.lock_ms, r.duration_ns),
                 opt(s.static_drift_frames),
                 optf(s.skew_mean_ns, 1),
                 opt(s.skew_p99_ns),
@@ -432,7 +441,8 @@ pub fn markdown_report(rep: &DcReport) -> String {
          window. `lock frames` counts the frames that carry the reference time (static drift + \
          cyclic) sent until lock; `pairs` the (slave, pulse) skew samples; `SYNC0 slaves` the \
          slaves that fired SYNC0 in the window out of those with a DC system time (fewer = some \
-         slaves never started SYNC0, their skew is not in the statistics).\n\n## All scenarios\n\n",
+         slaves never started SYNC0, their skew is not in the statistics); `*` = lock reached only \
+         in the last 10 % of the run.\n\n## All scenarios\n\n",
     );
     let mut headers = vec!["scenario"];
     headers.extend(HEADERS);
@@ -497,8 +507,8 @@ pub fn run_dc(args: &DcArgs) -> anyhow::Result<DcReport> {
     };
     for which in scenarios {
         let (r, series) = run_scenario(which, &schemes, args.duration_ms)?;
-        let title = format!("ecdc bench dc — {}: {}", r.name, r.title);
-        let svg = render_bench(&title, &format!("produced by: {cmd}"), &series);
+        let title = format!("ecdc bench dc — {}", r.name);
+        let svg = render_bench(&title, &r.title, &format!("produced by: {cmd}"), &series);
         let p = args.out.join(format!("dc-{}.svg", r.name));
         std::fs::write(&p, svg).with_context(|| format!("writing {}", p.display()))?;
         rep.scenarios.push(r);

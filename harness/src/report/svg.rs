@@ -345,21 +345,26 @@ fn log_axis(out: &mut String, y0: f64, pw: f64, decades: i32) -> impl Fn(f64) ->
 /// slaves against true time for every scheme (log scale, min/max envelope per pixel column);
 /// (2) the distribution of steady-state |SYNC0 skew| (empirical CDF, log x). `command` is
 /// written into the file.
-pub fn render_bench(title: &str, command: &str, series: &[BenchSeries]) -> String {
+pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchSeries]) -> String {
     let pw = W - LEFT - RIGHT;
     let ph = PANEL_H;
-    let h = TOP + 2.0 * (PANEL_H + GAP) + 40.0;
+    let h = TOP + 2.0 * (PANEL_H + GAP) + 50.0;
     let mut out = String::new();
     let _ = writeln!(
         out,
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
     );
-    let _ = writeln!(out, "<!-- produced by: {} -->", esc(command));
+    let _ = writeln!(out, "<desc>{}</desc>", esc(command));
     let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
     let _ = writeln!(
         out,
-        r#"<text x="{LEFT}" y="20" font-size="13">{}</text>"#,
+        r#"<text x="{LEFT}" y="18" font-size="14" font-weight="bold">{}</text>"#,
         esc(title)
+    );
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="34" font-size="11">{}</text>"#,
+        esc(subtitle)
     );
     let _ = writeln!(
         out,
@@ -368,7 +373,7 @@ pub fn render_bench(title: &str, command: &str, series: &[BenchSeries]) -> Strin
         esc(command)
     );
     // Panel 1: lock.
-    let y0 = TOP + 30.0;
+    let y0 = TOP + 40.0;
     let t_end = series
         .iter()
         .filter_map(|s| s.track.last().map(|p| p.0))
@@ -422,7 +427,7 @@ pub fn render_bench(title: &str, command: &str, series: &[BenchSeries]) -> Strin
         series_line(&mut out, bench_color(&s.name, k), &pts, y0, pw, k, &s.name);
     }
     // Panel 2: skew CDF.
-    let y0 = TOP + 30.0 + PANEL_H + GAP;
+    let y0 = TOP + 40.0 + PANEL_H + GAP;
     let _ = writeln!(
         out,
         r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Steady-state |SYNC0 skew| vs the reference: fraction of pairs ≤ x</text>"#,
@@ -450,7 +455,7 @@ pub fn render_bench(title: &str, command: &str, series: &[BenchSeries]) -> Strin
             y0 + ph + 16.0
         );
     }
-    for f in [0.0, 0.5, 0.99, 1.0] {
+    for f in [0.0, 0.25, 0.5, 0.75, 1.0] {
         let _ = writeln!(
             out,
             r#"<text x="{}" y="{:.1}" font-size="11" text-anchor="end">{f}</text>"#,
@@ -469,12 +474,8 @@ pub fn render_bench(title: &str, command: &str, series: &[BenchSeries]) -> Strin
                 let _ = write!(pts, "{:.1},{:.1} ", xs(s.skews[idx] as f64), yf(frac));
             }
         }
-        let label = if n == 0 {
-            format!("{} (no pairs)", s.name)
-        } else {
-            s.name.clone()
-        };
-        series_line(&mut out, bench_color(&s.name, k), &pts, y0, pw, k, &label);
+        // A scheme without pairs (it stopped, or SYNC0 never fired) has no curve.
+        series_line(&mut out, bench_color(&s.name, k), &pts, y0, pw, k, &s.name);
     }
     out.push_str("</svg>\n");
     out
