@@ -152,7 +152,10 @@ fn command_writes_table_json_and_svg() {
     assert!(svg.starts_with("<svg"));
     assert!(svg.contains(&format!("<desc>produced by: {cmd}</desc>")));
     assert!(balanced(&svg));
-    assert!(!svg.contains("<!--"), "an XML comment cannot hold the command's `--`");
+    assert!(
+        !svg.contains("<!--"),
+        "an XML comment cannot hold the command's `--`"
+    );
     for name in ["ecdc", "seed000", "igh", "ethercrab", "uncompensated"] {
         assert!(svg.contains(&format!(">{name}</text>")), "legend {name}");
     }
