@@ -413,3 +413,94 @@ pub fn kani_sync_start() {
     kani::cover!(period == 0, "zero period");
     sync_start(kani::any(), kani::any(), period, kani::any());
 }
+
+// ------------------------------------------------------------------ P3 line kernel for SMT
+
+/// Word-generic transcription of `delay::compute` on a *line* of `n ≤ 3` DC slaves (reference =
+/// slave 0; ports 0 in, 1 out; the line end has only port 0), add/sub/and/shift/compare only,
+/// so z3 can prove P3 on it at full width (`smt::props::p3_line_kernel`): per slave `i` the
+/// 32-bit stamps `p0[i]`, `p1[i]` (zero-extended into the word) and `t_diff[i]` (signed). For
+/// `c ≥ 1`, `a = c − 1`: excursion = p1[a] − p0[a] and rtt_c = p1[c] − p0[c] (0 at the line end),
+/// both wrapping 32-bit differences read as signed; twice the hop = excursion − rtt_c +
+/// t_Diff(a) − (line end ? t_Diff(c) : 0); the delay is ⌊(2·delay + 1)/2⌋ (round half up).
+/// Returns the delays and an error flag (a negative difference or hop, where the shipped code
+/// returns `Inconsistent`/`NegativeHop`). A copy, not the shipped code (delay.rs is topology
+/// code over `i64`, not Word-generic): [`p3_line_kernel_matches`] checks it against
+/// `delay::compute`.
+pub fn p3_line_kernel<W: ecdc_core::num::Word>(
+    n: usize,
+    p0: [W; 3],
+    p1: [W; 3],
+    t_diff: [W; 3],
+) -> ([W; 3], W::Bool) {
+    use ecdc_core::num::Logic;
+    let zero = W::lit(0);
+    let mask = W::lit(1).shl(32).wrapping_sub(W::lit(1));
+    let bit31 = W::lit(1).shl(31);
+    // Signed 32-bit wrapping difference, sign-extended into the word.
+    let since = |to: W, from: W| {
+        let d = to.wrapping_sub(from).bit_and(mask);
+        let neg = d.bit_and(bit31).eq(zero).not();
+        W::select(neg, d.wrapping_sub(mask).wrapping_sub(W::lit(1)), d)
+    };
+    let mut bad = zero.eq(W::lit(1)); // false
+    let mut abs2 = [zero; 3];
+    let mut out = [zero; 3];
+    for c in 1..n.min(3) {
+        let a = c - 1;
+        let end = c + 1 == n;
+        let excursion = since(p1[a], p0[a]);
+        let rtt_c = if end { zero } else { since(p1[c], p0[c]) };
+        bad = bad.or(excursion.slt(zero)).or(rtt_c.slt(zero));
+        let measured = excursion.wrapping_sub(rtt_c);
+        bad = bad.or(measured.slt(zero));
+        let corr_c = if end { t_diff[c] } else { zero };
+        let hop2 = measured.wrapping_add(t_diff[a]).wrapping_sub(corr_c);
+        bad = bad.or(hop2.slt(zero));
+        abs2[c] = abs2[a].wrapping_add(hop2);
+    }
+    for i in 0..n.min(3) {
+        // ⌊(x + 1) / 2⌋ for x ≥ 0 (the only case without an error).
+        out[i] = abs2[i].wrapping_add(W::lit(1)).shr(1);
+    }
+    (out, bad)
+}
+
+/// [`p3_line_kernel`] at 64 bits equals `delay::compute` (delays, or an error exactly when the
+/// kernel flags one) for a line of `n` 64-bit DC slaves with these stamps and `t_Diff`s, when
+/// every slave's entry port is port 0. Returns whether the delays were compared and equal.
+pub fn p3_line_kernel_matches(n: usize, p0: [u32; 3], p1: [u32; 3], t_diff: [i32; 3]) -> bool {
+    let n = n.clamp(1, 3);
+    let samples: Vec<SlaveSample> = (0..n)
+        .map(|i| {
+            let dl = if i + 1 < n { 0x5A00 } else { 0x5600 };
+            let ports = if i + 1 < n {
+                [p0[i], p1[i], 0, 0]
+            } else {
+                [p0[i], 0, 0, 0]
+            };
+            SlaveSample::from_registers(dl, 0x000C, ports, u64::from(p0[i]), t_diff[i])
+        })
+        .collect();
+    let topo = Topology::<4>::build(&samples).expect("a line is a valid topology");
+    // Arbitrary stamps can make port 1 look earlier than port 0 (entry detection, REQ-TIME-005):
+    // then the shipped code walks another topology than the kernel's line; not compared.
+    if (0..n).any(|i| topo.node(i).is_none_or(|nd| nd.entry != Port::P0)) {
+        return false;
+    }
+    let w = |x: [u32; 3]| x.map(u64::from);
+    let (d, bad) = p3_line_kernel::<u64>(n, w(p0), w(p1), t_diff.map(|t| i64::from(t) as u64));
+    match delay::compute(&samples, &topo, 0) {
+        Ok(delays) => {
+            assert!(!bad, "kernel flags an error the shipped code does not");
+            for i in 0..n {
+                assert_eq!(delays.ns(i), Some(d[i] as i64), "slave {i}");
+            }
+            true
+        }
+        Err(e) => {
+            assert!(bad, "shipped code fails ({e:?}) where the kernel does not");
+            false
+        }
+    }
+}

@@ -163,3 +163,25 @@ fn kani_harnesses_random() {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    /// The P3 line transcription proved by SMT (`dc_math::p3_line_kernel`) equals
+    /// `delay::compute` on 1–3 slave lines: physically generated stamps (any phase, so wraps
+    /// inside the latch) and arbitrary stamps (errors must coincide).
+    #[test]
+    fn p3_line_kernel_matches_compute(n in 1usize..=3, phase in any::<[u32; 3]>(),
+                                      x1 in 0u32..1_000_000, hop in 0u32..1_000_000,
+                                      td in 0i32..2_000, raw in any::<([u32; 3], [u32; 3], [i32; 3])>(),
+                                      physical in any::<bool>()) {
+        if physical {
+            let x0 = x1 + 2 * hop;
+            let p0 = phase;
+            let p1 = [phase[0].wrapping_add(x0), phase[1].wrapping_add(x1), phase[2]];
+            prop_assert!(dc_math::p3_line_kernel_matches(n, p0, p1, [td; 3]));
+        } else {
+            let _ = dc_math::p3_line_kernel_matches(n, raw.0, raw.1, raw.2);
+        }
+    }
+}

@@ -135,14 +135,18 @@ fn p6_all_placements_of_two_faults() {
     assert!(t.with_offset_writes * 4 > t.scripts, "{t:?}");
 }
 
-/// Two headers (all INIT and mixed AL states, 4 slaves) × every placement of exactly 3 faults.
+/// Mixed AL states (INIT, SAFEOP, OP, PREOP; 4 slaves) × every placement of exactly 3 faults.
+/// (The all-INIT header, 1.5 M more runs, was dropped to keep the layer within a few minutes:
+/// the explicit-state search in `model_check_bfs.rs` covers multi-fault interleavings from every
+/// bring-up state of an all-INIT line.)
 #[test]
 #[ignore]
 fn p6_all_placements_of_three_faults() {
     let start = Instant::now();
     let mut t = Tally::default();
     let nf = FAULTS.len();
-    for h in [[0u8, 0, 0, 0, 3], [0, 5, 6, 4, 3]] {
+    let h = [0u8, 5, 6, 4, 3];
+    {
         for a in 0..R {
             for b in a + 1..R {
                 for c in b + 1..R {

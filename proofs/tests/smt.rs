@@ -340,3 +340,10 @@ fn p4_offset_arithmetic() {
 fn p5_pi_update_bounded() {
     check("pi_update bound @64", props::pi_update_bounded());
 }
+
+/// P3, REQ-DC-014, REQ-DC-016, REQ-DC-020: the delay formula on a 3-slave line at 64 bits, any
+/// clock phases (transcription checked against `delay::compute` in tests/dc_math.rs).
+#[test]
+fn p3_line_delay_formula() {
+    check("p3 line kernel, 3 slaves @64", props::p3_line_kernel());
+}

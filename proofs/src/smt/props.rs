@@ -394,3 +394,49 @@ pub fn pi_update_bounded() -> Goal {
     ]);
     (pre, claim)
 }
+
+// ------------------------------------------------------------------ P3: delay formula on lines
+
+/// P3 / REQ-DC-014, REQ-DC-016, REQ-DC-020 on a line of 3 DC slaves (`crate::dc_math::
+/// p3_line_kernel`, 64-bit words): the frame enters slave i at true local time E_i (any 32-bit
+/// phase: the stamps are the low 32 bits, so they may wrap anywhere) and returns through port 1
+/// X_i ns later, with X_0 ≥ X_1 + h (what slave 1 sees is inside what slave 0 sees: X_0 = X_1 +
+/// 2·hop, hop ≥ 0), round trips < 2^30 ns and 0 ≤ t_Diff < 2^16 ns (one common value, seed 000's
+/// assumption). Claims: no error flag, every delay ≥ 0, d_0 = 0 ≤ d_1 ≤ d_2 (monotone along
+/// the line), d_2 ≤ X_0 + t_Diff (bounded by the round trip), and d_i equals seed 000 eq. 23 (derived
+/// form, REQ-DC-020) evaluated on the true round trips at 66 bits: d_1 = ⌈(X_0 − X_1 + t_Diff)/2⌉,
+/// d_2 = ⌈(X_0 + t_Diff)/2⌉ (round half up of an integer halving).
+pub fn p3_line_kernel() -> Goal {
+    let v32 = |n: &str| BV::new_const(ctx(), n, 32);
+    let (e0, e1, e2) = (v32("E0"), v32("E1"), v32("E2"));
+    let (x0, x1, hop) = (v32("X0"), v32("X1"), v32("hop"));
+    let td = v32("t_diff");
+    let lim30 = int(1 << 30, 32);
+    let pre = and(&[
+        &x0.bvult(&lim30),
+        &x1.bvult(&lim30),
+        &hop.bvult(&lim30),
+        &x0._eq(&x1.bvadd(&hop).bvadd(&hop)),
+        &td.bvult(&int(1 << 16, 32)),
+    ]);
+    let z = |b: &BV<'static>| Sym::<64>::of(b.zero_ext(32));
+    let p0 = [z(&e0), z(&e1), z(&e2)];
+    let p1 = [z(&e0.bvadd(&x0)), z(&e1.bvadd(&x1)), z(&e2)];
+    let t = z(&td);
+    let (d, bad) = crate::dc_math::p3_line_kernel::<Sym<64>>(3, p0, p1, [t, t, t]);
+    let w = |b: &BV<'static>| b.zero_ext(34);
+    let half_up = |x: BV<'static>| x.bvadd(&int(1, 66)).bvlshr(&int(1, 66));
+    let want1 = half_up(w(&x0).bvsub(&w(&x1)).bvadd(&w(&td)));
+    let want2 = half_up(w(&x0).bvadd(&w(&td)));
+    let (d0, d1, d2) = (d[0].bv(), d[1].bv(), d[2].bv());
+    let claim = and(&[
+        &bad.b().not(),
+        &d0._eq(&int(0, 64)),
+        &int(0, 64).bvsle(d1),
+        &d1.bvsle(d2),
+        &d2.bvsle(&w(&x0).extract(63, 0).bvadd(&w(&td).extract(63, 0))),
+        &d1.sign_ext(2)._eq(&want1),
+        &d2.sign_ext(2)._eq(&want2),
+    ]);
+    (pre, claim)
+}
