@@ -105,18 +105,26 @@ impl<const N: usize> Machine<N> {
         let mut budget = self.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
         while budget > 0 && scanned < self.count {
-            let pos = self.cyc.rr.checked_rem(self.count).unwrap_or(0);
-            self.cyc.rr = pos.wrapping_add(1).checked_rem(self.count).unwrap_or(0);
+            // rr < count except after a re-count; `count > 0` inside the loop.
+            let pos = if self.cyc.rr < self.count {
+                self.cyc.rr
+            } else {
+                self.cyc.rr.checked_rem(self.count).unwrap_or(0)
+            };
+            let next = pos.wrapping_add(1);
+            self.cyc.rr = if next >= self.count { 0 } else { next };
             scanned = scanned.saturating_add(1);
-            let Some(s) = self.slave(pos).copied() else {
+            let Some((station, has_time)) =
+                self.slave(pos).map(|s| (s.station, s.dc.has_system_time()))
+            else {
                 break;
             };
-            if !s.dc.has_system_time() {
+            if !has_time {
                 continue;
             }
             if !self.push_op(
                 b,
-                Op::fprd(s.station, reg::SYSTEM_TIME_DIFFERENCE, 4),
+                Op::fprd(station, reg::SYSTEM_TIME_DIFFERENCE, 4),
                 Tag::CycDiff(pos),
             ) {
                 break;

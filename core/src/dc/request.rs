@@ -150,7 +150,20 @@ impl Pending {
     /// REQ-DC-113: a reply matches only if index, command, register, length and (for FP
     /// commands) station are those sent. Position/broadcast ADP is changed by the slaves and is
     /// therefore not compared.
+    #[inline]
     pub fn matches<T: AsRef<[u8]>>(&self, d: &Datagram<T>) -> bool {
+        // One read of the header bytes (the same fields as the accessors below).
+        if let Some(h) = d.header_bytes() {
+            let [cmd, idx, p0, p1, o0, o1, l0, l1, _, _] = *h;
+            return idx == self.index
+                && cmd == self.command.code()
+                && u16::from_le_bytes([o0, o1]) == self.register
+                && u16::from_le_bytes([l0, l1]) & 0x07FF == self.len
+                && (!matches!(
+                    self.command,
+                    Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
+                ) || u16::from_le_bytes([p0, p1]) == self.station);
+        }
         d.index() == self.index
             && d.command_raw() == self.command.code()
             && d.ado() == self.register
@@ -163,54 +176,196 @@ impl Pending {
 }
 
 /// The datagrams of one transmission still waiting for their reply.
+///
+/// Slots are filled in order (`0..used`) and a reply normally comes back in the order its
+/// requests were sent, so matching first tries the slot after the previous match (`hint`) and
+/// only then scans; counters make `is_empty`/`has_room` O(1). Indexes in flight are distinct
+/// (`Config::index_count` ≥ 2 × [`MAX_INFLIGHT`]), so at most one entry matches a reply and
+/// the order of the search never changes the result.
 #[derive(Debug, Clone)]
 pub(crate) struct Inflight {
     pub(crate) entries: [Option<Pending>; MAX_INFLIGHT],
+    /// Slots `used..` are `None`.
+    used: u8,
+    /// Number of `Some` entries.
+    live: u8,
+    /// Slot tried first by the next `take_match`.
+    hint: u8,
     pub(crate) deadline: u64,
 }
+
+/// `MAX_INFLIGHT` as the counters' type.
+const MAX_INFLIGHT_U8: u8 = 32;
+const _: () = assert!(MAX_INFLIGHT_U8 as usize == MAX_INFLIGHT);
 
 impl Inflight {
     pub(crate) const fn new() -> Self {
         Inflight {
             entries: [None; MAX_INFLIGHT],
+            used: 0,
+            live: 0,
+            hint: 0,
             deadline: 0,
         }
     }
+    #[inline]
     pub(crate) fn is_empty(&self) -> bool {
-        self.entries.iter().all(Option::is_none)
+        self.live == 0
     }
+    #[inline]
     pub(crate) fn has_room(&self) -> bool {
-        self.entries.iter().any(Option::is_none)
+        self.live < MAX_INFLIGHT_U8
     }
+    #[inline]
     pub(crate) fn insert(&mut self, p: Pending) -> bool {
+        if let Some(slot) = self.entries.get_mut(usize::from(self.used)) {
+            *slot = Some(p);
+            self.used = self.used.wrapping_add(1);
+            self.live = self.live.wrapping_add(1);
+            return true;
+        }
+        // Every slot was used since the last clear: reuse the first free one.
         match self.entries.iter_mut().find(|e| e.is_none()) {
             Some(slot) => {
                 *slot = Some(p);
+                self.live = self.live.saturating_add(1);
                 true
             }
             None => false,
         }
     }
+    #[inline]
     pub(crate) fn clear(&mut self) {
-        self.entries = [None; MAX_INFLIGHT];
+        for e in self.entries.iter_mut().take(usize::from(self.used)) {
+            *e = None;
+        }
+        self.used = 0;
+        self.live = 0;
+        self.hint = 0;
     }
     /// Removes and returns the pending entry matching `d`, if any.
+    #[inline]
     pub(crate) fn take_match<T: AsRef<[u8]>>(&mut self, d: &Datagram<T>) -> Option<Pending> {
-        let slot = self
-            .entries
-            .iter_mut()
-            .find(|e| e.is_some_and(|p| p.matches(d)))?;
-        slot.take()
+        let h = usize::from(self.hint);
+        let pos = match self.entries.get(h) {
+            Some(Some(p)) if p.matches(d) => h,
+            _ => self
+                .entries
+                .iter()
+                .take(usize::from(self.used))
+                .position(|e| e.is_some_and(|p| p.matches(d)))?,
+        };
+        let taken = self.entries.get_mut(pos)?.take()?;
+        self.live = self.live.saturating_sub(1);
+        self.hint = u8::try_from(pos.wrapping_add(1)).unwrap_or(0);
+        Some(taken)
     }
 }
 
 /// Reads a little-endian unsigned integer of up to 8 bytes; `None` if `data` is not exactly
 /// `len` bytes long.
+#[inline]
 pub(crate) fn le(data: &[u8], len: usize) -> Option<u64> {
-    if data.len() != len || len > 8 {
+    if data.len() != len {
         return None;
     }
-    let mut b = [0u8; 8];
-    b.get_mut(..len)?.copy_from_slice(data);
-    Some(u64::from_le_bytes(b))
+    // The widths the machine reads, without a variable-length copy.
+    match *data {
+        [a, b] => Some(u64::from(u16::from_le_bytes([a, b]))),
+        [a, b, c, d] => Some(u64::from(u32::from_le_bytes([a, b, c, d]))),
+        [a, b, c, d, e, f, g, h] => Some(u64::from_le_bytes([a, b, c, d, e, f, g, h])),
+        _ if len > 8 => None,
+        _ => {
+            let mut b = [0u8; 8];
+            b.get_mut(..len)?.copy_from_slice(data);
+            Some(u64::from_le_bytes(b))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::FrameBuilder;
+    use std::vec::Vec;
+
+    fn pending(index: u8, station: u16) -> Pending {
+        Pending {
+            index,
+            command: Command::Fprd,
+            register: 0x092C,
+            station,
+            len: 4,
+            tag: Tag::CycDiff(station),
+        }
+    }
+
+    /// The reply datagram (as bytes of a frame) for `p`.
+    fn reply(p: &Pending) -> Vec<u8> {
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        let s = b
+            .push(
+                p.command,
+                p.index,
+                Address::configured(p.station, p.register),
+                &[0; 4],
+            )
+            .unwrap();
+        buf[s.offset()..s.offset() + 16].to_vec()
+    }
+
+    /// The in-flight table: room and emptiness by counters, matching in send order and out of
+    /// order, a reply matched once only, and reuse of freed slots once all 32 were used.
+    #[test]
+    fn inflight_table() {
+        let mut t = Inflight::new();
+        assert!(t.is_empty() && t.has_room());
+        let ps: Vec<Pending> = (0..MAX_INFLIGHT as u16)
+            .map(|i| pending(0x80 + i as u8, 0x1000 + i))
+            .collect();
+        for p in &ps {
+            assert!(t.insert(*p));
+        }
+        assert!(!t.has_room() && !t.is_empty());
+        assert!(!t.insert(pending(0x10, 1)), "full");
+        // In order, then out of order (the hint misses and the scan finds it).
+        for i in [0usize, 1, 2, 7, 3, 31, 4] {
+            let r = reply(&ps[i]);
+            let d = Datagram::new_checked(&r[..]).unwrap();
+            assert_eq!(t.take_match(&d), Some(ps[i]));
+            assert_eq!(t.take_match(&d), None, "matched once");
+        }
+        // A wrong station does not match.
+        let mut other = ps[5];
+        other.station = 0x2000;
+        let r = reply(&other);
+        assert_eq!(t.take_match(&Datagram::new_checked(&r[..]).unwrap()), None);
+        assert!(t.has_room());
+        // Freed slots are reused although all 32 were used since the clear.
+        let q = pending(0x40, 0x3000);
+        assert!(t.insert(q));
+        let r = reply(&q);
+        assert_eq!(
+            t.take_match(&Datagram::new_checked(&r[..]).unwrap()),
+            Some(q)
+        );
+        t.clear();
+        assert!(t.is_empty() && t.has_room());
+        assert!(t.entries.iter().all(Option::is_none));
+    }
+
+    /// `le` reads 2, 4 and 8 bytes and any other length up to 8, and refuses a length mismatch.
+    #[test]
+    fn le_widths() {
+        assert_eq!(le(&[1, 2], 2), Some(0x0201));
+        assert_eq!(le(&[1, 2, 3, 4], 4), Some(0x0403_0201));
+        assert_eq!(
+            le(&[1, 2, 3, 4, 5, 6, 7, 8], 8),
+            Some(0x0807_0605_0403_0201)
+        );
+        assert_eq!(le(&[1, 2, 3], 3), Some(0x03_0201));
+        assert_eq!(le(&[1, 2, 3], 4), None);
+        assert_eq!(le(&[0; 9], 9), None);
+    }
 }

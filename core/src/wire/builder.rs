@@ -7,7 +7,7 @@
 //! frame the embedding master is also filling, and leave the rest for the next frame.
 
 use super::datagram::field as dfield;
-use super::frame::{field as ffield, EcatFrame};
+use super::frame::field as ffield;
 use super::{
     Address, Command, Datagram, DatagramRepr, Error, Result, BROADCAST_MAC, ETHERTYPE_ETHERCAT,
     MASTER_MAC, MAX_DATAGRAM_DATA, MAX_ECAT_PAYLOAD, MIN_FRAME_LEN,
@@ -216,12 +216,7 @@ impl<'a> FrameBuilder<'a> {
             .ok_or(Error::DatagramTooLong {
                 len: u16::try_from(data.len()).unwrap_or(u16::MAX),
             })?;
-        let slot = self.reserve(command, index, address, len)?;
-        let dst = self.data_mut(slot)?;
-        if dst.len() == data.len() {
-            dst.copy_from_slice(data);
-        }
-        Ok(slot)
+        self.reserve(command, index, address, len, Some(data))
     }
 
     /// Like [`FrameBuilder::push`] with `len` zero bytes of data (fill them later through
@@ -233,7 +228,7 @@ impl<'a> FrameBuilder<'a> {
         address: Address,
         len: u16,
     ) -> Result<DatagramSlot> {
-        self.reserve(command, index, address, len)
+        self.reserve(command, index, address, len, None)
     }
 
     /// Like [`FrameBuilder::push`] with the next automatic index (see
@@ -264,12 +259,17 @@ impl<'a> FrameBuilder<'a> {
         Ok(slot)
     }
 
+    /// Appends one datagram: header (M clear, IRQ 0), `data` (exactly `len` bytes) or `len`
+    /// zeros, WKC 0; sets the previous datagram's M bit and the EtherCAT header length. Writes
+    /// the same bytes as `DatagramRepr::emit` on a zeroed region, in one pass.
+    #[inline]
     fn reserve(
         &mut self,
         command: Command,
         index: u8,
         address: Address,
         len: u16,
+        data: Option<&[u8]>,
     ) -> Result<DatagramSlot> {
         address.check_for(command)?;
         if usize::from(len) > MAX_DATAGRAM_DATA {
@@ -282,21 +282,28 @@ impl<'a> FrameBuilder<'a> {
         let start = self.end;
         let end = start.checked_add(total).ok_or(Error::BufferFull)?;
         let region = self.buf.get_mut(start..end).ok_or(Error::BufferFull)?;
-        region.fill(0);
-        let repr = DatagramRepr {
-            command,
-            index,
-            address,
-            len,
-            circulating: false,
-            irq: 0,
-            wkc: 0,
-        };
-        repr.emit(&mut Datagram::new_unchecked(region), false)?;
-        // Only now that the new datagram is written does the previous one get its M bit.
+        let (header, rest) = region
+            .split_first_chunk_mut::<{ dfield::HEADER_LEN }>()
+            .ok_or(Error::BufferFull)?;
+        let [a0, a1, a2, a3] = address.to_raw().to_le_bytes();
+        let [l0, l1] = (len & dfield::LEN_MASK).to_le_bytes();
+        *header = [command.code(), index, a0, a1, a2, a3, l0, l1, 0, 0];
+        let (body, wkc) = rest
+            .split_at_mut_checked(usize::from(len))
+            .ok_or(Error::BufferFull)?;
+        match data {
+            Some(d) if d.len() == body.len() => copy_small(body, d),
+            _ => zero_small(body),
+        }
+        zero_small(wkc);
+        // Only now that the new datagram is written does the previous one get its M bit
+        // (bit 15 of its little-endian length word, i.e. the high byte's top bit).
         if let Some(prev) = self.last {
-            if let Some(p) = self.buf.get_mut(prev..start) {
-                Datagram::new_unchecked(p).set_more(true);
+            let at = prev.wrapping_add(dfield::LEN_FLAGS.end.wrapping_sub(1));
+            if at < start {
+                if let Some(b) = self.buf.get_mut(at) {
+                    *b |= 0x80;
+                }
             }
         }
         self.last = Some(start);
@@ -310,14 +317,21 @@ impl<'a> FrameBuilder<'a> {
         })
     }
 
+    #[inline]
     fn write_header_len(&mut self) {
         let len = self
             .end
             .saturating_sub(self.ecat_start.wrapping_add(ffield::HEADER_LEN));
-        // len ≤ 1498 by the capacity check in `fits`.
+        // len ≤ 1498 by the capacity check in `fits`; type 1 (DLPDU), reserved bit 0 — what
+        // `EcatFrame::set_header(len, 1)` writes.
         let len = u16::try_from(len).unwrap_or(0);
-        if let Some(h) = self.buf.get_mut(self.ecat_start..) {
-            EcatFrame::new_unchecked(h).set_header(len, 1);
+        let v = (len & ffield::LEN_MASK) | (1u16 << ffield::TYPE_SHIFT);
+        if let Some(h) = self
+            .buf
+            .get_mut(self.ecat_start..)
+            .and_then(|b| b.first_chunk_mut::<2>())
+        {
+            *h = v.to_le_bytes();
         }
     }
 
@@ -371,6 +385,45 @@ impl<'a> FrameBuilder<'a> {
             p.fill(0);
         }
         Ok(len)
+    }
+}
+
+/// `dst.fill(0)`, with the short lengths of DC datagrams written as fixed-size stores (no
+/// call into `memset`).
+#[inline]
+fn zero_small(dst: &mut [u8]) {
+    match dst.len() {
+        0 => {}
+        2 => put_array(dst, [0u8; 2]),
+        4 => put_array(dst, [0u8; 4]),
+        8 => put_array(dst, [0u8; 8]),
+        _ => dst.fill(0),
+    }
+}
+
+/// `dst.copy_from_slice(src)` for `dst.len() == src.len()`, fixed-size for 2, 4 and 8 bytes.
+#[inline]
+fn copy_small(dst: &mut [u8], src: &[u8]) {
+    match (src.len(), dst.len()) {
+        (2, 2) => copy_array::<2>(dst, src),
+        (4, 4) => copy_array::<4>(dst, src),
+        (8, 8) => copy_array::<8>(dst, src),
+        (a, b) if a == b => dst.copy_from_slice(src),
+        _ => {}
+    }
+}
+
+#[inline]
+fn put_array<const K: usize>(dst: &mut [u8], v: [u8; K]) {
+    if let Some(d) = dst.first_chunk_mut::<K>() {
+        *d = v;
+    }
+}
+
+#[inline]
+fn copy_array<const K: usize>(dst: &mut [u8], src: &[u8]) {
+    if let (Some(d), Some(s)) = (dst.first_chunk_mut::<K>(), src.first_chunk::<K>()) {
+        *d = *s;
     }
 }
 

@@ -110,6 +110,12 @@ impl<T: AsRef<[u8]>> Datagram<T> {
         self.buffer
     }
 
+    /// The 10 header bytes, if the buffer holds them (for matching a header in one read).
+    #[inline]
+    pub(crate) fn header_bytes(&self) -> Option<&[u8; field::HEADER_LEN]> {
+        self.buffer.as_ref().first_chunk::<{ field::HEADER_LEN }>()
+    }
+
     /// The raw command byte.
     #[inline]
     pub fn command_raw(&self) -> u8 {

@@ -117,8 +117,10 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
     ///
     /// Invalidated by [`EcatFrame::set_header`] and by any datagram length/flag setter.
     pub fn check_len(&self) -> Result<()> {
-        for d in self.iter() {
-            d?;
+        // The walk alone (spans, no views): the same checks, in the same order, as `iter`.
+        let mut it = self.iter();
+        while let Some(span) = it.next_span() {
+            span?;
         }
         Ok(())
     }
@@ -367,6 +369,33 @@ impl Walk {
         r.transpose()
     }
 
+    /// The common case of [`Walk::step`] in one pass: a datagram follows (M set), and it is
+    /// complete and valid (every check of `step_inner` passes). Returns `None`, with the walk
+    /// unchanged, for anything else, which `step` then handles (and reports) exactly.
+    #[inline]
+    fn step_valid(&mut self, rest: &[u8]) -> Option<(usize, usize)> {
+        if self.done || !self.more {
+            return None;
+        }
+        let h = rest.first_chunk::<{ dfield::HEADER_LEN }>()?;
+        let lf = u16::from_le_bytes([h[6], h[7]]);
+        let len = usize::from(lf & dfield::LEN_MASK);
+        let total = len.wrapping_add(dfield::MIN_LEN);
+        let ok = len <= MAX_DATAGRAM_DATA
+            && total <= rest.len()
+            && usize::from(h[0]) < super::Command::ALL.len()
+            && lf & dfield::RESERVED_MASK == 0;
+        if !ok {
+            return None;
+        }
+        let start = usize::from(self.walked);
+        // total ≤ rest.len() ≤ length − walked ≤ 1498.
+        let total16 = u16::try_from(total).ok()?;
+        self.walked = self.walked.checked_add(total16)?;
+        self.more = lf & dfield::MORE != 0;
+        Some((start, total))
+    }
+
     fn step_inner(&mut self, rest: &[u8]) -> Result<Option<(usize, usize)>> {
         // REQ-WIRE-015: the walk must end exactly at the header length.
         if !self.more {
@@ -440,6 +469,7 @@ impl<'a> Datagrams<'a> {
         }
     }
 
+    #[inline]
     fn next_span(&mut self) -> Option<Result<(usize, usize)>> {
         if let Some(e) = self.first_error.take() {
             return Some(Err(e));
@@ -448,6 +478,9 @@ impl<'a> Datagrams<'a> {
             .region
             .get(usize::from(self.walk.walked)..)
             .unwrap_or(&[]);
+        if let Some(span) = self.walk.step_valid(rest) {
+            return Some(Ok(span));
+        }
         self.walk.step(rest)
     }
 }
@@ -455,6 +488,7 @@ impl<'a> Datagrams<'a> {
 impl<'a> Iterator for Datagrams<'a> {
     type Item = Result<Datagram<&'a [u8]>>;
 
+    #[inline]
     fn next(&mut self) -> Option<Self::Item> {
         let region = self.region;
         Some(self.next_span()?.and_then(|(start, len)| {
