@@ -175,11 +175,13 @@ impl Esc {
     }
 
     /// Powered at the anchor.
+    #[inline]
     pub fn powered(&self) -> bool {
         self.powered
     }
 
     /// DL control loop bits (0x0101), cached because every frame hop asks for them.
+    #[inline]
     pub fn loop_control(&self) -> u8 {
         self.loop_ctl
     }
@@ -195,10 +197,12 @@ impl Esc {
     }
 
     /// True time this ESC has been evaluated up to.
+    #[inline]
     pub fn anchor(&self) -> u64 {
         self.osc.anchor()
     }
 
+    #[inline]
     fn mask(&self) -> u64 {
         if self.cfg.kind.is_64bit() {
             u64::MAX
@@ -208,6 +212,7 @@ impl Esc {
     }
 
     /// Local time at the anchor (quantised), wrapped to 64 bits.
+    #[inline]
     pub fn local(&self) -> u64 {
         self.osc.local()
     }
@@ -215,6 +220,7 @@ impl Esc {
     /// Local copy of system time at the anchor (width-masked), if the ESC has system time.
     /// Computed from the offset register on every call, so a write to 0x0920 moves it at once
     /// and leaves the loop's rate alone (REQ-ESC-043).
+    #[inline]
     pub fn system_time(&self) -> Option<u64> {
         if !self.cfg.kind.has_system_time() || !self.powered {
             return None;

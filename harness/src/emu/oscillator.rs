@@ -102,6 +102,7 @@ impl Oscillator {
     }
 
     /// Upper bound of local ns covered in `dt` true ns (for cheap "not yet" checks).
+    #[inline]
     pub fn max_advance(&self, dt: u64) -> u64 {
         let local = (dt as f64 * self.speed_f.max(0.0) * (1.0 + 1e-9)) as u64;
         local.saturating_add(2 * self.tick + 2)
@@ -117,17 +118,20 @@ impl Oscillator {
     }
 
     /// True time of the anchor (the last instant the state was evaluated at).
+    #[inline]
     pub fn anchor(&self) -> u64 {
         self.anchor
     }
 
     /// End of the current linear piece (a wander step happens there).
+    #[inline]
     pub fn piece_end(&self) -> u64 {
         self.piece_end
     }
 
     /// Moves the anchor forward to `t`, crossing wander pieces. `t` before the anchor is a
     /// caller bug; it is ignored (the state stays at the anchor).
+    #[inline]
     pub fn advance(&mut self, t: u64) {
         while self.piece_end <= t {
             let end = self.piece_end;
@@ -138,6 +142,7 @@ impl Oscillator {
         self.move_anchor(t);
     }
 
+    #[inline]
     fn move_anchor(&mut self, t: u64) {
         if t <= self.anchor {
             return;
@@ -187,18 +192,21 @@ impl Oscillator {
 
     /// Local time observed at the anchor: raw counter quantised to the tick, plus the integer
     /// part of the correction. Wraps modulo 2^64 like the 64-bit register.
+    #[inline]
     pub fn local(&self) -> u64 {
         self.local_wide() as u64
     }
 
     /// Observed local time at the anchor without 64-bit wrap (raw counters start near 0 at
     /// power-up, so the raw part fits `i64` for 292 years).
+    #[inline]
     fn local_wide(&self) -> i128 {
         self.quantise(self.raw, self.corr)
     }
 
     /// REQ-ESC-041: whole ticks of the raw counter (floor) plus the integer part of the loop
     /// correction.
+    #[inline]
     fn quantise(&self, raw: i128, corr: i128) -> i128 {
         let raw_ns = (raw >> FRAC) as i64;
         // Constant divisors for the common ticks let the compiler avoid a division.
@@ -212,19 +220,36 @@ impl Oscillator {
 
     /// Observed local time at true time `t` (≥ anchor, inside the current piece), without
     /// moving the anchor.
+    #[inline]
     fn observed_at(&self, t: u64) -> i128 {
-        let dt = i128::from(t.saturating_sub(self.anchor));
-        let draw = dt * self.rate;
-        self.quantise(self.raw + draw, self.corr + ((draw * self.dev) >> FRAC))
+        self.raw_and_observed_at(t).1
     }
 
-    /// True ns from `t` until the raw counter reaches its next tick boundary (≥ 1).
-    fn ns_to_next_tick(&self, t: u64) -> u64 {
+    /// Raw counter and observed local time at true time `t` (≥ anchor, inside the piece).
+    #[inline]
+    fn raw_and_observed_at(&self, t: u64) -> (i128, i128) {
         let dt = i128::from(t.saturating_sub(self.anchor));
-        let raw = self.raw + dt * self.rate;
+        let draw = dt * self.rate;
+        let raw = self.raw + draw;
+        (
+            raw,
+            self.quantise(raw, self.corr + ((draw * self.dev) >> FRAC)),
+        )
+    }
+
+    /// True ns from the instant the raw counter reads `raw` until it reaches its next tick
+    /// boundary (≥ 1).
+    #[inline]
+    fn ns_to_next_tick(&self, raw: i128) -> u64 {
         let raw_ns = (raw >> FRAC) as i64;
         let tick = self.tick as i64;
-        let boundary = i128::from(raw_ns - raw_ns.rem_euclid(tick) + tick) << FRAC;
+        // Constant divisor for the common tick (no hardware division; same result).
+        let below = if tick == 10 {
+            raw_ns.rem_euclid(10)
+        } else {
+            raw_ns.rem_euclid(tick)
+        };
+        let boundary = i128::from(raw_ns - below + tick) << FRAC;
         let ns = ((boundary - raw) >> 20) as i64 as f64 / (self.rate_f * f64::from(1u32 << 20));
         (ns as u64 + 1).max(1)
     }
@@ -258,7 +283,8 @@ impl Oscillator {
             }
             t = last;
         }
-        if self.observed_at(t) >= target {
+        let (mut raw, obs) = self.raw_and_observed_at(t);
+        if obs >= target {
             // Normally `t − 1` lies before the continuous crossing; guard the f64 rounding.
             if t > self.anchor && self.observed_at(t - 1) >= target {
                 t -= 1;
@@ -267,13 +293,15 @@ impl Oscillator {
         }
         let mut guard = 0u32;
         loop {
-            t = t.checked_add(self.ns_to_next_tick(t))?;
+            t = t.checked_add(self.ns_to_next_tick(raw))?;
             if t >= self.piece_end {
                 return None;
             }
-            if self.observed_at(t) >= target {
+            let (r, obs) = self.raw_and_observed_at(t);
+            if obs >= target {
                 break;
             }
+            raw = r;
             guard += 1;
             if guard > 64 {
                 return None;
@@ -388,6 +416,108 @@ mod test {
             assert!(o.observed_at(t) >= start + i128::from(d), "case {i}");
             if t > o.anchor() {
                 assert!(o.observed_at(t - 1) < start + i128::from(d), "case {i}");
+            }
+        }
+    }
+
+    /// The inversion as first written (three separate exact evaluations per step): the
+    /// reference `time_to_advance` must match bit for bit.
+    fn reference_time_to_advance(o: &Oscillator, d: u64) -> Option<u64> {
+        if u128::from(d) > MAX_SOLVE_NS {
+            return None;
+        }
+        if d == 0 {
+            return Some(o.anchor);
+        }
+        let local_now = o.local_wide();
+        let target = local_now + i128::from(d);
+        let hidden = (o.raw + o.corr - (local_now << FRAC)) as i64 as f64 / ONE as f64;
+        let x = ((d as f64 - hidden) / o.speed_f).max(0.0);
+        let xi = x as u64;
+        let est = if (xi as f64) < x { xi + 1 } else { xi };
+        let mut t = o.anchor.checked_add(est)?;
+        if t >= o.piece_end {
+            let last = o.piece_end.checked_sub(1)?;
+            if last < o.anchor || o.observed_at(last) < target {
+                return None;
+            }
+            t = last;
+        }
+        if o.observed_at(t) >= target {
+            if t > o.anchor && o.observed_at(t - 1) >= target {
+                t -= 1;
+            }
+            return Some(t);
+        }
+        let next_tick = |t: u64| {
+            let dt = i128::from(t.saturating_sub(o.anchor));
+            let raw = o.raw + dt * o.rate;
+            let raw_ns = (raw >> FRAC) as i64;
+            let tick = o.tick as i64;
+            let boundary = i128::from(raw_ns - raw_ns.rem_euclid(tick) + tick) << FRAC;
+            let ns = ((boundary - raw) >> 20) as i64 as f64 / (o.rate_f * f64::from(1u32 << 20));
+            (ns as u64 + 1).max(1)
+        };
+        let mut guard = 0u32;
+        loop {
+            t = t.checked_add(next_tick(t))?;
+            if t >= o.piece_end {
+                return None;
+            }
+            if o.observed_at(t) >= target {
+                break;
+            }
+            guard += 1;
+            if guard > 64 {
+                return None;
+            }
+        }
+        if t > o.anchor && o.observed_at(t - 1) >= target {
+            t -= 1;
+        }
+        Some(t)
+    }
+
+    /// `time_to_advance` equals the reference on random states: ticks 1, 7 and 10, exact
+    /// nominal rate (integer raw steps), wander pieces, corrections of both signs.
+    #[test]
+    fn time_to_advance_matches_reference() {
+        let mut r = ChaCha8Rng::seed_from_u64(7);
+        for i in 0..20_000 {
+            let tick = [10, 1, 7, 10][i % 4];
+            let ppb = if i % 5 == 0 {
+                0.0
+            } else {
+                r.gen_range(-300_000.0..300_000.0)
+            };
+            let w = Wander {
+                interval_ns: if i % 3 == 0 {
+                    0
+                } else {
+                    r.gen_range(1..3_000_000)
+                },
+                step_ppb: 50.0,
+                revert_pieces: 10.0,
+            };
+            let start = r.gen_range(0..1u64 << 40);
+            let mut o =
+                Oscillator::new(0, start, ppb, tick, w, ChaCha8Rng::seed_from_u64(i as u64));
+            if i % 7 != 0 {
+                o.set_dev(correction_rate(0x1000, r.gen_range(-3969..=3969)));
+            }
+            o.advance(r.gen_range(0..50_000_000));
+            for _ in 0..4 {
+                let d = match r.gen_range(0..4) {
+                    0 => r.gen_range(0..40),
+                    1 => r.gen_range(0..2_000_000),
+                    2 => r.gen_range(0..1u64 << 36),
+                    _ => r.gen_range(0..1u64 << 52),
+                };
+                assert_eq!(
+                    o.time_to_advance(d),
+                    reference_time_to_advance(&o, d),
+                    "case {i}, d {d}"
+                );
             }
         }
     }

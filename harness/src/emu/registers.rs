@@ -168,12 +168,14 @@ impl RegisterFile {
     }
 
     /// Kind of this ESC.
+    #[inline]
     pub fn kind(&self) -> EscKind {
         self.kind
     }
 
     /// Whether the byte at `a` exists (an access touching only missing bytes does not count
     /// in the working counter). REQ-ESC-012.
+    #[inline]
     pub fn implemented(&self, a: u16) -> bool {
         if usize::from(a) >= self.mem.len() {
             return false;
@@ -207,15 +209,18 @@ impl RegisterFile {
     }
 
     /// Raw byte (0 outside memory).
+    #[inline]
     pub fn get_u8(&self, a: u16) -> u8 {
         self.mem.get(usize::from(a)).copied().unwrap_or(0)
     }
     /// Raw byte store (ignored outside memory).
+    #[inline]
     pub fn set_u8(&mut self, a: u16, v: u8) {
         if let Some(b) = self.mem.get_mut(usize::from(a)) {
             *b = v;
         }
     }
+    #[inline]
     fn get_n<const N: usize>(&self, a: u16) -> [u8; N] {
         let a = usize::from(a);
         if let Some(s) = self.mem.get(a..a + N) {
@@ -229,6 +234,7 @@ impl RegisterFile {
         }
         out
     }
+    #[inline]
     fn set_n(&mut self, a: u16, bytes: &[u8]) {
         let a = usize::from(a);
         if let Some(s) = self.mem.get_mut(a..a + bytes.len()) {
@@ -242,25 +248,32 @@ impl RegisterFile {
         }
     }
     /// Raw memory (for fast scans such as the FMMU table).
+    #[inline]
     pub fn bytes(&self) -> &[u8] {
         &self.mem
     }
+    #[inline]
     pub fn get_u16(&self, a: u16) -> u16 {
         u16::from_le_bytes(self.get_n(a))
     }
+    #[inline]
     pub fn set_u16(&mut self, a: u16, v: u16) {
         self.set_n(a, &v.to_le_bytes());
     }
+    #[inline]
     pub fn get_u32(&self, a: u16) -> u32 {
         u32::from_le_bytes(self.get_n(a))
     }
+    #[inline]
     pub fn set_u32(&mut self, a: u16, v: u32) {
         self.set_n(a, &v.to_le_bytes());
     }
+    #[inline]
     pub fn get_u64(&self, a: u16) -> u64 {
         u64::from_le_bytes(self.get_n(a))
     }
     /// Stores a 64-bit DC value; on a 32-bit DC only the low half is kept.
+    #[inline]
     pub fn set_dc64(&mut self, a: u16, v: u64) {
         if self.kind.is_64bit() {
             self.set_n(a, &v.to_le_bytes());

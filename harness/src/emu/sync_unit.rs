@@ -39,6 +39,7 @@ pub struct SyncUnit {
 }
 
 impl SyncUnit {
+    #[inline]
     fn mask(regs: &RegisterFile) -> u64 {
         if regs.kind().is_64bit() {
             u64::MAX
@@ -50,6 +51,7 @@ impl SyncUnit {
     /// The next pulse and its distance from `sys_now` in local-copy ns. SYNC1 wins ties so a
     /// SYNC1 cycle that is a multiple of the SYNC0 cycle re-arms on the coinciding SYNC0.
     /// The distance is modular (REQ-ESC-075): a past start time fires after the wrap.
+    #[inline]
     pub fn next_due(&self, regs: &RegisterFile, sys_now: u64) -> Option<(SyncSignal, u64)> {
         let m = Self::mask(regs);
         let d0 = self
