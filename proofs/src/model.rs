@@ -640,3 +640,31 @@ fn liveness(w: &World, ok: &mut HashSet<u128>) -> Result<(), (ModelViolation, us
     ok.extend(path);
     Ok(())
 }
+
+/// Body for fuzzing and property tests: byte 0 chooses the line size (k = 1 + b % 4), bytes
+/// 1..=4 the AL states (INIT, PREOP, SAFEOP, OP), every further byte (at most 4096) one
+/// [`Action`] of [`Action::all`]; then the bounded liveness of the final state. Panics with the
+/// violation on any failed check.
+pub fn check_actions(data: &[u8]) {
+    let mut it = data.iter().copied();
+    let k = 1 + u16::from(it.next().unwrap_or(0) % 4);
+    let mut al = [0x0001u16; CAP];
+    for a in al.iter_mut() {
+        *a = [0x01, 0x02, 0x04, 0x08][usize::from(it.next().unwrap_or(0) % 4)];
+    }
+    let Some(mut w) = World::new(k, al) else {
+        return;
+    };
+    let actions = Action::all(k);
+    for (i, b) in it.take(4096).enumerate() {
+        let Some(&a) = actions.get(usize::from(b) % actions.len()) else {
+            return;
+        };
+        if let Err(v) = w.step(a) {
+            panic!("P6 violated by action {i} ({a:?}): {v:?}");
+        }
+    }
+    if let Err((v, n)) = liveness(&w, &mut HashSet::new()) {
+        panic!("P6 liveness violated after {n} fault-free steps: {v:?}");
+    }
+}

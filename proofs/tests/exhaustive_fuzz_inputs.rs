@@ -18,6 +18,7 @@ fn body(target: &str) -> Option<fn(&[u8])> {
             }
         }),
         "machine_script" => Some(ecdc_proofs::machine::check_script),
+        "machine_actions" => Some(ecdc_proofs::model::check_actions),
         _ => None,
     }
 }

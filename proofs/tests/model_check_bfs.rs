@@ -95,3 +95,29 @@ fn p6_bfs_finds_injected_faults() {
         "{c:?}"
     );
 }
+
+/// Random action sequences (any length up to 300, any line) through the same checks, including
+/// the bounded liveness of the final state; the fuzz target `machine_actions` runs this body.
+#[test]
+fn p6_random_action_sequences() {
+    let mut x: u64 = 0x5EED_0000_0000_0006;
+    for _ in 0..200 {
+        let mut v = Vec::new();
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        let len = 5 + (x % 300) as usize;
+        for _ in 0..len {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            // Bias towards transmit (0) and deliver-newest (2) so runs get deep.
+            v.push(match x % 4 {
+                0 => 0,
+                1 => 2,
+                _ => (x >> 8) as u8,
+            });
+        }
+        ecdc_proofs::model::check_actions(&v);
+    }
+}
