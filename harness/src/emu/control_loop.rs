@@ -65,6 +65,7 @@ impl MeanFilter {
         }
     }
 
+    #[inline]
     fn push(&mut self, v: i64) -> i64 {
         if self.len == self.depth {
             self.sum -= self.buf[self.pos];

@@ -162,6 +162,7 @@ impl Esc {
         self.sched.insert(pos, (t, what));
     }
 
+    #[inline]
     fn push_pending(&mut self, t: u64, p: Pending) {
         self.pending_seq += 1;
         let key = (t, self.pending_seq);
@@ -232,8 +233,17 @@ impl Esc {
     /// Moves this ESC to true time `t`, firing everything due on the way (in time order).
     pub fn advance_to(&mut self, t: u64, edges: &mut Vec<SyncEdge>) {
         let sched_due = matches!(self.sched.first(), Some(e) if e.0 <= t);
-        let pending_due = matches!(self.pending.front(), Some(e) if e.0 <= t);
-        if !sched_due && !pending_due {
+        if !sched_due {
+            // Common case: only pending frame effects are due (the general loop below does
+            // the same in the same order when no scheduled event intervenes).
+            while let Some(&(tp, _, p)) = self.pending.front() {
+                if tp > t {
+                    break;
+                }
+                self.run_until(tp, edges);
+                self.pending.pop_front();
+                self.apply_pending(p);
+            }
             self.run_until(t, edges);
             return;
         }
@@ -465,6 +475,7 @@ impl Esc {
         res
     }
 
+    #[inline]
     fn datagram(&mut self, frame: &mut [u8], s: DgSpan, st: &mut Visit) {
         let Some(hdr) = frame.get(s.start..s.data()) else {
             return;
@@ -518,6 +529,7 @@ impl Esc {
 
     /// Physical (register/RAM) access. `addressed` false means "the non-addressed part of an
     /// ARMW/FRMW": a write. Returns the working-counter increment (REQ-ESC-002).
+    #[inline]
     fn reg_access(
         &mut self,
         c: u8,
@@ -562,6 +574,7 @@ impl Esc {
         }
     }
 
+    #[inline]
     fn read(&mut self, ado: u16, data: &mut [u8], st: &Visit, or: bool) -> bool {
         // Fast path: a range with no computed bytes (not 0x0110, not 0x0910..0x0917) that
         // exists entirely.
@@ -741,12 +754,10 @@ impl Esc {
         let mut wrote = false;
         let dlen = data.len() as u64;
         let l0 = u64::from(laddr);
-        let nf = usize::from(self.regs.get_u8(addr::FMMUS_SUPPORTED).min(16));
-        let table =
-            &self.regs.bytes()[usize::from(addr::FMMU0)..usize::from(addr::FMMU0) + 16 * nf];
-        if table.chunks_exact(16).all(|f| f[12] & 0x01 == 0) {
+        if !self.regs.any_fmmu_enabled() {
             return 0;
         }
+        let nf = usize::from(self.regs.get_u8(addr::FMMUS_SUPPORTED).min(16));
         for f in 0..nf {
             let base = addr::FMMU0 + 16 * f as u16;
             if self.regs.get_u8(base + 12) & 0x01 == 0 {

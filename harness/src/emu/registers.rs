@@ -124,6 +124,16 @@ fn reserved_dc(a: u16) -> bool {
 pub struct RegisterFile {
     kind: EscKind,
     mem: Vec<u8>,
+    /// Some FMMU among the first `min(0x0004, 16)` has its enable bit set (kept up to date
+    /// by every store; lets logical datagrams skip the table scan).
+    fmmu_on: bool,
+}
+
+/// Stores to these bytes can change [`RegisterFile::any_fmmu_enabled`].
+fn touches_fmmu(a: usize, len: usize) -> bool {
+    let fmmus = usize::from(addr::FMMU0)..usize::from(addr::FMMU0) + 16 * 16;
+    let n = usize::from(addr::FMMUS_SUPPORTED);
+    (a < fmmus.end && a + len > fmmus.start) || (a <= n && a + len > n)
 }
 
 impl RegisterFile {
@@ -133,6 +143,7 @@ impl RegisterFile {
         let mut r = RegisterFile {
             kind,
             mem: vec![0; len],
+            fmmu_on: false,
         };
         r.set_u8(addr::TYPE, esc_type);
         r.set_u8(addr::REVISION, 0x02);
@@ -219,6 +230,24 @@ impl RegisterFile {
         if let Some(b) = self.mem.get_mut(usize::from(a)) {
             *b = v;
         }
+        if touches_fmmu(usize::from(a), 1) {
+            self.refresh_fmmu();
+        }
+    }
+
+    fn refresh_fmmu(&mut self) {
+        let nf = usize::from(self.get_u8(addr::FMMUS_SUPPORTED).min(16));
+        let start = usize::from(addr::FMMU0);
+        self.fmmu_on = self
+            .mem
+            .get(start..start + 16 * nf)
+            .is_some_and(|t| t.chunks_exact(16).any(|f| f[12] & 0x01 != 0));
+    }
+
+    /// Whether some FMMU among the first `min(0x0004, 16)` is enabled (0x060C bit 0 etc.).
+    #[inline]
+    pub fn any_fmmu_enabled(&self) -> bool {
+        self.fmmu_on
     }
     #[inline]
     fn get_n<const N: usize>(&self, a: u16) -> [u8; N] {
@@ -239,12 +268,15 @@ impl RegisterFile {
         let a = usize::from(a);
         if let Some(s) = self.mem.get_mut(a..a + bytes.len()) {
             s.copy_from_slice(bytes);
-            return;
-        }
-        for (i, b) in bytes.iter().enumerate() {
-            if let Some(m) = self.mem.get_mut(a + i) {
-                *m = *b;
+        } else {
+            for (i, b) in bytes.iter().enumerate() {
+                if let Some(m) = self.mem.get_mut(a + i) {
+                    *m = *b;
+                }
             }
+        }
+        if touches_fmmu(a, bytes.len()) {
+            self.refresh_fmmu();
         }
     }
     /// Raw memory (for fast scans such as the FMMU table).
@@ -321,5 +353,28 @@ mod test {
         let rt = RegisterFile::new(EscKind::DcReceiveTimesOnly, 4096, 3, 0x11, 100);
         assert!(rt.implemented(0x090F));
         assert!(!rt.implemented(0x0910));
+    }
+
+    /// The cached "some FMMU enabled" flag follows every store that can change it: byte and
+    /// multi-byte stores over the enable bytes, only FMMUs below 0x0004 counting.
+    #[test]
+    fn fmmu_enabled_flag_tracks_stores() {
+        let mut r = RegisterFile::new(EscKind::Dc64, 4096, 2, 0x11, 100);
+        let scan = |r: &RegisterFile| {
+            let nf = usize::from(r.get_u8(addr::FMMUS_SUPPORTED).min(16));
+            (0..nf).any(|f| r.get_u8(addr::FMMU0 + 16 * f as u16 + 12) & 1 != 0)
+        };
+        assert!(!r.any_fmmu_enabled());
+        r.set_u8(addr::FMMU0 + 16 * 3 + 12, 0x01);
+        assert!(r.any_fmmu_enabled() && scan(&r));
+        r.set_u32(addr::FMMU0 + 16 * 3 + 12, 0);
+        assert!(!r.any_fmmu_enabled() && !scan(&r));
+        // FMMU 9 is beyond the 8 this ESC has.
+        r.set_u8(addr::FMMU0 + 16 * 9 + 12, 0x01);
+        assert!(!r.any_fmmu_enabled() && !scan(&r));
+        r.set_u8(addr::FMMUS_SUPPORTED, 10);
+        assert!(r.any_fmmu_enabled() && scan(&r));
+        r.set_dc64(addr::FMMU0 + 16 * 9 + 8, 0);
+        assert!(!r.any_fmmu_enabled() && !scan(&r));
     }
 }
