@@ -280,7 +280,12 @@ impl Esc {
             self.osc.advance(until);
             return;
         }
-        while let Some(sys) = self.system_time() {
+        // `system_time()` at the anchor, with the offset read once: firing a pulse changes
+        // SYNC registers only, never the offset, the power or the kind.
+        let off = self.regs.get_u64(addr::SYSTEM_TIME_OFFSET);
+        let mask = self.mask();
+        loop {
+            let sys = self.osc.local().wrapping_add(off) & mask;
             let Some((sig, d)) = self.sync.next_due(&self.regs, sys) else {
                 break;
             };
