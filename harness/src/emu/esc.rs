@@ -534,7 +534,7 @@ impl Esc {
 
     /// Physical (register/RAM) access. `addressed` false means "the non-addressed part of an
     /// ARMW/FRMW": a write. Returns the working-counter increment (REQ-ESC-002).
-    #[inline]
+    #[inline(always)]
     fn reg_access(
         &mut self,
         c: u8,
@@ -618,15 +618,25 @@ impl Esc {
         any
     }
 
+    #[inline(always)]
     fn write(&mut self, c: u8, ado: u16, data: &[u8], st: &mut Visit) -> bool {
-        let kind = self.cfg.kind;
         // Fast path for the drift-compensation sample (FRMW/ARMW/BWR to 0x0910, 4 or 8
         // bytes): nothing is stored, only the lower 32 bits are compared.
-        if ado == addr::SYSTEM_TIME && kind.has_system_time() && (4..=8).contains(&data.len()) {
+        if ado == addr::SYSTEM_TIME
+            && self.cfg.kind.has_system_time()
+            && (4..=8).contains(&data.len())
+        {
             let received = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
             st.sample = Some((st.sys_read as u32).wrapping_sub(received) as i32);
             return true;
         }
+        self.write_general(c, ado, data, st)
+    }
+
+    /// [`Esc::write`] beyond the drift-compensation fast path.
+    #[inline(never)]
+    fn write_general(&mut self, c: u8, ado: u16, data: &[u8], st: &mut Visit) -> bool {
+        let kind = self.cfg.kind;
         // Offset, SYNC configuration or a 0x0930 reset may move the next pulse.
         self.quiet_until = 0;
         let sync_owner_ecat = self.regs.get_u8(addr::CYCLIC_UNIT_CONTROL) & 0x01 == 0;
