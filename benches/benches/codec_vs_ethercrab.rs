@@ -13,16 +13,19 @@
 //!   `PduFlags`), which checks only that 10 bytes are present;
 //! - ecdc encode: `Datagram` setters; ethercrab encode: `EtherCrabWireWrite::pack_to_slice`.
 //!
-//! Every decode is checked against the other side's result before timing. Prints
+//! Times are this thread's CPU time (`common::ThreadCpu`). Every decode is checked against the
+//! other side's result before timing. Prints
 //! `ecdc/ethercrab = x` for decode and encode from criterion's medians (and from an interleaved
 //! re-measurement, which is robust to load changes between the two criterion runs).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+
+mod common;
+use common::ThreadCpu;
 use ecdc_core::wire::{Address, Command, Datagram, FrameBuilder};
 use ethercrab_wire::{
     EtherCrabWireRead, EtherCrabWireReadWrite, EtherCrabWireSized, EtherCrabWireWrite, WireError,
 };
-use std::time::Instant;
 
 /// Every field of a datagram header.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -215,17 +218,17 @@ fn encode_all(f: fn(&Hdr, &mut [u8]) -> bool, hs: &[Hdr], out: &mut [[u8; 10]]) 
     ok
 }
 
-/// Median of `rounds` interleaved timings (ns per header) of `a` and `b`.
+/// Median of `rounds` interleaved timings (thread CPU ns per header) of `a` and `b`.
 fn interleaved(rounds: usize, mut a: impl FnMut(), mut b: impl FnMut(), per: f64) -> (f64, f64) {
     let mut ta = Vec::with_capacity(rounds);
     let mut tb = Vec::with_capacity(rounds);
     for _ in 0..rounds {
-        let t = Instant::now();
+        let t = common::thread_cpu_ns();
         a();
-        ta.push(t.elapsed().as_nanos() as f64 / per);
-        let t = Instant::now();
+        ta.push(common::thread_cpu_ns().saturating_sub(t) as f64 / per);
+        let t = common::thread_cpu_ns();
         b();
-        tb.push(t.elapsed().as_nanos() as f64 / per);
+        tb.push(common::thread_cpu_ns().saturating_sub(t) as f64 / per);
     }
     ta.sort_by(f64::total_cmp);
     tb.sort_by(f64::total_cmp);
@@ -254,7 +257,7 @@ fn criterion_median(group: &str, name: &str) -> Option<f64> {
     v[..end].trim().parse().ok()
 }
 
-fn bench_codec(c: &mut Criterion) {
+fn bench_codec(c: &mut Criterion<ThreadCpu>) {
     let ins = inputs();
     let n = ins.len();
     // Both decoders agree on every field of every input.
@@ -349,5 +352,9 @@ fn bench_codec(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, bench_codec);
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = bench_codec
+}
 criterion_main!(benches);

@@ -14,52 +14,16 @@
 //!
 //! After timing, each case checks the machine is still locked with no lost cycle and no
 //! unmatched datagram, so the replay exercised the normal path throughout.
+//!
+//! Times are this thread's CPU time (`common::ThreadCpu`: the machine is shared).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use ecdc_benches::cyclic::{fixture, Capture, Replay, Shape, CYCLE_NS};
-use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
 
-fn servo() -> MasterServo {
-    MasterServo::new(MasterConfig::for_period(CYCLE_NS as u32).expect("period"))
-        .expect("servo config")
-}
+mod common;
+use common::ThreadCpu;
+use ecdc_benches::cyclic::{fixture, Capture, MasterLoop, Replay, Shape};
 
-/// The master side of the loop, closed through the replay: the cycles are replayed on the 1 ms
-/// grid, and a wake-up `shift` (the sum of the servo's deadline corrections) is added to the
-/// reference time the machine returned, which is what waking `shift` ns later would read.
-struct Master {
-    servo: MasterServo,
-    shift: i64,
-    app_base: i64,
-}
-
-impl Master {
-    fn new() -> Self {
-        Master {
-            servo: servo(),
-            shift: 0,
-            app_base: 0,
-        }
-    }
-
-    #[inline]
-    fn step(&mut self, now: u64, reference: Option<u64>) -> i64 {
-        let input = match reference {
-            Some(r) => MasterInput::Sample {
-                local_ns: now.wrapping_add_signed(self.shift),
-                app_ns: now.wrapping_add_signed(self.app_base),
-                ref_ns: r.wrapping_add_signed(self.shift),
-            },
-            None => MasterInput::Lost,
-        };
-        let out = self.servo.update(input);
-        self.shift = self.shift.wrapping_add(out.deadline_correction_ns);
-        self.app_base = self.app_base.wrapping_add(out.app_time_step_ns);
-        out.phase_error_ns
-    }
-}
-
-fn bench_case<const N: usize>(c: &mut Criterion, n: usize) {
+fn bench_case<const N: usize>(c: &mut Criterion<ThreadCpu>, n: usize) {
     let (cap, _): (Capture<N>, _) = fixture::<N>(Shape::Line, n).expect("bring-up and capture");
     let frame_len = cap.request.len();
     let mut g = c.benchmark_group("dc");
@@ -68,11 +32,11 @@ fn bench_case<const N: usize>(c: &mut Criterion, n: usize) {
     assert!(r.healthy(), "{n} slaves: replay left the locked path");
 
     let mut r = Replay::new(&cap);
-    let mut s = Master::new();
+    let mut s = MasterLoop::new(cap.cycle_ns).expect("servo");
     // Warm the servo up into tracking and lock (gear change after 32 good cycles).
     for _ in 0..5000 {
         let now = r.now();
-        let t = r.cycle().map(|t| t.0);
+        let t = r.cycle();
         s.step(now, t);
     }
     assert!(
@@ -82,7 +46,7 @@ fn bench_case<const N: usize>(c: &mut Criterion, n: usize) {
     g.bench_function(format!("cycle_servo/{n}"), |b| {
         b.iter(|| {
             let now = r.now();
-            let t = r.cycle().map(|t| t.0);
+            let t = r.cycle();
             black_box(s.step(now, t))
         })
     });
@@ -99,12 +63,16 @@ fn bench_case<const N: usize>(c: &mut Criterion, n: usize) {
     );
 }
 
-fn bench_dc(c: &mut Criterion) {
+fn bench_dc(c: &mut Criterion<ThreadCpu>) {
     bench_case::<1>(c, 1);
     bench_case::<16>(c, 16);
     bench_case::<64>(c, 64);
     bench_case::<256>(c, 256);
 }
 
-criterion_group!(benches, bench_dc);
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = bench_dc
+}
 criterion_main!(benches);

@@ -10,13 +10,18 @@
 //!
 //! Before timing, every computed delay is checked against the model's true one (within the
 //! 10 ns latch quantisation), so the bench measures the real computation on a valid tree.
+//!
+//! Times are this thread's CPU time (`common::ThreadCpu`: the machine is shared).
 
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+
+mod common;
+use common::ThreadCpu;
 use ecdc_benches::trees::{junction_tree, samples};
 use ecdc_core::dc::delay;
 use ecdc_core::dc::topology::Topology;
 
-fn bench_tree<const N: usize>(c: &mut Criterion) {
+fn bench_tree<const N: usize>(c: &mut Criterion<ThreadCpu>) {
     let net = junction_tree(N, 7);
     let s = samples(&net);
     assert_eq!(s.len(), N);
@@ -49,11 +54,15 @@ fn bench_tree<const N: usize>(c: &mut Criterion) {
     g.finish();
 }
 
-fn bench_delay(c: &mut Criterion) {
+fn bench_delay(c: &mut Criterion<ThreadCpu>) {
     bench_tree::<64>(c);
     bench_tree::<256>(c);
     bench_tree::<1024>(c);
 }
 
-criterion_group!(benches, bench_delay);
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = bench_delay
+}
 criterion_main!(benches);

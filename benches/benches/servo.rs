@@ -1,12 +1,17 @@
 //! One servo update: the per-cycle cost of the master-follows-reference loop (engine + fold +
 //! carry) and of the bare PI kernel, in the tracking state with gate armed (the common path).
+//!
+//! Times are this thread's CPU time (`common::ThreadCpu`: the machine is shared).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+
+mod common;
+use common::ThreadCpu;
 use ecdc_core::servo::gains::{PiGains, Pole};
 use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
 use ecdc_core::servo::pi::{pi_step, PiLimits};
 
-fn bench_servo(c: &mut Criterion) {
+fn bench_servo(c: &mut Criterion<ThreadCpu>) {
     let period = 1_000_000u64;
     let mut m = MasterServo::new(MasterConfig::for_period(1_000_000).expect("valid period"))
         .expect("valid config");
@@ -44,5 +49,9 @@ fn bench_servo(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_servo);
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = bench_servo
+}
 criterion_main!(benches);

@@ -5,8 +5,13 @@
 //! - `many`: 40 FPRD datagrams of 4 bytes (a scan-style frame, 670 B).
 //!
 //! Throughput is reported in bytes of frame; frames/s = 1 / time per iteration.
+//!
+//! Times are this thread's CPU time (`common::ThreadCpu`: the machine is shared).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+
+mod common;
+use common::ThreadCpu;
 use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
 
 type Build = fn(&mut FrameBuilder<'_>);
@@ -59,7 +64,7 @@ fn parse(frame: &[u8]) -> u64 {
     acc
 }
 
-fn bench_wire(c: &mut Criterion) {
+fn bench_wire(c: &mut Criterion<ThreadCpu>) {
     let cases: [(&str, Build); 3] = [("cyclic", cyclic), ("full", full), ("many", many)];
     for (name, f) in cases {
         let mut buf = [0u8; 1514];
@@ -77,5 +82,9 @@ fn bench_wire(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_wire);
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = bench_wire
+}
 criterion_main!(benches);

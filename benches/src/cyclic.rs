@@ -11,6 +11,7 @@
 //! its request by index, command, register, station and length, exactly as during the capture.
 
 use ecdc_core::dc::{Config, Event, Machine, MonitorConfig, State, SyncConfig};
+use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
 use ecdc_core::time::SystemTime;
 use ecdc_core::wire::{Command, EthernetFrame};
 use ecdc_harness::emu::{Delivery, Network, Scenario, SlaveSpec};
@@ -70,17 +71,22 @@ pub fn scenario(shape: Shape, n: usize, seed: u64) -> Scenario {
 /// ecdc's configuration for a run (as `ecdc simulate`): t_Diff from the emulator's default ESC
 /// (t_P − t_F), SYNC0 and the monitor at [`CYCLE_NS`].
 pub fn config(sc: &Scenario) -> Config {
+    config_with_cycle(sc, CYCLE_NS)
+}
+
+/// [`config`] with another cycle (networks whose round trip exceeds 1 ms need a longer one).
+pub fn config_with_cycle(sc: &Scenario, cycle_ns: u64) -> Config {
     let t_diff = i64::try_from(sc.defaults.t_p_ns).unwrap_or(0)
         - i64::try_from(sc.defaults.t_f_ns).unwrap_or(0);
     let d = Config::default();
     Config {
         t_diff_ns: i32::try_from(t_diff).unwrap_or(0),
         sync: Some(SyncConfig {
-            sync0_cycle_ns: CYCLE_NS as u32,
+            sync0_cycle_ns: u32::try_from(cycle_ns).unwrap_or(u32::MAX),
             ..SyncConfig::default()
         }),
         monitor: MonitorConfig {
-            cycle_ns: CYCLE_NS,
+            cycle_ns,
             ..d.monitor
         },
         ..d
@@ -159,6 +165,8 @@ pub struct Capture<const N: usize> {
     pub ring: Vec<Response>,
     /// The first request (for inspection).
     pub request: Vec<u8>,
+    /// Cycle period, ns.
+    pub cycle_ns: u64,
 }
 
 /// Request bytes with the FRMW payload (master time) zeroed, for comparing patterns.
@@ -239,11 +247,19 @@ fn one_cycle<const N: usize>(
 /// leaves `Cyclic`, loses lock or a cycle does not come back during the capture.
 pub fn capture<const N: usize>(sim: Sim<N>) -> anyhow::Result<Capture<N>> {
     let now = sim.master_time_at(sim.now());
-    let mut m = sim.machine;
-    let mut net = sim.net;
+    capture_from(sim.machine, sim.net, now)
+}
+
+/// [`capture`] from a locked machine and its network, the machine's clock being `now`.
+pub fn capture_from<const N: usize>(
+    mut m: Machine<N>,
+    mut net: Network,
+    now: SystemTime,
+) -> anyhow::Result<Capture<N>> {
     let mut buf = vec![0u8; 1514];
     m.handle_timeout(now);
     anyhow::ensure!(m.is_locked(), "machine not locked: {}", m.state());
+    let cycle = m.config().monitor.cycle_ns;
     let mut due = m
         .poll_timeout()
         .ok_or_else(|| anyhow::anyhow!("no cycle scheduled"))?
@@ -251,7 +267,7 @@ pub fn capture<const N: usize>(sim: Sim<N>) -> anyhow::Result<Capture<N>> {
     // Two cycles first, so nothing of the bring-up is in flight any more.
     for _ in 0..2 {
         one_cycle(&mut m, &mut net, &mut buf, due)?;
-        due += CYCLE_NS;
+        due += cycle;
     }
     let start = m.clone();
     let lost0 = m.stats().lost_cycles;
@@ -259,7 +275,7 @@ pub fn capture<const N: usize>(sim: Sim<N>) -> anyhow::Result<Capture<N>> {
     let mut first: Option<Vec<u8>> = None;
     let mut request = Vec::new();
     for k in 0..4096u64 {
-        let sent = due + k * CYCLE_NS;
+        let sent = due + k * cycle;
         // The pattern repeats when the request about to be sent equals the first one; look
         // at it on a copy of the machine so the ring ends exactly there.
         let mut probe = m.clone();
@@ -275,6 +291,7 @@ pub fn capture<const N: usize>(sim: Sim<N>) -> anyhow::Result<Capture<N>> {
                     first_due: due,
                     ring,
                     request,
+                    cycle_ns: cycle,
                 });
             }
             Some(_) => {}
@@ -302,6 +319,7 @@ pub struct Replay<const N: usize> {
     ring: Vec<Response>,
     next: usize,
     now: u64,
+    cycle_ns: u64,
     buf: Vec<u8>,
     base: ecdc_core::dc::Stats,
 }
@@ -314,6 +332,7 @@ impl<const N: usize> Replay<N> {
             ring: c.ring.clone(),
             next: 0,
             now: c.first_due,
+            cycle_ns: c.cycle_ns,
             buf: vec![0u8; 1514],
             base: *c.machine.stats(),
         }
@@ -358,7 +377,7 @@ impl<const N: usize> Replay<N> {
         if self.next == self.ring.len() {
             self.next = 0;
         }
-        self.now = now.wrapping_add(CYCLE_NS);
+        self.now = now.wrapping_add(self.cycle_ns);
         self.machine.reference_time()
     }
 
@@ -379,4 +398,47 @@ pub fn fixture<const N: usize>(shape: Shape, n: usize) -> anyhow::Result<(Captur
     let m: Machine<N> = Machine::new(config(&sc)).map_err(|e| anyhow::anyhow!("config: {e:?}"))?;
     let (sim, b) = bring_up(&sc, m)?;
     Ok((capture(sim)?, b))
+}
+
+/// The master-follows-reference servo closed through a [`Replay`]: the cycles are replayed on
+/// the fixed grid, and a wake-up `shift` (the sum of the servo's deadline corrections) is added
+/// to the reference time the machine returned, which is what waking `shift` ns later would
+/// have read. App time advances with the grid plus the servo's whole-period steps.
+#[derive(Debug, Clone)]
+pub struct MasterLoop {
+    /// The servo.
+    pub servo: MasterServo,
+    shift: i64,
+    app_base: i64,
+}
+
+impl MasterLoop {
+    /// A servo for `cycle_ns` with the default configuration.
+    pub fn new(cycle_ns: u64) -> anyhow::Result<Self> {
+        let period = u32::try_from(cycle_ns)?;
+        let cfg = MasterConfig::for_period(period).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        Ok(MasterLoop {
+            servo: MasterServo::new(cfg).map_err(|e| anyhow::anyhow!("{e:?}"))?,
+            shift: 0,
+            app_base: 0,
+        })
+    }
+
+    /// One servo step for the cycle sent at `now` whose FRMW returned `reference` (or was
+    /// lost). Returns the folded phase error.
+    #[inline]
+    pub fn step(&mut self, now: u64, reference: Option<SystemTime>) -> i64 {
+        let input = match reference {
+            Some(r) => MasterInput::Sample {
+                local_ns: now.wrapping_add_signed(self.shift),
+                app_ns: now.wrapping_add_signed(self.app_base),
+                ref_ns: r.0.wrapping_add_signed(self.shift),
+            },
+            None => MasterInput::Lost,
+        };
+        let out = self.servo.update(input);
+        self.shift = self.shift.wrapping_add(out.deadline_correction_ns);
+        self.app_base = self.app_base.wrapping_add(out.app_time_step_ns);
+        out.phase_error_ns
+    }
 }

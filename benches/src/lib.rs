@@ -6,7 +6,9 @@
 //! - [`trees`]: network-model trees (spec crate) and the `SlaveSample`s a master would read
 //!   after one latch, for the delay-computation benches.
 //! - [`svg`]: a small line-plot writer for `benches/results/*.svg`.
+//! - [`timed`]: a bring-up driver that times the core's calls apart from the emulator's.
 
 pub mod cyclic;
 pub mod svg;
+pub mod timed;
 pub mod trees;
