@@ -285,7 +285,8 @@ impl Esc {
         let off = self.regs.get_u64(addr::SYSTEM_TIME_OFFSET);
         let mask = self.mask();
         loop {
-            let sys = self.osc.local().wrapping_add(off) & mask;
+            let local = self.osc.local_wide();
+            let sys = (local as u64).wrapping_add(off) & mask;
             let Some((sig, d)) = self.sync.next_due(&self.regs, sys) else {
                 break;
             };
@@ -298,7 +299,7 @@ impl Esc {
                 self.quiet_until = self.osc.anchor().saturating_add(slack - slack / 100);
                 break;
             }
-            match self.osc.time_to_advance(d) {
+            match self.osc.time_to_advance_from(d, local) {
                 Some(te) if te <= until => {
                     self.osc.advance(te);
                     self.fire(sig, te, edges);

@@ -831,6 +831,8 @@ impl Network {
             let physical = (1..=9).contains(&c) || (13..=14).contains(&c);
             physical && ado <= 0x0111 && ado + s.len > 0x0110
         });
+        // Some EPU latched receive times (else every `latch` entry stays false).
+        let mut any_latch = false;
         for (k, v) in visits.iter().enumerate() {
             match *v {
                 Visit::Epu { slave, t, set_c } => {
@@ -866,6 +868,7 @@ impl Network {
                     let r = esc.process(&mut buf, &spans, ctx, &mut self.edges[slave]);
                     self.any_forced |= esc.loop_control() != 0;
                     self.latch[slave] = r.latch;
+                    any_latch |= r.latch;
                 }
                 Visit::Rx { slave, port, t } => {
                     if self.latch[slave] {
@@ -874,9 +877,11 @@ impl Network {
                 }
             }
         }
-        for v in &visits {
-            if let Visit::Epu { slave, .. } = v {
-                self.latch[*slave] = false;
+        if any_latch {
+            for v in &visits {
+                if let Visit::Epu { slave, .. } = v {
+                    self.latch[*slave] = false;
+                }
             }
         }
         self.visits = visits;

@@ -50,6 +50,8 @@ pub struct Oscillator {
     tick: u64,
     /// True time at which the current linear piece ends.
     piece_end: u64,
+    /// `rate · dev`: steps `draw · dev` back by one true ns.
+    rate_dev: i128,
     /// `rate` and `rate · (1 + dev)` as f64, for estimates only.
     rate_f: f64,
     speed_f: f64,
@@ -82,6 +84,7 @@ impl Oscillator {
             dev: 0,
             tick: tick.max(1),
             piece_end: now,
+            rate_dev: 0,
             rate_f: 0.0,
             speed_f: 0.0,
             base_ppb,
@@ -95,6 +98,7 @@ impl Oscillator {
     }
 
     fn refresh_f(&mut self) {
+        self.rate_dev = self.rate * self.dev;
         let one = ONE as f64;
         // rate and dev are below 2^63 in fixed point: convert through i64 (cheap).
         self.rate_f = self.rate as i64 as f64 / one;
@@ -200,7 +204,7 @@ impl Oscillator {
     /// Observed local time at the anchor without 64-bit wrap (raw counters start near 0 at
     /// power-up, so the raw part fits `i64` for 292 years).
     #[inline]
-    fn local_wide(&self) -> i128 {
+    pub(crate) fn local_wide(&self) -> i128 {
         self.quantise(self.raw, self.corr)
     }
 
@@ -222,19 +226,25 @@ impl Oscillator {
     /// moving the anchor.
     #[inline]
     fn observed_at(&self, t: u64) -> i128 {
-        self.raw_and_observed_at(t).1
+        self.eval_at(t).2
     }
 
-    /// Raw counter and observed local time at true time `t` (≥ anchor, inside the piece).
+    /// Raw counter, `draw · dev` (the correction's advance before the shift) and observed
+    /// local time at true time `t` (≥ anchor, inside the piece).
     #[inline]
-    fn raw_and_observed_at(&self, t: u64) -> (i128, i128) {
+    fn eval_at(&self, t: u64) -> (i128, i128, i128) {
         let dt = i128::from(t.saturating_sub(self.anchor));
         let draw = dt * self.rate;
         let raw = self.raw + draw;
-        (
-            raw,
-            self.quantise(raw, self.corr + ((draw * self.dev) >> FRAC)),
-        )
+        let p = draw * self.dev;
+        (raw, p, self.quantise(raw, self.corr + (p >> FRAC)))
+    }
+
+    /// Observed local time one ns before an instant after the anchor that evaluated to
+    /// `(raw, p, _)`: exactly `observed_at(t − 1)`, since `draw(t − 1) = draw(t) − rate`.
+    #[inline]
+    fn observed_before(&self, raw: i128, p: i128) -> i128 {
+        self.quantise(raw - self.rate, self.corr + ((p - self.rate_dev) >> FRAC))
     }
 
     /// True ns from the instant the raw counter reads `raw` until it reaches its next tick
@@ -261,13 +271,18 @@ impl Oscillator {
     /// A floating-point estimate of the continuous crossing is refined with exact integer
     /// evaluations (`observed_at`), so the answer is exact and needs no 128-bit division.
     pub fn time_to_advance(&self, d: u64) -> Option<u64> {
+        self.time_to_advance_from(d, self.local_wide())
+    }
+
+    /// [`Oscillator::time_to_advance`] given `local_now = self.local_wide()` (callers that
+    /// have it already save a quantisation).
+    pub(crate) fn time_to_advance_from(&self, d: u64, local_now: i128) -> Option<u64> {
         if u128::from(d) > MAX_SOLVE_NS {
             return None;
         }
         if d == 0 {
             return Some(self.anchor);
         }
-        let local_now = self.local_wide();
         let target = local_now + i128::from(d);
         // Part of the continuous value not yet shown (< tick + 1 ns): small, exact in f64.
         let hidden = (self.raw + self.corr - (local_now << FRAC)) as i64 as f64 / ONE as f64;
@@ -283,32 +298,36 @@ impl Oscillator {
             }
             t = last;
         }
-        let (mut raw, obs) = self.raw_and_observed_at(t);
+        let (mut raw, mut p, obs) = self.eval_at(t);
         if obs >= target {
             // Normally `t − 1` lies before the continuous crossing; guard the f64 rounding.
-            if t > self.anchor && self.observed_at(t - 1) >= target {
+            if t > self.anchor && self.observed_before(raw, p) >= target {
                 t -= 1;
             }
             return Some(t);
         }
+        // Last instant evaluated below the target.
+        let mut below = t;
         let mut guard = 0u32;
         loop {
             t = t.checked_add(self.ns_to_next_tick(raw))?;
             if t >= self.piece_end {
                 return None;
             }
-            let (r, obs) = self.raw_and_observed_at(t);
+            let obs;
+            (raw, p, obs) = self.eval_at(t);
             if obs >= target {
                 break;
             }
-            raw = r;
+            below = t;
             guard += 1;
             if guard > 64 {
                 return None;
             }
         }
-        // The jump may land 1 ns after the boundary (rounding up).
-        if t > self.anchor && self.observed_at(t - 1) >= target {
+        // The jump may land 1 ns after the boundary (rounding up); `t − 1 = below` is known
+        // to be below the target.
+        if t > self.anchor && t - 1 != below && self.observed_before(raw, p) >= target {
             t -= 1;
         }
         Some(t)
