@@ -140,6 +140,9 @@ fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
+/// Below this many due edges `take_sync_edges` merges instead of radix-sorting.
+const RADIX_MIN: usize = 4096;
+
 /// Sorts `buf` stably by true time: an LSD radix sort (11-bit digits, stable) of keys that
 /// hold the true time relative to the earliest in the upper 32 bits and the record's position
 /// in the lower 32, then a gather. Equal times keep their order in `buf`. Returns false
@@ -572,12 +575,15 @@ impl Network {
             }
         }
         let mut scratch = core::mem::take(&mut self.edge_scratch);
-        if !sort_by_time(
-            &mut out,
-            &mut scratch,
-            &mut self.sort_keys.0,
-            &mut self.sort_keys.1,
-        ) {
+        // Few records: merging the runs beats clearing the radix sort's bucket counts.
+        if out.len() < RADIX_MIN
+            || !sort_by_time(
+                &mut out,
+                &mut scratch,
+                &mut self.sort_keys.0,
+                &mut self.sort_keys.1,
+            )
+        {
             merge_runs(&mut out, &mut scratch, &mut bounds);
         }
         self.edge_scratch = scratch;
@@ -725,7 +731,10 @@ impl Network {
     /// scheduled and no forced DL loop, so exactly the cabled ports are open, port 0 is always
     /// open and nothing circulates. Iterative; the visits and the jitter draws come in the same
     /// order as the recursive walk's. Returns the time the frame leaves slave 0's port 0.
-    fn walk_static(&mut self, t_in: u64, jit: bool) -> u64 {
+    ///
+    /// With `stamps` false the port receive visits are left out (for frames that cannot
+    /// latch receive times, when no loss cut needs the full visit count).
+    fn walk_static(&mut self, t_in: u64, jit: bool, stamps: bool) -> u64 {
         const ORDER: [u8; 3] = [3, 1, 2];
         let mut stack = core::mem::take(&mut self.walk_stack);
         stack.clear();
@@ -763,11 +772,13 @@ impl Network {
                 break t;
             };
             let rx = t + self.topo.cable_ns[s] + self.jitter(jit);
-            self.visits.push(Visit::Rx {
-                slave: parent,
-                port: q,
-                t: rx,
-            });
+            if stamps {
+                self.visits.push(Visit::Rx {
+                    slave: parent,
+                    port: q,
+                    t: rx,
+                });
+            }
             s = parent;
             t = rx + self.hops[s].t_f;
             qi = pqi;
@@ -808,7 +819,16 @@ impl Network {
         self.visits.clear();
         let t_in = t0 + self.master_cable_ns + self.jitter(true);
         let back = if !self.any_forced && self.topo.is_static() {
-            Some(self.walk_static(t_in, true))
+            // Port receive visits matter only to a frame that can latch (REQ-ESC-030: BWR or
+            // FPWR covering 0x0900) or to a loss cut (it draws over the full visit count).
+            let stamps = self.loss_rate > 0.0
+                || spans.iter().any(|s| {
+                    let c = buf[s.start];
+                    let ado = usize::from(u16::from_le_bytes([buf[s.start + 4], buf[s.start + 5]]));
+                    let latch_cmd = c == datagram::cmd::BWR || c == datagram::cmd::FPWR;
+                    latch_cmd && ado <= 0x0900 && ado + s.len > 0x0900
+                });
+            Some(self.walk_static(t_in, true, stamps))
         } else {
             let mut budget = 8 * self.escs.len() + 8;
             self.walk(0, t_in, &mut c, &mut budget, true)
@@ -1040,7 +1060,7 @@ mod test {
             let mut net = Network::new(&sc).expect("scenario");
             let rng = net.jitter_rng.clone();
             let t = r.gen_range(0..1_000_000_000);
-            let fast = net.walk_static(t, true);
+            let fast = net.walk_static(t, true, true);
             let fast_visits = core::mem::take(&mut net.visits);
             net.jitter_rng = rng;
             let (mut c, mut budget) = (false, 8 * n + 8);
