@@ -140,45 +140,56 @@ fn draw_ppm(spec: &PpmSpec, rng: &mut ChaCha8Rng) -> f64 {
     }
 }
 
+/// Initial capacity of each slave's SYNC edge log (a 1 kHz SYNC0 drained every 100 ms
+/// needs ≈ 100); reserved up front so a fresh network does not grow 100 logs step by step.
+const EDGE_LOG_CAPACITY: usize = 128;
+
 /// Below this many due edges `take_sync_edges` merges instead of radix-sorting.
 const RADIX_MIN: usize = 4096;
 
-/// Sorts `buf` stably by true time: an LSD radix sort (11-bit digits, stable) of keys that
-/// hold the true time relative to the earliest in the upper 32 bits and the record's position
-/// in the lower 32, then a gather. Equal times keep their order in `buf`. Returns false
-/// (leaving `buf` alone) if the times span 2^32 ns or more.
-fn sort_by_time(
-    buf: &mut Vec<SyncEdge>,
-    scratch: &mut Vec<SyncEdge>,
+/// Takes the first `due[s]` records of every log `s` (each sorted by true time) into one
+/// vector sorted stably by true time — ties in slave order, then log order — by an LSD radix
+/// sort (11-bit digits, stable) of keys that hold the true time relative to the earliest in
+/// the upper 32 bits and (slave, position) in the lower 32, then a gather straight from the
+/// logs (no concatenated copy, no scratch records). The taken records are drained. Returns
+/// `None` (touching nothing) if the times span 2^32 ns or more, or a slave index or a due
+/// count does not fit 16 bits.
+fn radix_take(
+    logs: &mut [Vec<SyncEdge>],
+    due: &[usize],
+    total: usize,
     keys: &mut Vec<u64>,
     keys2: &mut Vec<u64>,
-) -> bool {
+) -> Option<Vec<SyncEdge>> {
     const DIGIT: u32 = 11;
     const BUCKETS: usize = 1 << DIGIT;
-    let n = buf.len();
-    if n < 2 {
-        return true;
-    }
-    if u32::try_from(n).is_err() {
-        return false;
+    if logs.len() > 1 << 16 || due.iter().any(|&n| n > 1 << 16) {
+        return None;
     }
     let (mut lo, mut hi) = (u64::MAX, 0);
-    for e in buf.iter() {
-        lo = lo.min(e.true_time);
-        hi = hi.max(e.true_time);
+    for (log, &n) in logs.iter().zip(due) {
+        if let (Some(a), Some(b)) = (log.first(), log[..n].last()) {
+            lo = lo.min(a.true_time);
+            hi = hi.max(b.true_time);
+        }
     }
-    let Ok(span) = u32::try_from(hi - lo) else {
-        return false;
-    };
+    if total == 0 {
+        return Some(Vec::new());
+    }
+    let span = u32::try_from(hi - lo).ok()?;
     keys.clear();
-    keys.extend(
-        buf.iter()
-            .enumerate()
-            .map(|(i, e)| ((e.true_time - lo) << 32) | i as u64),
-    );
+    for (s, (log, &n)) in logs.iter().zip(due).enumerate() {
+        let tag = (s as u64) << 16;
+        keys.extend(
+            log[..n]
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ((e.true_time - lo) << 32) | tag | i as u64),
+        );
+    }
     let passes = (u32::BITS - span.leading_zeros()).div_ceil(DIGIT);
     keys2.clear();
-    keys2.resize(n, 0);
+    keys2.resize(total, 0);
     for p in 0..passes {
         let shift = 32 + p * DIGIT;
         let digit = |k: u64| ((k >> shift) as usize) & (BUCKETS - 1);
@@ -199,10 +210,16 @@ fn sort_by_time(
         }
         core::mem::swap(keys, keys2);
     }
-    scratch.clear();
-    scratch.extend(keys.iter().map(|k| buf[(k & 0xFFFF_FFFF) as usize]));
-    core::mem::swap(buf, scratch);
-    true
+    let mut out = Vec::with_capacity(total);
+    out.extend(
+        keys.iter()
+            .map(|k| logs[((k >> 16) & 0xFFFF) as usize][(k & 0xFFFF) as usize]),
+    );
+    // Drain in place so each log keeps its capacity for the next interval.
+    for (log, &n) in logs.iter_mut().zip(due) {
+        log.drain(..n);
+    }
+    Some(out)
 }
 
 /// Stably merges the sorted runs `buf[bounds[i]..bounds[i + 1]]` (by true time; the earlier
@@ -351,7 +368,9 @@ impl Network {
             escs,
             info,
             topo: Topology::new(parents, cables),
-            edges: vec![Vec::new(); n],
+            edges: (0..n)
+                .map(|_| Vec::with_capacity(EDGE_LOG_CAPACITY))
+                .collect(),
             due: Vec::with_capacity(n),
             bounds: Vec::with_capacity(n + 1),
             edge_scratch: Vec::new(),
@@ -545,9 +564,9 @@ impl Network {
         let now = self.now;
         // Each slave's log is put in (true time, signal) order — it almost always is already:
         // output jitter only reorders SYNC0/SYNC1 of one slave by a few ns. The due prefixes
-        // are appended in slave order and stably sorted by true time: the same order as
-        // sorting everything by (true time, slave, signal, log position). The sort finds the
-        // per-slave runs and merges them (cheaper than a heap merge).
+        // are taken in (true time, slave, log position) order by a radix sort or a merge of
+        // the per-slave runs: the same order as sorting everything by (true time, slave,
+        // signal, log position).
         let mut due = core::mem::take(&mut self.due);
         due.clear();
         let mut total = 0;
@@ -563,6 +582,14 @@ impl Network {
             due.push(n);
             total += n;
         }
+        if total >= RADIX_MIN {
+            let (k1, k2) = &mut self.sort_keys;
+            if let Some(out) = radix_take(&mut self.edges, &due, total, k1, k2) {
+                self.due = due;
+                return out;
+            }
+        }
+        // Few records (merging beats clearing the radix sort's bucket counts) or a wide span.
         let mut out = Vec::with_capacity(total);
         let mut bounds = core::mem::take(&mut self.bounds);
         bounds.clear();
@@ -575,17 +602,7 @@ impl Network {
             }
         }
         let mut scratch = core::mem::take(&mut self.edge_scratch);
-        // Few records: merging the runs beats clearing the radix sort's bucket counts.
-        if out.len() < RADIX_MIN
-            || !sort_by_time(
-                &mut out,
-                &mut scratch,
-                &mut self.sort_keys.0,
-                &mut self.sort_keys.1,
-            )
-        {
-            merge_runs(&mut out, &mut scratch, &mut bounds);
-        }
+        merge_runs(&mut out, &mut scratch, &mut bounds);
         self.edge_scratch = scratch;
         self.bounds = bounds;
         self.due = due;
@@ -996,7 +1013,8 @@ mod test {
     }
 
     /// Both orderings of `take_sync_edges` equal a stable sort by true time of the
-    /// slave-major concatenation; the radix sort declines spans of 2^32 ns or more.
+    /// slave-major concatenation; the radix path declines spans of 2^32 ns or more and
+    /// leaves each log's not-due tail in place.
     #[test]
     fn edge_sorts_match_stable_sort() {
         for seed in 0..300 {
@@ -1008,23 +1026,41 @@ mod test {
             let (buf, bounds) = logs(seed, 1 + seed as usize % 37, span);
             let mut want = buf.clone();
             want.sort_by_key(|e| e.true_time);
-            let mut a = buf.clone();
-            let (mut k1, mut k2, mut scratch) = (Vec::new(), Vec::new(), Vec::new());
+            // Per-slave logs with one record after the due prefix each.
+            let mut per: Vec<Vec<SyncEdge>> = bounds
+                .windows(2)
+                .map(|w| buf[w[0]..w[1]].to_vec())
+                .collect();
+            let due: Vec<usize> = per.iter().map(Vec::len).collect();
+            let tail = |s: usize| SyncEdge {
+                slave: s,
+                signal: SyncSignal::Sync0,
+                true_time: u64::MAX - s as u64,
+                system_time: 0,
+            };
+            for (s, log) in per.iter_mut().enumerate() {
+                log.push(tail(s));
+            }
+            let (mut k1, mut k2) = (Vec::new(), Vec::new());
             let hi = buf.iter().map(|e| e.true_time).max().unwrap_or(0);
             let lo = buf.iter().map(|e| e.true_time).min().unwrap_or(0);
             let fits = hi - lo < 1 << 32;
-            assert_eq!(
-                sort_by_time(&mut a, &mut scratch, &mut k1, &mut k2),
-                fits,
-                "seed {seed}"
-            );
-            if fits {
-                assert_eq!(a, want, "radix, seed {seed}");
+            let got = radix_take(&mut per, &due, buf.len(), &mut k1, &mut k2);
+            assert_eq!(got.is_some(), fits, "seed {seed}");
+            if let Some(got) = got {
+                assert_eq!(got, want, "radix, seed {seed}");
+                for (s, log) in per.iter().enumerate() {
+                    assert_eq!(log, &vec![tail(s)], "drained, seed {seed}");
+                }
             } else {
-                assert_eq!(a, buf, "declined, seed {seed}");
+                assert_eq!(
+                    per.iter().map(Vec::len).sum::<usize>(),
+                    buf.len() + per.len()
+                );
             }
             let mut b = buf.clone();
             let mut bo = bounds.clone();
+            let mut scratch = Vec::new();
             merge_runs(&mut b, &mut scratch, &mut bo);
             assert_eq!(b, want, "merge, seed {seed}");
         }
