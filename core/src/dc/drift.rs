@@ -1,16 +1,22 @@
 //! Static drift compensation with a convergence gate (REQ-DC-104): bursts of FRMW 0x0910 (one
 //! per frame, each a loop sample in every slave) interleaved with 0x092C checks (per-slave FPRD
-//! and/or the BRD upper bound). Done when every check of `consecutive` checks in a row is below
-//! `threshold_ns`; a `NotConverged` error with the worst slave after `max_frames`. SYNC is
-//! programmed only after this gate passed (REQ-DC-033).
+//! and/or the BRD upper bound), every check frame closed by one more FRMW so the loops keep
+//! getting samples while a long line is read out (32 datagrams per frame: a 512-slave check is
+//! 17 frames). Done when `consecutive` checks in a row have every reading ≤ `spike_ns` and every
+//! slave's mean |0x092C| over them ≤ `threshold_ns`; a `NotConverged` error with the worst
+//! slave after `max_frames`. SYNC is programmed only after this gate passed (REQ-DC-033).
 
 use crate::dc::config::DriftCheck;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Pending};
+use crate::dc::request::{le, Op, Pending, Tag};
 use crate::dc::state::State;
 use crate::wire::register::{reg, SystemTimeDifference};
+use crate::wire::FrameBuilder;
+
+/// Bytes of a datagram besides its data: 10-byte header and 2-byte WKC.
+const DATAGRAM_OVERHEAD: usize = 12;
 
 impl<const N: usize> Machine<N> {
     /// Frames of the current burst: `burst_frames` back to back while the gate has not passed
@@ -33,6 +39,29 @@ impl<const N: usize> Machine<N> {
             self.last_sent.saturating_add(self.cfg.drift.check_pause_ns)
         } else {
             0
+        }
+    }
+
+    /// In `DriftCheck`, whether check datagram `op` still leaves room in the frame for the
+    /// closing FRMW (always true in other states).
+    pub(crate) fn drift_check_room(&self, now: u64, b: &FrameBuilder<'_>, op: Op) -> bool {
+        self.state != State::DriftCheck
+            || b.fits(
+                usize::from(op.len)
+                    .saturating_add(DATAGRAM_OVERHEAD)
+                    .saturating_add(usize::from(self.frmw_op(now).len)),
+            )
+    }
+
+    /// Closes a `DriftCheck` frame that is not the check's last with an FRMW to the reference:
+    /// a loop sample in every slave (counted in `drift_frames`), so a check that needs many
+    /// frames does not starve the loops. Last in the frame, so each slave's 0x092C read earlier
+    /// in the same frame still shows the Δt accumulated since the previous sample, not the
+    /// fresh one; a check of one frame (short networks) has none and reads exactly the Δt of
+    /// the check pause.
+    pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
+        if self.state == State::DriftCheck && self.push_op(b, self.frmw_op(now), Tag::Frmw) {
+            self.drift_frames = self.drift_frames.saturating_add(1);
         }
     }
 
@@ -96,61 +125,245 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn drift_done(&mut self) -> Result<State, Error> {
         match self.state {
             State::DriftBurst => Ok(State::DriftCheck),
-            State::DriftCheck => {
-                let thr = self.cfg.drift.threshold_ns;
-                let check = self.cfg.drift.check;
-                let mut over = 0u16;
-                let mut worst = (0u16, 0u32);
-                if check != DriftCheck::Broadcast {
-                    for s in self.slaves().iter().filter(|s| s.dc.has_system_time()) {
-                        let mag = s.last_diff_ns.map_or(u32::MAX, |d| {
-                            u32::try_from(d.unsigned_abs()).unwrap_or(u32::MAX)
-                        });
-                        if mag > thr {
-                            over = over.saturating_add(1);
-                        }
-                        if mag >= worst.1 {
-                            worst = (s.station, mag);
-                        }
-                    }
-                }
-                let bound = self.drift_bound.unwrap_or(u32::MAX);
-                let bound_ok = check == DriftCheck::PerSlave || bound <= thr;
-                if check != DriftCheck::PerSlave && bound > worst.1 && worst.1 <= thr {
-                    worst = (0, bound);
-                }
-                if over == 0 && bound_ok {
-                    self.drift_ok = self.drift_ok.saturating_add(1);
-                } else {
-                    self.drift_ok = 0;
-                }
-                if self.drift_ok >= self.cfg.drift.consecutive {
-                    let max_diff_ns = if check == DriftCheck::PerSlave {
-                        worst.1
-                    } else {
-                        bound.max(worst.1)
-                    };
-                    self.push_event(Event::DriftConverged {
-                        frames: self.drift_frames,
-                        max_diff_ns,
-                    });
-                    return Ok(if self.cfg.sync.is_some() {
-                        State::ReadReferenceTime
-                    } else {
-                        State::Cyclic
-                    });
-                }
-                if self.drift_frames >= self.cfg.drift.max_frames {
-                    return Err(Error::NotConverged {
-                        frames: self.drift_frames,
-                        slaves_over: over.max(u16::from(!bound_ok)),
-                        worst_station: worst.0,
-                        worst_diff_ns: worst.1,
-                    });
-                }
-                Ok(State::DriftBurst)
-            }
+            State::DriftCheck => self.drift_judge(),
             _ => Ok(self.state),
         }
+    }
+
+    /// Judges one completed check (REQ-DC-104): the check passes when every reading is at
+    /// most `spike_ns`; a streak of `consecutive` passing checks converges when every slave's
+    /// mean |0x092C| over the streak (the bound's mean in `Broadcast` mode) is at most
+    /// `threshold_ns`, and otherwise starts over.
+    fn drift_judge(&mut self) -> Result<State, Error> {
+        let d = self.cfg.drift;
+        let per_slave = d.check != DriftCheck::Broadcast;
+        let by_bound = d.check != DriftCheck::PerSlave;
+        let fresh = self.drift_ok == 0;
+        // A streak opens only on a check with every reading within the threshold itself: the
+        // streak's cycle-paced single frames would slow down loops that are still slewing.
+        let limit = if fresh { d.threshold_ns } else { d.spike_ns };
+        let mut over = 0u16;
+        let mut worst = (0u16, 0u32);
+        if per_slave {
+            for s in self.slaves().iter().filter(|s| s.dc.has_system_time()) {
+                let mag = diff_magnitude(s.last_diff_ns);
+                if mag > limit {
+                    over = over.saturating_add(1);
+                }
+                if mag >= worst.1 {
+                    worst = (s.station, mag);
+                }
+            }
+        }
+        let bound = self.drift_bound.unwrap_or(u32::MAX);
+        let bound_ok = !by_bound || bound <= limit;
+        if by_bound && bound > worst.1 && worst.1 <= limit {
+            worst = (0, bound);
+        }
+        let passed = over == 0 && bound_ok;
+        // Running sums of the streak: restarted by its first check, kept only while it lasts.
+        let keep = passed && !fresh;
+        let count = usize::from(self.count);
+        for s in self.slaves.iter_mut().take(count) {
+            let mag = u64::from(diff_magnitude(s.last_diff_ns));
+            s.diff_abs_sum = if keep {
+                s.diff_abs_sum.saturating_add(mag)
+            } else {
+                mag
+            };
+        }
+        self.drift_bound_sum = if keep {
+            self.drift_bound_sum.saturating_add(u64::from(bound))
+        } else {
+            u64::from(bound)
+        };
+        self.drift_ok = if passed {
+            self.drift_ok.saturating_add(1)
+        } else {
+            0
+        };
+        if self.drift_ok >= d.consecutive {
+            let budget = u64::from(d.threshold_ns).saturating_mul(u64::from(self.drift_ok));
+            let means_ok = if per_slave {
+                self.slaves()
+                    .iter()
+                    .filter(|s| s.dc.has_system_time())
+                    .all(|s| s.diff_abs_sum <= budget)
+            } else {
+                self.drift_bound_sum <= budget
+            };
+            if means_ok {
+                let max_diff_ns = if by_bound {
+                    bound.max(worst.1)
+                } else {
+                    worst.1
+                };
+                self.push_event(Event::DriftConverged {
+                    frames: self.drift_frames,
+                    max_diff_ns,
+                });
+                return Ok(if self.cfg.sync.is_some() {
+                    State::ReadReferenceTime
+                } else {
+                    State::Cyclic
+                });
+            }
+            // Readings stayed in bounds but some mean did not settle: a new streak.
+            self.drift_ok = 0;
+        }
+        if self.drift_frames >= d.max_frames {
+            return Err(Error::NotConverged {
+                frames: self.drift_frames,
+                slaves_over: over.max(u16::from(!bound_ok)),
+                worst_station: worst.0,
+                worst_diff_ns: worst.1,
+            });
+        }
+        Ok(State::DriftBurst)
+    }
+}
+
+/// |0x092C| of a reading in ns, saturated; a missing reading counts as out of range.
+fn diff_magnitude(d: Option<i64>) -> u32 {
+    d.map_or(u32::MAX, |d| {
+        u32::try_from(d.unsigned_abs()).unwrap_or(u32::MAX)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    //! The convergence gate's streak rules and the FRMW that closes multi-frame checks
+    //! (REQ-DC-104), on a machine put straight into `DriftCheck`.
+    use crate::dc::config::{DriftCheck, DriftConfig};
+    use crate::dc::slave::DcKind;
+    use crate::dc::{Config, Event, Machine, State};
+    use crate::time::SystemTime;
+    use crate::wire::{Command, EthernetFrame};
+
+    fn in_check<const N: usize>(slaves: u16, check: DriftCheck) -> Machine<N> {
+        let cfg = Config {
+            drift: DriftConfig {
+                threshold_ns: 100,
+                spike_ns: 200,
+                consecutive: 3,
+                check,
+                ..DriftConfig::default()
+            },
+            ..Config::default()
+        };
+        let mut m = Machine::<N>::new(cfg).unwrap();
+        m.count = slaves;
+        m.sys_count = slaves;
+        for (i, s) in m.slaves.iter_mut().take(usize::from(slaves)).enumerate() {
+            s.station = 0x1000 + u16::try_from(i).unwrap();
+            s.dc = DcKind::Bits64;
+        }
+        m.state = State::DriftCheck;
+        m
+    }
+
+    /// One completed check with these per-slave readings (ns); the state it leads to.
+    fn judge(m: &mut Machine<4>, readings: &[i64]) -> State {
+        for (s, r) in m.slaves.iter_mut().zip(readings) {
+            s.last_diff_ns = Some(*r);
+        }
+        let next = m.drift_done().unwrap();
+        m.state = if next == State::DriftBurst {
+            State::DriftCheck
+        } else {
+            next
+        };
+        next
+    }
+
+    #[test]
+    fn streak_opens_strict_tolerates_spikes_and_judges_means() {
+        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
+        // Opening needs every reading within the threshold.
+        assert_eq!(judge(&mut m, &[150, 10]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+        assert_eq!(judge(&mut m, &[90, -80]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 1);
+        // Then readings up to the spike bound keep it going ...
+        assert_eq!(judge(&mut m, &[-180, 20]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 2);
+        // ... but slave 1's mean |Δ| over the streak is (90 + 180 + 60) / 3 = 110 > 100:
+        // no convergence, a new streak.
+        assert_eq!(judge(&mut m, &[60, 60]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+        assert!(m.poll_event().is_none());
+        // A reading above the spike bound breaks a streak.
+        assert_eq!(judge(&mut m, &[50, 50]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[-201, 50]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+        // Means 83 and 50: converged (SYNC configured, so the reference time is read next).
+        assert_eq!(judge(&mut m, &[50, 50]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[150, -50]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[-50, 50]), State::ReadReferenceTime);
+        assert!(matches!(
+            m.poll_event(),
+            Some(Event::DriftConverged {
+                max_diff_ns: 50,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn broadcast_only_judges_the_bound_mean() {
+        let mut m = in_check::<4>(2, DriftCheck::Broadcast);
+        for (bound, ok) in [(100, 1), (190, 2)] {
+            m.drift_bound = Some(bound);
+            assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
+            assert_eq!(m.drift_ok, ok);
+        }
+        // Mean of 100, 190, 20 = 103 > 100: starts over.
+        m.drift_bound = Some(20);
+        assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+    }
+
+    /// Commands of the datagrams in a frame, in order.
+    fn commands(frame: &[u8]) -> std::vec::Vec<Command> {
+        let eth = EthernetFrame::new_checked(frame).unwrap();
+        let ecat = eth.ecat_frame().unwrap();
+        ecat.iter().map(|d| d.unwrap().command().unwrap()).collect()
+    }
+
+    #[test]
+    fn multi_frame_check_closes_all_but_its_last_frame_with_an_frmw() {
+        // 40 slaves: BRD + 40 FPRD = 41 items; 31 fit beside the closing FRMW.
+        let mut m = in_check::<64>(40, DriftCheck::Both);
+        let mut buf = [0u8; 1514];
+        let now = SystemTime::from_nanos(1_000_000);
+        let n = m.poll_transmit(now, &mut buf).unwrap();
+        let first = commands(&buf[..n]);
+        assert_eq!(first.len(), 32);
+        assert_eq!(first.first(), Some(&Command::Brd));
+        assert_eq!(first.last(), Some(&Command::Frmw));
+        assert_eq!(first.iter().filter(|c| **c == Command::Fprd).count(), 30);
+        assert_eq!(m.drift_frames, 1);
+        // Answer it (WKC 1 per FPRD, 40 for BRD and FRMW), then the rest goes out without FRMW.
+        let mut reply = buf[..n].to_vec();
+        {
+            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+            eth.mark_processed_by_slave();
+            let mut ecat = eth.ecat_frame_mut().unwrap();
+            for d in ecat.iter_mut() {
+                let mut d = d.unwrap();
+                let wkc = if d.command().unwrap() == Command::Fprd {
+                    1
+                } else {
+                    40
+                };
+                d.set_wkc(wkc);
+            }
+        }
+        m.handle_frame(now, &reply);
+        let n = m.poll_transmit(now, &mut buf).unwrap();
+        let second = commands(&buf[..n]);
+        assert_eq!(second.len(), 10);
+        assert!(second.iter().all(|c| *c == Command::Fprd));
+        assert_eq!(m.drift_frames, 1);
     }
 }

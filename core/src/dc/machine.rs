@@ -100,6 +100,8 @@ pub struct Machine<const N: usize> {
     pub(crate) drift_frames: u32,
     pub(crate) drift_ok: u8,
     pub(crate) drift_bound: Option<u32>,
+    /// Sum of the BRD 0x092C bounds over the current passing streak (REQ-DC-104).
+    pub(crate) drift_bound_sum: u64,
     pub(crate) sync_start: u64,
     pub(crate) cyc: CyclicState,
 }
@@ -134,6 +136,7 @@ impl<const N: usize> Machine<N> {
             drift_frames: 0,
             drift_ok: 0,
             drift_bound: None,
+            drift_bound_sum: 0,
             sync_start: 0,
             cyc: CyclicState::default(),
         })
@@ -511,7 +514,9 @@ impl<const N: usize> Machine<N> {
             match self.item(now, self.cursor) {
                 Item::Skip => self.cursor = self.cursor.saturating_add(1),
                 Item::Send(op) => {
-                    if !self.push_op(b, op, Tag::Item(self.cursor)) {
+                    if !self.drift_check_room(now, b, op)
+                        || !self.push_op(b, op, Tag::Item(self.cursor))
+                    {
                         break;
                     }
                     self.before_send(now, self.cursor);
@@ -519,6 +524,9 @@ impl<const N: usize> Machine<N> {
                     self.cursor = self.cursor.saturating_add(1);
                 }
             }
+        }
+        if sent > 0 && self.cursor < count {
+            self.drift_check_epilogue(now, b);
         }
         if self.inflight.is_empty() {
             if before == 0 {
@@ -538,6 +546,11 @@ impl<const N: usize> Machine<N> {
         match p.tag {
             Tag::Item(i) if self.state.is_request_step() => {
                 if let Err(e) = self.on_item(now, i, p, wkc, data) {
+                    self.step_error.get_or_insert(e);
+                }
+            }
+            Tag::Frmw if self.state == State::DriftCheck => {
+                if let Err(e) = self.check_frmw(p, wkc) {
                     self.step_error.get_or_insert(e);
                 }
             }

@@ -69,6 +69,8 @@ pub struct SlaveInfo {
     pub sync_programmed: bool,
     /// Last 0x092C value decoded to signed ns (negative = local copy behind), if read.
     pub last_diff_ns: Option<i64>,
+    /// Sum of |0x092C| over the current passing streak of drift checks (REQ-DC-104).
+    pub(crate) diff_abs_sum: u64,
 }
 
 /// AL status state codes (0x0130 bits 3:0), ETG.1000.6.

@@ -33,6 +33,8 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn max_per_frame(&self) -> usize {
         match self.state {
             State::DriftBurst => 1,
+            // One entry stays free for the FRMW that closes every check frame.
+            State::DriftCheck => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
             _ => usize::MAX,
         }
     }
