@@ -7,7 +7,7 @@ command -v ip >/dev/null 2>&1 || need_apt+=(iproute2)
 command -v jq >/dev/null 2>&1 || need_apt+=(jq)
 command -v clang >/dev/null 2>&1 || need_apt+=(clang)
 # the z3 crate generates its bindings with bindgen, which loads libclang
-ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1 || need_apt+=(libclang-dev)
+ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1 || need_apt+=(libclang-dev) # libclang.so, not libclang-cpp.so
 if [ "${#need_apt[@]}" -gt 0 ]; then
     echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections 2>/dev/null || true
     apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null \
