@@ -28,8 +28,9 @@ pub enum DriftCommand {
 pub struct DriftConfig {
     /// FRMW frames per burst between two 0x092C checks. ecdc choice: 20. Convergence is bound
     /// by the ESCs' loop slew (time), not by the number of samples: on the default simulate
-    /// scenario 100-frame bursts locked after 4 026 frames / 91 ms, 20-frame bursts after
-    /// 1 763 frames / 104 ms with the same steady-state skew, so smaller bursts spend less
+    /// scenario (measured with the strict gate, `spike_ns` = `threshold_ns`) 100-frame bursts
+    /// locked after 4 026 frames / 91 ms, 20-frame bursts after 1 763 frames / 104 ms with the
+    /// same steady-state skew, so smaller bursts spend less
     /// bandwidth for about the same lock time (docs/simulate.md). The cost shows on large
     /// networks, where each 1 ms check pause weighs more: the emulated 100-slave tree locks
     /// after 6 517 frames / 1.38 s with 20-frame bursts against 5 954 frames / 0.83 s with 100.
