@@ -65,7 +65,7 @@ impl MeanFilter {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn push(&mut self, v: i64) -> i64 {
         if self.len == self.depth {
             self.sum -= self.buf[self.pos];
