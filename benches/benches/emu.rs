@@ -15,8 +15,17 @@ use ecdc_harness::emu::{Network, Scenario, SlaveSpec};
 use std::hint::black_box;
 use std::time::Instant;
 
-/// Line lengths measured: REQ-ESC-101's 100, and `ecdc simulate`'s default 6.
+/// Line lengths measured: REQ-ESC-101's 100, and `ecdc simulate`'s default 6. The environment
+/// variable `EMU_BENCH_SLAVES` (e.g. `100`) restricts the run to one size, which is how the
+/// callgrind figure in docs/emulator.md is taken.
 const SIZES: [usize; 2] = [100, 6];
+
+fn sizes() -> Vec<usize> {
+    match std::env::var("EMU_BENCH_SLAVES") {
+        Ok(v) => v.split(',').filter_map(|x| x.trim().parse().ok()).collect(),
+        Err(_) => SIZES.to_vec(),
+    }
+}
 const CYCLE_NS: u64 = 1_000_000;
 
 fn frame(dgs: &[(Command, Address, &[u8])]) -> Vec<u8> {
@@ -89,7 +98,8 @@ fn thread_cpu_ns() -> u64 {
 }
 
 fn bench(c: &mut Criterion) {
-    for slaves in SIZES {
+    let sizes = sizes();
+    for &slaves in &sizes {
         // One-off: 1 s of true time (SYNC edges drained every 100 ms), three runs.
         for _ in 0..3 {
             let (mut net, t0) = setup(slaves);
@@ -113,7 +123,7 @@ fn bench(c: &mut Criterion) {
             );
         }
     }
-    for slaves in SIZES {
+    for &slaves in &sizes {
         let mut g = c.benchmark_group(format!("emu_{slaves}_slaves_1khz"));
         // Elements = simulated ns: thrpt in Gelem/s reads directly as the real-time ratio.
         g.throughput(Throughput::Elements(100 * CYCLE_NS));
