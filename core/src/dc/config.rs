@@ -36,24 +36,25 @@ pub struct DriftConfig {
     /// after 6 517 frames / 1.38 s with 20-frame bursts against 5 954 frames / 0.83 s with 100.
     /// Raise it when bring-up time matters more than bus load.
     pub burst_frames: u16,
-    /// Convergence threshold in ns on each slave's **mean** |0x092C| over the `consecutive`
-    /// checks of a passing streak (the BRD bound's mean in `Broadcast` mode). ecdc choice:
-    /// 100 ns, the "< 100 ns" DC accuracy Beckhoff states (EL6685 docs) and CherryECAT's
-    /// `EC_DC_MAX_SYNC_DIFF_NS`; 100× stricter than IgH's 10 µs gate, affordable because the
-    /// offsets already fold the delay in. A mean, not every reading: a slave n cables down
-    /// latches the reference time with the PHY jitter of all n cables, so on long lines single
-    /// readings scatter by more than the clocks do (the emulated 512-slave line: true clocks
-    /// within 50 ns, readings up to 130 ns) and a per-reading gate never passes.
+    /// Convergence threshold in ns on each slave's clock offset, estimated as |mean 0x092C|
+    /// over the `consecutive` checks of a passing streak (the BRD bound's mean in `Broadcast`
+    /// mode). ecdc choice: 100 ns, the "< 100 ns" DC accuracy Beckhoff states (EL6685 docs)
+    /// and CherryECAT's `EC_DC_MAX_SYNC_DIFF_NS`; 100× stricter than IgH's 10 µs gate,
+    /// affordable because the offsets already fold the delay in. A mean, not every reading: a
+    /// slave n cables down latches the reference time with the PHY jitter of all n cables, so
+    /// on long lines single readings scatter by more than the clocks do (the emulated
+    /// 1024-slave line: true clocks within 30–80 ns, readings up to 230 ns) and a per-reading
+    /// gate never passes; the jitter is zero-mean once the delays are measured, so the signed
+    /// mean over K readings keeps the offset and divides the jitter by √K.
     pub threshold_ns: u32,
-    /// Upper bound of every single reading (per-slave |0x092C| and the BRD bound) in the
-    /// checks after the first of a streak, ns (the first must have every reading within
-    /// `threshold_ns`); a reading above it breaks the streak. It catches a slave that is still
-    /// slewing, which the mean would only dilute. ecdc choice: 200 ns (2 × `threshold_ns`),
-    /// measured with `ecdc bench dc` (docs/bench.md): with 100 (the strict every-reading gate)
-    /// the emulated 512-slave line never converges; with 200 it locks after 1 277 frames /
-    /// 0.93 s, while the 6-slave line locks after 1 815 frames / 231 ms instead of 1 763 /
-    /// 104 ms (its clocks hover near 100 ns during the extra 0.1 s). Set it to `threshold_ns`
-    /// on short networks when bring-up time matters more.
+    /// Bound on each slave's mean |0x092C| over the streak, ns: catches a loop that swings
+    /// around the reference (a small signed mean of large readings). ecdc choice: 200 ns
+    /// (2 × `threshold_ns`).
+    pub scatter_ns: u32,
+    /// Upper bound of every single reading (per-slave |0x092C| and the BRD bound) in a check
+    /// of a streak, ns; a check with a reading above it does not count and restarts the streak.
+    /// It catches a slave that is still slewing or has not learned the rate (a 0.4 ppm rate
+    /// error is 400 ns over the 1 ms check pause). ecdc choice: 400 ns.
     pub spike_ns: u32,
     /// Checks in a passing streak (K): every reading ≤ `spike_ns` in each, then the means are
     /// judged; a streak whose means miss the threshold starts over. After the first passing
@@ -78,7 +79,8 @@ impl Default for DriftConfig {
         DriftConfig {
             burst_frames: 20,
             threshold_ns: 100,
-            spike_ns: 200,
+            scatter_ns: 200,
+            spike_ns: 400,
             consecutive: 20,
             max_frames: 30_000,
             check: DriftCheck::Both,

@@ -2,9 +2,9 @@
 //! per frame, each a loop sample in every slave) interleaved with 0x092C checks (per-slave FPRD
 //! and/or the BRD upper bound), every check frame closed by one more FRMW so the loops keep
 //! getting samples while a long line is read out (32 datagrams per frame: a 512-slave check is
-//! 17 frames). Done when `consecutive` checks in a row have every reading ≤ `spike_ns` and every
-//! slave's mean |0x092C| over them ≤ `threshold_ns`; a `NotConverged` error with the worst
-//! slave after `max_frames`. SYNC is programmed only after this gate passed (REQ-DC-033).
+//! 17 frames). Done when `consecutive` checks in a row have every reading ≤ `spike_ns` and,
+//! over them, every slave's |mean 0x092C| ≤ `threshold_ns` and mean |0x092C| ≤ `scatter_ns`;
+//! a `NotConverged` error with the worst slave after `max_frames`. SYNC is programmed only after this gate passed (REQ-DC-033).
 
 use crate::dc::config::DriftCheck;
 use crate::dc::error::Error;
@@ -132,16 +132,15 @@ impl<const N: usize> Machine<N> {
 
     /// Judges one completed check (REQ-DC-104): the check passes when every reading is at
     /// most `spike_ns`; a streak of `consecutive` passing checks converges when every slave's
-    /// mean |0x092C| over the streak (the bound's mean in `Broadcast` mode) is at most
-    /// `threshold_ns`, and otherwise starts over.
+    /// |mean 0x092C| (its clock offset, the latch jitter averaged out) is at most
+    /// `threshold_ns` and its mean |0x092C| at most `scatter_ns` (the bound's mean against
+    /// `threshold_ns` in `Broadcast` mode), and otherwise starts over.
     fn drift_judge(&mut self) -> Result<State, Error> {
         let d = self.cfg.drift;
         let per_slave = d.check != DriftCheck::Broadcast;
         let by_bound = d.check != DriftCheck::PerSlave;
         let fresh = self.drift_ok == 0;
-        // A streak opens only on a check with every reading within the threshold itself: the
-        // streak's cycle-paced single frames would slow down loops that are still slewing.
-        let limit = if fresh { d.threshold_ns } else { d.spike_ns };
+        let limit = d.spike_ns;
         let mut over = 0u16;
         let mut worst = (0u16, 0u32);
         if per_slave {
@@ -166,11 +165,14 @@ impl<const N: usize> Machine<N> {
         let count = usize::from(self.count);
         for s in self.slaves.iter_mut().take(count) {
             let mag = u64::from(diff_magnitude(s.last_diff_ns));
-            s.diff_abs_sum = if keep {
-                s.diff_abs_sum.saturating_add(mag)
+            let signed = s.last_diff_ns.unwrap_or(i64::MAX);
+            if keep {
+                s.diff_abs_sum = s.diff_abs_sum.saturating_add(mag);
+                s.diff_sum = s.diff_sum.saturating_add(signed);
             } else {
-                mag
-            };
+                s.diff_abs_sum = mag;
+                s.diff_sum = signed;
+            }
         }
         self.drift_bound_sum = if keep {
             self.drift_bound_sum.saturating_add(u64::from(bound))
@@ -183,12 +185,14 @@ impl<const N: usize> Machine<N> {
             0
         };
         if self.drift_ok >= d.consecutive {
-            let budget = u64::from(d.threshold_ns).saturating_mul(u64::from(self.drift_ok));
+            let k = u64::from(self.drift_ok);
+            let budget = u64::from(d.threshold_ns).saturating_mul(k);
+            let scatter = u64::from(d.scatter_ns).saturating_mul(k);
             let means_ok = if per_slave {
                 self.slaves()
                     .iter()
                     .filter(|s| s.dc.has_system_time())
-                    .all(|s| s.diff_abs_sum <= budget)
+                    .all(|s| s.diff_sum.unsigned_abs() <= budget && s.diff_abs_sum <= scatter)
             } else {
                 self.drift_bound_sum <= budget
             };
@@ -244,7 +248,8 @@ mod tests {
         let cfg = Config {
             drift: DriftConfig {
                 threshold_ns: 100,
-                spike_ns: 200,
+                scatter_ns: 200,
+                spike_ns: 400,
                 consecutive: 3,
                 check,
                 ..DriftConfig::default()
@@ -277,42 +282,54 @@ mod tests {
     }
 
     #[test]
-    fn streak_opens_strict_tolerates_spikes_and_judges_means() {
+    fn streak_judges_signed_mean_scatter_and_spikes() {
         let mut m = in_check::<4>(2, DriftCheck::PerSlave);
-        // Opening needs every reading within the threshold.
-        assert_eq!(judge(&mut m, &[150, 10]), State::DriftBurst);
+        // A reading above the spike bound (400) does not open a streak.
+        assert_eq!(judge(&mut m, &[401, 10]), State::DriftBurst);
         assert_eq!(m.drift_ok, 0);
-        assert_eq!(judge(&mut m, &[90, -80]), State::DriftBurst);
+        // Noisy readings open and continue one ...
+        assert_eq!(judge(&mut m, &[150, -80]), State::DriftBurst);
         assert_eq!(m.drift_ok, 1);
-        // Then readings up to the spike bound keep it going ...
         assert_eq!(judge(&mut m, &[-180, 20]), State::DriftBurst);
         assert_eq!(m.drift_ok, 2);
-        // ... but slave 1's mean |Δ| over the streak is (90 + 180 + 60) / 3 = 110 > 100:
-        // no convergence, a new streak.
-        assert_eq!(judge(&mut m, &[60, 60]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
-        assert!(m.poll_event().is_none());
-        // A reading above the spike bound breaks a streak.
-        assert_eq!(judge(&mut m, &[50, 50]), State::DriftBurst);
-        assert_eq!(judge(&mut m, &[-201, 50]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
-        // Means 83 and 50: converged (SYNC configured, so the reference time is read next).
-        assert_eq!(judge(&mut m, &[50, 50]), State::DriftBurst);
-        assert_eq!(judge(&mut m, &[150, -50]), State::DriftBurst);
-        assert_eq!(judge(&mut m, &[-50, 50]), State::ReadReferenceTime);
+        // ... and after K = 3 checks: slave 1's signed mean (150 − 180 + 90) / 3 = 20, its
+        // mean |Δ| 140 ≤ 200; slave 2's −10 and 40. Converged (SYNC configured: the
+        // reference time is read next).
+        assert_eq!(judge(&mut m, &[90, 30]), State::ReadReferenceTime);
         assert!(matches!(
             m.poll_event(),
             Some(Event::DriftConverged {
-                max_diff_ns: 50,
+                max_diff_ns: 90,
                 ..
             })
         ));
     }
 
     #[test]
+    fn streak_restarts_on_offset_swing_or_spike() {
+        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
+        // Slave 2 sits 110 ns off on average: the offset misses the 100 ns threshold.
+        assert_eq!(judge(&mut m, &[10, 100]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[10, 120]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[10, 110]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+        // Slave 1 swings ±300 around zero: signed mean 100 / 3, mean |Δ| 300 > 200.
+        assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[-300, 0]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+        // A spike in the middle of a good streak restarts it.
+        assert_eq!(judge(&mut m, &[10, 10]), State::DriftBurst);
+        assert_eq!(judge(&mut m, &[10, -450]), State::DriftBurst);
+        assert_eq!(m.drift_ok, 0);
+        assert!(m.poll_event().is_none());
+    }
+
+    #[test]
     fn broadcast_only_judges_the_bound_mean() {
         let mut m = in_check::<4>(2, DriftCheck::Broadcast);
         for (bound, ok) in [(100, 1), (190, 2)] {
+            // Every bound within the spike bound (400) counts.
             m.drift_bound = Some(bound);
             assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
             assert_eq!(m.drift_ok, ok);

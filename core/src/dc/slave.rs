@@ -71,6 +71,8 @@ pub struct SlaveInfo {
     pub last_diff_ns: Option<i64>,
     /// Sum of |0x092C| over the current passing streak of drift checks (REQ-DC-104).
     pub(crate) diff_abs_sum: u64,
+    /// Sum of the signed 0x092C values over the same streak.
+    pub(crate) diff_sum: i64,
 }
 
 /// AL status state codes (0x0130 bits 3:0), ETG.1000.6.
