@@ -28,7 +28,7 @@ pub enum DriftCommand {
 pub struct DriftConfig {
     /// FRMW frames per burst between two 0x092C checks. ecdc choice: 20. Convergence is bound
     /// by the ESCs' loop slew (time), not by the number of samples: on the default simulate
-    /// scenario (measured with the strict gate, `spike_ns` = `threshold_ns`) 100-frame bursts
+    /// scenario (measured with the earlier strict per-reading gate) 100-frame bursts
     /// locked after 4 026 frames / 91 ms, 20-frame bursts after 1 763 frames / 104 ms with the
     /// same steady-state skew, so smaller bursts spend less
     /// bandwidth for about the same lock time (docs/simulate.md). The cost shows on large
