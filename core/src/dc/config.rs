@@ -31,9 +31,10 @@ pub struct DriftConfig {
     /// scenario (measured with the earlier strict per-reading gate) 100-frame bursts
     /// locked after 4 026 frames / 91 ms, 20-frame bursts after 1 763 frames / 104 ms with the
     /// same steady-state skew, so smaller bursts spend less
-    /// bandwidth for about the same lock time (docs/simulate.md). The cost shows on large
-    /// networks, where each 1 ms check pause weighs more: the emulated 100-slave tree locks
-    /// after 6 517 frames / 1.38 s with 20-frame bursts against 5 954 frames / 0.83 s with 100.
+    /// bandwidth for about the same lock time (docs/simulate.md). The cost showed on large
+    /// networks, where each 1 ms check pause weighs more: with that gate the emulated 100-slave
+    /// tree locked after 6 517 frames / 1.38 s with 20-frame bursts against 5 954 frames /
+    /// 0.83 s with 100; with the current gate it locks after 1 006 frames / 288 ms with 20.
     /// Raise it when bring-up time matters more than bus load.
     pub burst_frames: u16,
     /// Convergence threshold in ns on each slave's clock offset, estimated as |mean 0x092C|
