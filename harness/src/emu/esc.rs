@@ -272,6 +272,7 @@ impl Esc {
     }
 
     /// Advances the clock to `until`, firing SYNC pulses due before or at it.
+    #[inline(always)]
     fn run_until(&mut self, until: u64, edges: &mut Vec<SyncEdge>) {
         if !self.powered {
             return;
@@ -280,6 +281,12 @@ impl Esc {
             self.osc.advance(until);
             return;
         }
+        self.run_until_pulses(until, edges);
+    }
+
+    /// [`Esc::run_until`] when a pulse may be due before `until`.
+    #[inline(never)]
+    fn run_until_pulses(&mut self, until: u64, edges: &mut Vec<SyncEdge>) {
         // `system_time()` at the anchor, with the offset read once: firing a pulse changes
         // SYNC registers only, never the offset, the power or the kind.
         let off = self.regs.get_u64(addr::SYSTEM_TIME_OFFSET);
