@@ -2,9 +2,15 @@
 //! emulator, captures the cyclic ring, then replays `CYCLES` cycles (default 100 000; first
 //! argument overrides), with the master servo step when the second argument is `servo`.
 //!
+//! Instructions per cycle (what benches/results/criterion.md quotes): the difference of two
+//! runs, which cancels the bring-up and the capture:
+//!
 //! ```sh
 //! cargo build --release -p ecdc-benches --bin cycle_profile
-//! valgrind --tool=callgrind --toggle-collect='*Replay*cycle*' target/release/cycle_profile 10000
+//! valgrind --tool=callgrind --callgrind-out-file=c0.out target/release/cycle_profile 0
+//! valgrind --tool=callgrind --callgrind-out-file=c1.out target/release/cycle_profile 50000
+//! # (I refs of c1 - I refs of c0) / 50000; callgrind_annotate --inclusive=yes on both for
+//! # the per-function split
 //! ```
 
 use ecdc_benches::cyclic::{fixture, Replay, Shape, CYCLE_NS};

@@ -117,6 +117,11 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
     ///
     /// Invalidated by [`EcatFrame::set_header`] and by any datagram length/flag setter.
     pub fn check_len(&self) -> Result<()> {
+        // Valid frames (the common case) in one tight pass; anything else goes through the
+        // walk below, which reports the exact first error.
+        if valid_fast(self.buffer.as_ref()).is_some() {
+            return Ok(());
+        }
         // The walk alone (spans, no views): the same checks, in the same order, as `iter`.
         let mut it = self.iter();
         while let Some(span) = it.next_span() {
@@ -296,6 +301,37 @@ impl<T: AsRef<[u8]>> core::fmt::Display for EcatFrame<T> {
             }
         }
         Ok(())
+    }
+}
+
+/// `Some(())` iff [`EcatFrame::check_len`]'s walk accepts `buf`: the header checks of
+/// [`Walk::start`], then per datagram a complete 10-byte header, data length ≤ 1486, the whole
+/// datagram inside the header length, a known command and clear reserved bits, and the last
+/// datagram (M clear) ending exactly at the header length. `None` for any failure (the caller
+/// then runs the full walk for the exact error).
+#[inline]
+fn valid_fast(buf: &[u8]) -> Option<()> {
+    let walk = Walk::start(buf).ok()?;
+    let end = usize::from(walk.length).wrapping_add(field::HEADER_LEN);
+    let region = buf.get(field::DATAGRAMS..end)?;
+    let mut off = 0usize;
+    loop {
+        let rest = region.get(off..)?;
+        let h = rest.first_chunk::<{ dfield::HEADER_LEN }>()?;
+        let lf = u16::from_le_bytes([h[6], h[7]]);
+        let len = usize::from(lf & dfield::LEN_MASK);
+        let total = len.wrapping_add(dfield::MIN_LEN);
+        if len > MAX_DATAGRAM_DATA
+            || total > rest.len()
+            || usize::from(h[0]) >= super::Command::ALL.len()
+            || lf & dfield::RESERVED_MASK != 0
+        {
+            return None;
+        }
+        off = off.wrapping_add(total);
+        if lf & dfield::MORE == 0 {
+            return (off == region.len()).then_some(());
+        }
     }
 }
 
@@ -720,6 +756,41 @@ mod tests {
         let f = EcatFrame::new_checked(&b[..36]).unwrap();
         assert_eq!(f.datagram_count(), Ok(2));
         assert!(f.padding().is_empty());
+    }
+
+    /// The one-pass validation in `check_len` accepts exactly what the datagram walk accepts
+    /// and otherwise reports the walk's first error: every single-byte change of the base frame
+    /// (each of its 46 bytes set to each of 256 values), and every truncation.
+    #[test]
+    fn check_len_fast_path_agrees_with_walk() {
+        let walk = |b: &[u8]| -> Result<()> {
+            for d in EcatFrame::new_unchecked(b).iter() {
+                d?;
+            }
+            Ok(())
+        };
+        let b = base();
+        let mut accepted = 0usize;
+        for at in 0..b.len() {
+            for v in 0..=255u8 {
+                let mut x = b.clone();
+                x[at] = v;
+                let got = EcatFrame::new_unchecked(&x[..]).check_len();
+                assert_eq!(got, walk(&x), "byte {at} = {v:#04x}");
+                accepted += usize::from(got.is_ok());
+            }
+        }
+        assert!(
+            accepted > 46 * 200,
+            "most changes (data, WKC, padding) stay valid"
+        );
+        for n in 0..=b.len() {
+            assert_eq!(
+                EcatFrame::new_unchecked(&b[..n]).check_len(),
+                walk(&b[..n]),
+                "truncated to {n}"
+            );
+        }
     }
 
     #[test]
