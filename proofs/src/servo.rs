@@ -380,49 +380,10 @@ pub fn kani_p5_carry_step() {
     prop_carry_exact(kani::any(), x);
 }
 
-/// Word-generic transcription of `ecdc_core::servo::pi::pi_step` *after* its two products
-/// (`p_term = Kp·θ`, `i_term = Ki·θ`, computed by the caller): clamp of I, sum, output clamp,
-/// conditional integration. Add/compare/select only, so z3 can prove P5 on it at 64 bits
-/// (`smt::props::pi_update_bounded`) with the 64-bit multiplications kept out of SMT. It is a
-/// copy, not the shipped code (core/src/servo is not Word-generic): [`prop_pi_update_matches`]
-/// checks it against `pi_step` (proptest and boundary values in `proofs/tests/servo.rs`).
-/// Returns `(y, I', saturated, v)`.
-pub fn pi_update<W: ecdc_core::num::Word>(
-    i: W,
-    p_term: W,
-    i_term: W,
-    y_max: W,
-    i_max: W,
-) -> (W, W, W::Bool, W) {
-    use ecdc_core::num::{clamp, wrapping_neg, Logic};
-    let clamp_mag = |x: W, lim: W| {
-        W::from_signed(clamp::<W>(
-            x.to_signed(),
-            wrapping_neg(lim).to_signed(),
-            lim.to_signed(),
-        ))
-    };
-    let i = clamp_mag(i, i_max);
-    let v = p_term.wrapping_add(i).wrapping_add(i_term);
-    let y = clamp_mag(v, y_max);
-    let saturated = v.eq(y).not();
-    let zero = W::lit(0);
-    let pulls_back = y_max
-        .slt(v)
-        .and(i_term.slt(zero))
-        .or(v.slt(wrapping_neg(y_max)).and(zero.slt(i_term)));
-    let integrator = W::select(
-        saturated.not().or(pulls_back),
-        clamp_mag(i.wrapping_add(i_term), i_max),
-        i,
-    );
-    (y, integrator, saturated, v)
-}
-
-/// The transcription [`pi_update`] at 64 bits equals the shipped `pi_step` (same products, same
-/// θ clamp) for admissible gains and limits and every `i`, `theta`.
-/// Returns whether the inputs were admissible (and so checked).
-pub fn prop_pi_update_matches(
+/// P5 / REQ-SERVO-010, REQ-SERVO-012: `pi_step` equals the i128 rule of the spec for admissible
+/// gains and limits and *every* integrator `i` (the entry clamp of a corrupted integrator
+/// included) and θ. Returns whether the inputs were admissible (and so checked).
+pub fn prop_pi_step_matches_spec(
     kp: i64,
     ki: i64,
     y_max: i64,
@@ -433,15 +394,20 @@ pub fn prop_pi_update_matches(
     let (Ok(g), Ok(lim)) = (PiGains::from_q32(kp, ki), PiLimits::from_q32(y_max, i_max)) else {
         return false;
     };
-    let th = theta.clamp(-THETA_MAX, THETA_MAX);
-    let (p, it) = (g.kp().wrapping_mul(th), g.ki().wrapping_mul(th));
-    let w = |x: i64| x as u64;
-    let (y, i2, sat, _) = pi_update::<u64>(w(i), w(p), w(it), w(y_max), w(i_max));
     let s = pi_step(g, lim, i, theta);
+    let want = spec::pi_step(
+        i128::from(kp),
+        i128::from(ki),
+        i128::from(y_max),
+        i128::from(i_max),
+        i128::from(i),
+        i128::from(theta),
+    );
     assert_eq!(
-        (y as i64, i2 as i64, sat),
-        (s.y, s.integrator, s.saturated),
-        "transcription differs from pi_step"
+        (i128::from(s.y), i128::from(s.integrator), s.saturated),
+        want,
+        "pi_step differs from the i128 rule (kp {kp} ki {ki} y_max {y_max} i_max {i_max} i {i} \
+         theta {theta})"
     );
     true
 }

@@ -44,8 +44,8 @@ proptest! {
         let i_max = ((y as f64 * frac) as i64).clamp(1, y);
         p::prop_pi_step_bounded(kp, ki, y, i_max, i.clamp(-i_max, i_max), th);
         p::prop_pi_intermediates_fit(kp, ki, y, i, th);
-        // The SMT-proved transcription equals the shipped kernel (any I, not only |I| ≤ I_max).
-        let _ = p::prop_pi_update_matches(kp, ki, y, i_max, i, th);
+        // Any I, not only |I| ≤ I_max: the entry clamp, then the i128 rule.
+        let _ = p::prop_pi_step_matches_spec(kp, ki, y, i_max, i, th);
     }
 
     /// REQ-SERVO-002: accepted gains are stable.
@@ -409,10 +409,11 @@ fn master_loop_numbers() {
     }
 }
 
-/// The SMT-proved PI transcription (`ecdc_proofs::servo::pi_update`) equals `pi_step` on the
-/// boundary grid: admissible extreme gains and limits, I and θ at and around every clamp edge.
+/// `pi_step` (whose add/compare/clamp part, `pi::pi_update`, is the code the SMT proof checks)
+/// equals the i128 rule of the spec on the boundary grid: admissible extreme gains and limits,
+/// I and θ at and around every clamp edge.
 #[test]
-fn pi_update_transcription_matches_on_boundaries() {
+fn pi_step_matches_spec_on_boundaries() {
     // Extremes of the admitted region: MARGIN ≤ Kp ≤ 2 − MARGIN, Ki ≥ 1, 2·Kp + Ki ≤ 4 − MARGIN.
     let m = ecdc_core::servo::gains::MARGIN;
     let gains = [
@@ -445,7 +446,7 @@ fn pi_update_transcription_matches_on_boundaries() {
             let is = [0, 1, -1, im, -im, im + 1, -im - 1, i64::MIN, i64::MAX, y];
             for i in is {
                 for th in thetas {
-                    n += u32::from(p::prop_pi_update_matches(kp, ki, y, im, i, th));
+                    n += u32::from(p::prop_pi_step_matches_spec(kp, ki, y, im, i, th));
                 }
             }
         }

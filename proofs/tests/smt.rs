@@ -5,6 +5,7 @@
 //! `urem` itself is covered at 8/16 bits (tests/exhaustive.rs) and by proptest (tests/time.rs).
 
 use ecdc_core::num::{self as k, Word};
+use ecdc_core::servo::pi as k_pi;
 use ecdc_proofs::smt::{self, props, Sym, Verdict};
 use z3::ast::{Ast, BV};
 
@@ -302,6 +303,27 @@ fn kernels_agree_on_constants() {
             }
         }
     }
+    // pi_update (P5): the shipped PI add/compare/clamp kernel on z3 constants and on u64.
+    for &a in &xs {
+        for &c in &xs {
+            for (ym, im) in [(1u64, 1u64), (1000, 10), (1 << 60, 1 << 60), (1 << 60, 3)] {
+                let it = c.rotate_left(17) ^ a;
+                let m = k_pi::pi_update::<u64>(a, c, it, ym, im);
+                let s = k_pi::pi_update(
+                    Sym::<64>::val(a),
+                    Sym::val(c),
+                    Sym::val(it),
+                    Sym::val(ym),
+                    Sym::val(im),
+                );
+                assert_eq!(
+                    (v64(s.y), v64(s.integrator), b(s.saturated), v64(s.v)),
+                    (m.y, m.integrator, m.saturated, m.v),
+                    "pi_update i {a:#x} p {c:#x} it {it:#x} y_max {ym} i_max {im}"
+                );
+            }
+        }
+    }
     // earliest: 4 ports across a wrap, every mask.
     let t = [0xFFFF_FF00u32, 0x10, 0xFFFF_FFF0, 0x20];
     for mask in 0..16u8 {
@@ -334,8 +356,9 @@ fn p4_offset_arithmetic() {
     check("entry_local @64", props::entry_local());
 }
 
-/// P5, REQ-SERVO-011..013: one-step inductive bound of the PI update at 64 bits (products
-/// abstracted to their ranges; the transcription is checked against `pi_step` in tests/servo.rs).
+/// P5, REQ-SERVO-011..013: one-step inductive bound at 64 bits of the shipped PI update
+/// `ecdc_core::servo::pi::pi_update` (what `pi_step` runs after its two products; the products
+/// are free values within their ranges, checked by `prop_pi_intermediates_fit` in tests/servo.rs).
 #[test]
 fn p5_pi_update_bounded() {
     check("pi_update bound @64", props::pi_update_bounded());

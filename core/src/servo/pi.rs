@@ -20,8 +20,14 @@
 //!
 //! Hence plain i64 arithmetic never overflows; the code still uses `wrapping_*` so the lint
 //! set stays quiet, and the proofs check that no wrap can happen.
+//!
+//! Everything after the two products (entry clamp of I, sum, output clamp, conditional
+//! integration) is [`pi_update`], written once against [`crate::num::Word`]: `pi_step` runs it
+//! on `u64` (two's complement bit patterns of the i64 values), and `ecdc-proofs` runs the very
+//! same function on z3 bit-vectors to prove the bounds at 64 bits (P5, `smt::props`).
 
 use super::gains::{PiGains, FRAC_BITS};
+use crate::num::{clamp, wrapping_neg, Logic, Word};
 
 /// Largest |θ| the kernel uses, in ns (2^28 ns ≈ 268 ms). Larger errors are clamped: they
 /// belong to the step path, and the master loop's folded error never exceeds P/2 for periods up
@@ -100,30 +106,74 @@ fn clamp_mag(x: i64, limit: i64) -> i64 {
     x.clamp(limit.wrapping_neg(), limit)
 }
 
+/// The add/compare/clamp part of one PI step, as N-bit two's complement words (see
+/// [`pi_update`]).
+pub struct PiUpdate<W: Word> {
+    /// Command y = clamp(v, ±y_max).
+    pub y: W,
+    /// Next integrator I'.
+    pub integrator: W,
+    /// v ≠ y (the unclamped command exceeded ±y_max).
+    pub saturated: W::Bool,
+    /// The unclamped command v = Kp·θ + I + Ki·θ (I after its entry clamp), mod 2^N.
+    pub v: W,
+}
+
+/// Signed clamp of `x` to [−limit, limit] on words (limit ≥ 0 as a signed value).
+#[inline]
+fn clamp_word<W: Word>(x: W, limit: W) -> W {
+    W::from_signed(clamp::<W>(
+        x.to_signed(),
+        wrapping_neg(limit).to_signed(),
+        limit.to_signed(),
+    ))
+}
+
+/// REQ-SERVO-010..013: the PI update after its two products `p_term` = Kp·θ and `i_term` =
+/// Ki·θ, for integrator `i` and limits `y_max`, `i_max` (all two's complement N-bit words):
+/// I is clamped to ±I_max on entry, v = p_term + I + i_term, y = clamp(v, ±y_max), and
+/// I' = clamp(I + i_term, ±I_max) if v was not clamped or i_term points back toward the range,
+/// else I' = I. Branch-free (comparisons and [`Word::select`]), so the same code is proved
+/// symbolically. All sums wrap modulo 2^N; the module doc's bounds (and the SMT proof) show
+/// that they never wrap for admissible inputs.
+#[inline]
+pub fn pi_update<W: Word>(i: W, p_term: W, i_term: W, y_max: W, i_max: W) -> PiUpdate<W> {
+    let i = clamp_word(i, i_max);
+    let v = p_term.wrapping_add(i).wrapping_add(i_term);
+    let y = clamp_word(v, y_max);
+    let saturated = v.eq(y).not();
+    // Integrate when unsaturated, or when the increment points back toward the range.
+    let zero = W::lit(0);
+    let above = y_max.slt(v).and(i_term.slt(zero));
+    let below = v.slt(wrapping_neg(y_max)).and(zero.slt(i_term));
+    let integrator = W::select(
+        saturated.not().or(above.or(below)),
+        clamp_word(i.wrapping_add(i_term), i_max),
+        i,
+    );
+    PiUpdate {
+        y,
+        integrator,
+        saturated,
+        v,
+    }
+}
+
 /// REQ-SERVO-010..013: one PI update for error `theta` (ns) from integrator `i` (Q32).
 ///
 /// Total for every input: `i` outside ±I_max is first clamped to it (a corrupted state cannot
 /// leak into the output), `theta` is clamped to ±THETA_MAX.
 pub fn pi_step(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
-    let i = clamp_mag(i, lim.i_max);
     let th = clamp_mag(theta, THETA_MAX);
     // |Kp·θ| ≤ 2^33·2^28, |Ki·θ| < 2^34·2^28 (module doc).
     let p_term = g.kp().wrapping_mul(th);
     let i_term = g.ki().wrapping_mul(th);
-    let v = p_term.wrapping_add(i).wrapping_add(i_term);
-    let y = clamp_mag(v, lim.y_max);
-    let saturated = v != y;
-    // Integrate when unsaturated, or when the increment points back toward the range.
-    let pulls_back = (v > lim.y_max && i_term < 0) || (v < lim.y_max.wrapping_neg() && i_term > 0);
-    let integrator = if !saturated || pulls_back {
-        clamp_mag(i.wrapping_add(i_term), lim.i_max)
-    } else {
-        i
-    };
+    let w = u64::from_signed;
+    let r = pi_update::<u64>(w(i), w(p_term), w(i_term), w(lim.y_max), w(lim.i_max));
     PiStep {
-        y,
-        integrator,
-        saturated,
+        y: r.y.to_signed(),
+        integrator: r.integrator.to_signed(),
+        saturated: r.saturated,
     }
 }
 
@@ -167,6 +217,88 @@ mod tests {
         let s = pi_step(g, lim, 50 * ONE, -10);
         assert!(!s.saturated);
         assert!(s.integrator < 50 * ONE);
+    }
+
+    /// The plain-i64 body `pi_step` had before its add/compare/clamp part became the
+    /// Word-generic [`pi_update`]; kept as the oracle that the refactoring changed no result.
+    fn pi_step_i64(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
+        let i = clamp_mag(i, lim.i_max);
+        let th = clamp_mag(theta, THETA_MAX);
+        let p_term = g.kp().wrapping_mul(th);
+        let i_term = g.ki().wrapping_mul(th);
+        let v = p_term.wrapping_add(i).wrapping_add(i_term);
+        let y = clamp_mag(v, lim.y_max);
+        let saturated = v != y;
+        let pulls_back =
+            (v > lim.y_max && i_term < 0) || (v < lim.y_max.wrapping_neg() && i_term > 0);
+        let integrator = if !saturated || pulls_back {
+            clamp_mag(i.wrapping_add(i_term), lim.i_max)
+        } else {
+            i
+        };
+        PiStep {
+            y,
+            integrator,
+            saturated,
+        }
+    }
+
+    #[test]
+    fn word_kernel_equals_i64_body() {
+        use super::super::gains::MARGIN;
+        let gains = [
+            (MARGIN, 1),
+            (ONE, ONE / 2),
+            (2 * ONE - MARGIN, 1),
+            (MARGIN, 4 * ONE - 3 * MARGIN),
+            (ONE, 2 * ONE - MARGIN),
+        ];
+        let limits = [
+            (1, 1),
+            (1 << 60, 1 << 60),
+            (1 << 60, 1),
+            (1000 * ONE, 10 * ONE),
+        ];
+        let mut n = 0u32;
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        for (kp, ki) in gains {
+            let g = PiGains::from_q32(kp, ki).unwrap();
+            for (y_max, i_max) in limits {
+                let lim = PiLimits::from_q32(y_max, i_max).unwrap();
+                let mut is = std::vec![0, 1, -1, i_max, -i_max, i_max + 1, -i_max - 1, y_max];
+                is.extend([i64::MIN, i64::MAX, -y_max, i_max / 2, -(i_max / 3)]);
+                let mut ths = std::vec![
+                    0,
+                    1,
+                    -1,
+                    THETA_MAX,
+                    -THETA_MAX,
+                    THETA_MAX + 1,
+                    -THETA_MAX - 1
+                ];
+                ths.extend([i64::MIN, i64::MAX, 12_345, -98_765]);
+                // Pseudo-random values (xorshift) on top of the boundaries.
+                for _ in 0..40 {
+                    seed ^= seed << 13;
+                    seed ^= seed >> 7;
+                    seed ^= seed << 17;
+                    let r = i64::from_ne_bytes(seed.to_ne_bytes());
+                    is.push(r % (2 * i_max));
+                    ths.push(r >> (seed % 40));
+                }
+                for &i in &is {
+                    for &th in &ths {
+                        assert_eq!(
+                            pi_step(g, lim, i, th),
+                            pi_step_i64(g, lim, i, th),
+                            "kp {kp} ki {ki} y_max {y_max} i_max {i_max} i {i} theta {th}"
+                        );
+                        n += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(n, 5 * 4 * 53 * 51);
     }
 
     #[test]

@@ -361,11 +361,12 @@ pub fn entry_local() -> Goal {
 
 // ------------------------------------------------------------------ P5: PI step bound
 
-/// P5 / REQ-SERVO-011..013, one-step inductive bound at 64 bits on the add/compare/clamp part of
-/// the PI step (`crate::servo::pi_update`), the products Kp·θ and Ki·θ being free values
-/// within their proven ranges (|Kp·θ| ≤ 2^61 from Kp < 2^33, |θ| ≤ 2^28; |Ki·θ| ≤ 2^62 from
-/// Ki < 2^34): for every integrator I (clamped on entry) and limits 0 < I_max ≤ y_max ≤ 2^60,
-/// |y| ≤ y_max, |I'| ≤ I_max, and the 64-bit sum v equals the exact 66-bit sum (no wrap).
+/// P5 / REQ-SERVO-011..013, one-step inductive bound at 64 bits on the shipped add/compare/clamp
+/// part of the PI step (`ecdc_core::servo::pi::pi_update`, which `pi_step` calls on `u64`), the
+/// products Kp·θ and Ki·θ being free values within their proven ranges (|Kp·θ| ≤ 2^61 from
+/// Kp < 2^33, |θ| ≤ 2^28; |Ki·θ| ≤ 2^62 from Ki < 2^34): for every integrator I (clamped on
+/// entry) and limits 0 < I_max ≤ y_max ≤ 2^60, |y| ≤ y_max, |I'| ≤ I_max, the 64-bit sum v
+/// equals the exact 66-bit sum (no wrap), and saturated ⇔ |v| > y_max.
 pub fn pi_update_bounded() -> Goal {
     let v64 = |n: &str| Sym::<64>::var(n);
     let (i, p, it, ym, im) = (v64("I"), v64("p"), v64("it"), v64("y_max"), v64("i_max"));
@@ -379,7 +380,8 @@ pub fn pi_update_bounded() -> Goal {
         &abs_le(p.bv(), &int(1i128 << 61, 64)),
         &abs_le(it.bv(), &int(1i128 << 62, 64)),
     ]);
-    let (y, i2, sat, v) = crate::servo::pi_update(i, p, it, ym, im);
+    let r = ecdc_core::servo::pi::pi_update(i, p, it, ym, im);
+    let (y, i2, sat, v) = (r.y, r.integrator, r.saturated, r.v);
     let ic = i.bv().bvslt(&im.bv().bvneg()).ite(
         &im.bv().bvneg(),
         &i.bv().bvsgt(im.bv()).ite(im.bv(), i.bv()),
