@@ -330,6 +330,28 @@ pub fn saturating_sub<W: Word>(a: W::Signed, b: W::Signed) -> W::Signed {
     W::select(overflow, limit, d).to_signed()
 }
 
+/// Signed `a + b` mod 2^N and whether the true sum left the signed range (what `i64::
+/// checked_add` reports as `None`).
+#[inline]
+pub fn overflowing_add<W: Word>(a: W, b: W) -> (W, W::Bool) {
+    let s = a.wrapping_add(b);
+    let (na, nb, ns) = (is_negative(a), is_negative(b), is_negative(s));
+    // Overflow iff the operands share a sign and the sum's sign differs.
+    let same = na.and(nb).or(na.not().and(nb.not()));
+    (s, same.and(ns.and(na.not()).or(ns.not().and(na))))
+}
+
+/// Signed `a − b` mod 2^N and whether the true difference left the signed range (what
+/// `i64::checked_sub` reports as `None`).
+#[inline]
+pub fn overflowing_sub<W: Word>(a: W, b: W) -> (W, W::Bool) {
+    let d = a.wrapping_sub(b);
+    let (na, nb, nd) = (is_negative(a), is_negative(b), is_negative(d));
+    // Overflow iff the operands differ in sign and the result's sign differs from a's.
+    let differ = na.and(nb.not()).or(na.not().and(nb));
+    (d, differ.and(nd.and(na.not()).or(nd.not().and(na))))
+}
+
 /// REQ-TIME-011: signed `x / 2` rounded toward zero, exact for every input (no overflow even
 /// for the most negative value). Used for "half a round trip" in delay computation.
 #[inline]
@@ -505,6 +527,51 @@ mod tests {
         assert_eq!(half_toward_zero::<u32>(-3), -1);
         assert_eq!(half_toward_zero::<u32>(i32::MIN), i32::MIN / 2);
         assert_eq!(half_toward_zero::<u32>(i32::MAX), i32::MAX / 2);
+    }
+
+    #[test]
+    fn overflowing_matches_checked() {
+        let xs = [
+            0i64,
+            1,
+            -1,
+            2,
+            i64::MAX,
+            i64::MIN,
+            i64::MAX - 1,
+            i64::MIN + 1,
+            1 << 62,
+            -(1 << 62),
+        ];
+        for a in xs {
+            for b in xs {
+                let (ua, ub) = (a as u64, b as u64);
+                let (s, o) = overflowing_add(ua, ub);
+                assert_eq!(
+                    (s as i64, o),
+                    (a.wrapping_add(b), a.checked_add(b).is_none())
+                );
+                let (d, o) = overflowing_sub(ua, ub);
+                assert_eq!(
+                    (d as i64, o),
+                    (a.wrapping_sub(b), a.checked_sub(b).is_none())
+                );
+            }
+        }
+        for a in i8::MIN..=i8::MAX {
+            for b in i8::MIN..=i8::MAX {
+                let (s, o) = overflowing_add(a as u8, b as u8);
+                assert_eq!(
+                    (s as i8, o),
+                    (a.wrapping_add(b), a.checked_add(b).is_none())
+                );
+                let (d, o) = overflowing_sub(a as u8, b as u8);
+                assert_eq!(
+                    (d as i8, o),
+                    (a.wrapping_sub(b), a.checked_sub(b).is_none())
+                );
+            }
+        }
     }
 
     #[test]

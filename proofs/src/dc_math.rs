@@ -416,28 +416,30 @@ pub fn kani_sync_start() {
 
 // ------------------------------------------------------------------ P3 line kernel for SMT
 
-/// Word-generic transcription of `delay::compute` on a *line* of `n ≤ 3` DC slaves (reference =
-/// slave 0; ports 0 in, 1 out; the line end has only port 0), add/sub/and/shift/compare only,
-/// so z3 can prove P3 on it at full width (`smt::props::p3_line_kernel`): per slave `i` the
-/// 32-bit stamps `p0[i]`, `p1[i]` (zero-extended into the word) and `t_diff[i]` (signed). For
-/// `c ≥ 1`, `a = c − 1`: excursion = p1[a] − p0[a] and rtt_c = p1[c] − p0[c] (0 at the line end),
-/// both wrapping 32-bit differences read as signed; twice the hop = excursion − rtt_c +
-/// t_Diff(a) − (line end ? t_Diff(c) : 0); the delay is ⌊(2·delay + 1)/2⌋ (round half up).
-/// Returns the delays and an error flag (a negative difference or hop, where the shipped code
-/// returns `Inconsistent`/`NegativeHop`). A copy, not the shipped code (delay.rs is topology
-/// code over `i64`, not Word-generic): [`p3_line_kernel_matches`] checks it against
-/// `delay::compute`.
+/// `delay::compute` on a *line* of `n ≤ 3` DC slaves (reference = slave 0; ports 0 in, 1 out;
+/// the line end has only port 0), Word-generic so z3 can prove P3 on it at full width
+/// (`smt::props::p3_line_kernel`): per slave `i` the 32-bit stamps `p0[i]`, `p1[i]`
+/// (zero-extended into the word) and `t_diff[i]` (signed). The hop arithmetic is the **shipped**
+/// `delay::twice_delay_step` (the function `compute` runs on `u64`); only the glue around it is
+/// restated here, because the topology walk is not Word-generic: for `c ≥ 1`, `a = c − 1`,
+/// q = a's entry (so `before` = 0), excursion = p1[a] − p0[a] and rtt_c = p1[c] − p0[c] (0 at the
+/// line end), both wrapping 32-bit differences read as signed (`since`, `None` if negative),
+/// corr_a = t_Diff(a), corr_c = t_Diff(c) at the line end (else 0), non_dc = 0; and the rounding
+/// of `Delays::ns` for one round, ⌊(2·delay + 1)/2⌋. Returns the delays, twice the delays, and an
+/// error flag (a negative stamp difference, or any flag of `twice_delay_step`).
+/// [`p3_line_kernel_matches`] checks this glue against `delay::compute`.
 pub fn p3_line_kernel<W: ecdc_core::num::Word>(
     n: usize,
     p0: [W; 3],
     p1: [W; 3],
     t_diff: [W; 3],
-) -> ([W; 3], W::Bool) {
+) -> ([W; 3], [W; 3], W::Bool) {
     use ecdc_core::num::Logic;
     let zero = W::lit(0);
     let mask = W::lit(1).shl(32).wrapping_sub(W::lit(1));
     let bit31 = W::lit(1).shl(31);
-    // Signed 32-bit wrapping difference, sign-extended into the word.
+    // Signed 32-bit wrapping difference, sign-extended into the word (`PortTime::
+    // wrapping_since` then `i64::from`).
     let since = |to: W, from: W| {
         let d = to.wrapping_sub(from).bit_and(mask);
         let neg = d.bit_and(bit31).eq(zero).not();
@@ -452,18 +454,21 @@ pub fn p3_line_kernel<W: ecdc_core::num::Word>(
         let excursion = since(p1[a], p0[a]);
         let rtt_c = if end { zero } else { since(p1[c], p0[c]) };
         bad = bad.or(excursion.slt(zero)).or(rtt_c.slt(zero));
-        let measured = excursion.wrapping_sub(rtt_c);
-        bad = bad.or(measured.slt(zero));
         let corr_c = if end { t_diff[c] } else { zero };
-        let hop2 = measured.wrapping_add(t_diff[a]).wrapping_sub(corr_c);
-        bad = bad.or(hop2.slt(zero));
-        abs2[c] = abs2[a].wrapping_add(hop2);
+        let s = delay::twice_delay_step(abs2[a], zero, excursion, rtt_c, t_diff[a], corr_c, zero);
+        bad = bad
+            .or(s.measured_overflow)
+            .or(s.inconsistent)
+            .or(s.hop_overflow)
+            .or(s.negative_hop)
+            .or(s.sum_overflow);
+        abs2[c] = s.abs2;
     }
     for i in 0..n.min(3) {
         // ⌊(x + 1) / 2⌋ for x ≥ 0 (the only case without an error).
         out[i] = abs2[i].wrapping_add(W::lit(1)).shr(1);
     }
-    (out, bad)
+    (out, abs2, bad)
 }
 
 /// [`p3_line_kernel`] at 64 bits equals `delay::compute` (delays, or an error exactly when the
@@ -489,12 +494,14 @@ pub fn p3_line_kernel_matches(n: usize, p0: [u32; 3], p1: [u32; 3], t_diff: [i32
         return false;
     }
     let w = |x: [u32; 3]| x.map(u64::from);
-    let (d, bad) = p3_line_kernel::<u64>(n, w(p0), w(p1), t_diff.map(|t| i64::from(t) as u64));
+    let (d, twice, bad) =
+        p3_line_kernel::<u64>(n, w(p0), w(p1), t_diff.map(|t| i64::from(t) as u64));
     match delay::compute(&samples, &topo, 0) {
         Ok(delays) => {
             assert!(!bad, "kernel flags an error the shipped code does not");
             for i in 0..n {
                 assert_eq!(delays.ns(i), Some(d[i] as i64), "slave {i}");
+                assert_eq!(delays.exact(i), Some((twice[i] as i64, 2)), "slave {i}");
             }
             true
         }

@@ -4,6 +4,7 @@
 //! with `urem` abstracted to the two facts it relies on, and with the real divider at 8 bits;
 //! `urem` itself is covered at 8/16 bits (tests/exhaustive.rs) and by proptest (tests/time.rs).
 
+use ecdc_core::dc::delay as k_delay;
 use ecdc_core::num::{self as k, Word};
 use ecdc_core::servo::pi as k_pi;
 use ecdc_proofs::smt::{self, props, Sym, Verdict};
@@ -95,6 +96,12 @@ fn clamp_32_64() {
 fn saturating_32_64() {
     check("saturating add/sub @32", props::saturating::<32>());
     check("saturating add/sub @64", props::saturating::<64>());
+}
+/// REQ-DC-014 overflow checks of the delay step: signed overflow flags at 32 and 64 bits.
+#[test]
+fn overflowing_32_64() {
+    check("overflowing add/sub @32", props::overflowing::<32>());
+    check("overflowing add/sub @64", props::overflowing::<64>());
 }
 /// REQ-TIME-011.
 #[test]
@@ -324,6 +331,52 @@ fn kernels_agree_on_constants() {
             }
         }
     }
+    // overflowing add/sub and the delay step (P3) on z3 constants and on u64.
+    for &a in &xs {
+        for &c in &xs {
+            let (x, y) = (Sym::<64>::val(a), Sym::<64>::val(c));
+            let ((s, so), (ms, mso)) = (k::overflowing_add(x, y), k::overflowing_add(a, c));
+            assert_eq!((v64(s), b(so)), (ms, mso));
+            let ((d, dof), (md, mdo)) = (k::overflowing_sub(x, y), k::overflowing_sub(a, c));
+            assert_eq!((v64(d), b(dof)), (md, mdo));
+            let args = [
+                a,
+                c,
+                c ^ a,
+                a.rotate_left(9),
+                c >> 3,
+                a >> 5,
+                c.rotate_right(11),
+            ];
+            let m = k_delay::twice_delay_step::<u64>(
+                args[0], args[1], args[2], args[3], args[4], args[5], args[6],
+            );
+            let z = args.map(Sym::<64>::val);
+            let s = k_delay::twice_delay_step(z[0], z[1], z[2], z[3], z[4], z[5], z[6]);
+            assert_eq!(
+                (v64(s.abs2), v64(s.hop2)),
+                (m.abs2, m.hop2),
+                "twice_delay_step {args:?}"
+            );
+            assert_eq!(
+                [
+                    b(s.measured_overflow),
+                    b(s.inconsistent),
+                    b(s.hop_overflow),
+                    b(s.negative_hop),
+                    b(s.sum_overflow)
+                ],
+                [
+                    m.measured_overflow,
+                    m.inconsistent,
+                    m.hop_overflow,
+                    m.negative_hop,
+                    m.sum_overflow
+                ],
+                "twice_delay_step flags {args:?}"
+            );
+        }
+    }
     // earliest: 4 ports across a wrap, every mask.
     let t = [0xFFFF_FF00u32, 0x10, 0xFFFF_FFF0, 0x20];
     for mask in 0..16u8 {
@@ -365,7 +418,8 @@ fn p5_pi_update_bounded() {
 }
 
 /// P3, REQ-DC-014, REQ-DC-016, REQ-DC-020: the delay formula on a 3-slave line at 64 bits, any
-/// clock phases (transcription checked against `delay::compute` in tests/dc_math.rs).
+/// clock phases; hop arithmetic = the shipped `delay::twice_delay_step`, the line glue around it
+/// is checked against `delay::compute` in tests/dc_math.rs.
 #[test]
 fn p3_line_delay_formula() {
     check("p3 line kernel, 3 slaves @64", props::p3_line_kernel());

@@ -26,7 +26,8 @@
 //! delay is accumulated exactly in `i64` and halved once at the end (round half up), so rounding
 //! never accumulates along a path (REQ-DC-014). Several latch rounds can be averaged by adding
 //! their sums ([`Delays::accumulate`]) before the single division, which reduces the 10 ns
-//! stamp quantisation of real ESCs.
+//! stamp quantisation of real ESCs. The arithmetic of one hop is [`twice_delay_step`], written
+//! once against [`crate::num::Word`] so the P3 SMT proof in `ecdc-proofs` checks this code.
 //!
 //! Non-DC slaves (no latches) between DC slaves act as wire (REQ-DC-017): they must have exactly
 //! two open ports, because the excursion seen by `a` would otherwise include branches no DC
@@ -62,6 +63,7 @@
 
 use super::port::Port;
 use super::topology::{Latches, SlaveSample, Topology};
+use crate::num::{overflowing_add, overflowing_sub, Logic, Word};
 
 /// Why delays could not be computed. Every variant names the offending slave (auto-increment
 /// position) so the caller can report it; no delay is produced from such input.
@@ -353,28 +355,99 @@ fn twice_delay_from_upstream<const N: usize>(
     let last = node_c.last_port();
     let rtt_c = since(lat_c, last, node_c.entry).ok_or(DelayError::Inconsistent { slave: c })?;
 
-    let measured = excursion.checked_sub(rtt_c).ok_or(overflow)?;
-    if measured < 0 {
-        return Err(DelayError::Inconsistent { slave: c });
-    }
     let corr_a = if q.hop_is_processing(p) { diff_a } else { 0 };
     let corr_c = if last.hop_is_processing(node_c.entry) {
         diff_c
     } else {
         0
     };
-    let hop2 = measured
-        .checked_add(corr_a)
-        .and_then(|v| v.checked_sub(corr_c))
-        .and_then(|v| v.checked_add(non_dc))
-        .ok_or(overflow)?;
-    if hop2 < 0 {
+    let w = u64::from_signed;
+    let step = twice_delay_step::<u64>(
+        w(abs_a),
+        w(before),
+        w(excursion),
+        w(rtt_c),
+        w(corr_a),
+        w(corr_c),
+        w(non_dc),
+    );
+    hop_result(&step, c)
+}
+
+/// The error (or twice the delay) [`twice_delay_step`]'s flags mean for slave `c`, checked in
+/// the order of the formula: the first that fails names the error.
+fn hop_result(step: &HopStep<u64>, c: u16) -> Result<i64, DelayError> {
+    let overflow = DelayError::Overflow { slave: c };
+    if step.measured_overflow {
+        return Err(overflow);
+    }
+    if step.inconsistent {
+        return Err(DelayError::Inconsistent { slave: c });
+    }
+    if step.hop_overflow {
+        return Err(overflow);
+    }
+    if step.negative_hop {
         return Err(DelayError::NegativeHop { slave: c });
     }
-    abs_a
-        .checked_add(before.checked_mul(2).ok_or(overflow)?)
-        .and_then(|v| v.checked_add(hop2))
-        .ok_or(overflow)
+    if step.sum_overflow {
+        return Err(overflow);
+    }
+    Ok(step.abs2.to_signed())
+}
+
+/// Result of [`twice_delay_step`]: the doubled delay and the checks, as N-bit words and flags.
+pub struct HopStep<W: Word> {
+    /// Twice the delay of `c` from the root: `abs_a + 2·before + hop2` (mod 2^N).
+    pub abs2: W,
+    /// Twice the hop from `a` to `c`: `measured + corr_a − corr_c + non_dc` (mod 2^N).
+    pub hop2: W,
+    /// `measured = excursion − rtt_c` left the signed range.
+    pub measured_overflow: W::Bool,
+    /// `measured < 0`: c's own round trip is longer than the excursion a saw (stale latches).
+    pub inconsistent: W::Bool,
+    /// One of the sums forming `hop2` left the signed range.
+    pub hop_overflow: W::Bool,
+    /// `hop2 < 0`: only the t_Diff corrections made the hop negative.
+    pub negative_hop: W::Bool,
+    /// `2·before` or one of the sums forming `abs2` left the signed range.
+    pub sum_overflow: W::Bool,
+}
+
+/// REQ-DC-014..017: the arithmetic of one hop of the delay walk, written once against
+/// [`Word`] (two's complement N-bit words) so the P3 SMT proof in `ecdc-proofs` runs this very
+/// code; `compute` runs it on `u64`. Inputs (all signed): `abs_a` = twice a's delay from the
+/// root, `before` = t_a(q) − t_a(e), `excursion` = t_a(p) − t_a(q), `rtt_c` = c's own round
+/// trip, `corr_a`/`corr_c` = the t_Diff of a/c where its hop is a processing hop (else 0),
+/// `non_dc` = the signed sum of the non-DC slaves' t_Diff between them (see the module doc).
+/// Each overflow flag is exactly what the corresponding `i64::checked_*` would report.
+#[inline]
+pub fn twice_delay_step<W: Word>(
+    abs_a: W,
+    before: W,
+    excursion: W,
+    rtt_c: W,
+    corr_a: W,
+    corr_c: W,
+    non_dc: W,
+) -> HopStep<W> {
+    let zero = W::lit(0);
+    let (measured, measured_overflow) = overflowing_sub(excursion, rtt_c);
+    let (h, o1) = overflowing_add(measured, corr_a);
+    let (h, o2) = overflowing_sub(h, corr_c);
+    let (hop2, o3) = overflowing_add(h, non_dc);
+    let (before2, o4) = overflowing_add(before, before);
+    let (s, o5) = overflowing_add(abs_a, before2);
+    let (abs2, o6) = overflowing_add(s, hop2);
+    HopStep {
+        abs2,
+        hop2,
+        measured_overflow,
+        inconsistent: measured.slt(zero),
+        hop_overflow: o1.or(o2).or(o3),
+        negative_hop: hop2.slt(zero),
+        sum_overflow: o4.or(o5).or(o6),
+    }
 }
 
 /// Wrapping difference `t(to) − t(from)` of one slave's stamps; `None` if negative (the latch
@@ -402,6 +475,67 @@ fn t_diff_of(samples: &[SlaveSample], i: u16) -> Result<i32, DelayError> {
 mod tests {
     use super::*;
     use crate::dc::port::PortSet;
+
+    /// The plain-`i64` checked chain `twice_delay_from_upstream` had before its arithmetic
+    /// became the Word-generic [`twice_delay_step`]; kept as the oracle that the refactoring
+    /// changed no result and no error.
+    fn hop_i64(x: [i64; 7], c: u16) -> Result<i64, DelayError> {
+        let [abs_a, before, excursion, rtt_c, corr_a, corr_c, non_dc] = x;
+        let overflow = DelayError::Overflow { slave: c };
+        let measured = excursion.checked_sub(rtt_c).ok_or(overflow)?;
+        if measured < 0 {
+            return Err(DelayError::Inconsistent { slave: c });
+        }
+        let hop2 = measured
+            .checked_add(corr_a)
+            .and_then(|v| v.checked_sub(corr_c))
+            .and_then(|v| v.checked_add(non_dc))
+            .ok_or(overflow)?;
+        if hop2 < 0 {
+            return Err(DelayError::NegativeHop { slave: c });
+        }
+        abs_a
+            .checked_add(before.checked_mul(2).ok_or(overflow)?)
+            .and_then(|v| v.checked_add(hop2))
+            .ok_or(overflow)
+    }
+
+    fn hop_word(x: [i64; 7], c: u16) -> Result<i64, DelayError> {
+        let w = x.map(|v| v as u64);
+        hop_result(
+            &twice_delay_step(w[0], w[1], w[2], w[3], w[4], w[5], w[6]),
+            c,
+        )
+    }
+
+    #[test]
+    fn word_step_equals_i64_chain() {
+        let vals = [0i64, 1, -1, i64::MAX, i64::MIN, 1 << 62];
+        let mut n = 0u32;
+        for k in 0..vals.len().pow(7) {
+            let mut r = k;
+            let x: [i64; 7] = core::array::from_fn(|_| {
+                let v = vals[r % vals.len()];
+                r /= vals.len();
+                v
+            });
+            assert_eq!(hop_word(x, 3), hop_i64(x, 3), "{x:?}");
+            n += 1;
+        }
+        // Pseudo-random values of every magnitude (xorshift), and realistic ones.
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        for _ in 0..20_000 {
+            let x: [i64; 7] = core::array::from_fn(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed as i64) >> (seed % 64)
+            });
+            assert_eq!(hop_word(x, 3), hop_i64(x, 3), "{x:?}");
+            n += 1;
+        }
+        assert_eq!(n, 6u32.pow(7) + 20_000);
+    }
 
     fn line(rtts: &[u32], t_diff: i32, phase: u32) -> [SlaveSample; 4] {
         let mut out = [SlaveSample::default(); 4];

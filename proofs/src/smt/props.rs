@@ -261,6 +261,24 @@ pub fn saturating<const N: u32>() -> Goal {
     (t(), claim)
 }
 
+/// `overflowing_add`/`overflowing_sub` (the `checked_*` of `delay::twice_delay_step`): the
+/// word is the wrapped result and the flag is set iff the exact (N + 1)-bit result differs from
+/// it read as signed (i.e. left the signed N-bit range).
+pub fn overflowing<const N: u32>() -> Goal {
+    let (a, b) = (Sym::<N>::var("a"), Sym::<N>::var("b"));
+    let (aw, bw) = (a.bv().sign_ext(1), b.bv().sign_ext(1));
+    let (s, so) = k::overflowing_add(a, b);
+    let (d, dor) = k::overflowing_sub(a, b);
+    let (es, ed) = (aw.bvadd(&bw), aw.bvsub(&bw));
+    let claim = and(&[
+        &s.bv()._eq(&es.extract(N - 1, 0)),
+        &d.bv()._eq(&ed.extract(N - 1, 0)),
+        &so.b()._eq(&s.bv().sign_ext(1)._eq(&es).not()),
+        &dor.b()._eq(&d.bv().sign_ext(1)._eq(&ed).not()),
+    ]);
+    (t(), claim)
+}
+
 /// REQ-TIME-011: half_toward_zero(x) equals SMT-LIB `bvsdiv x 2` (truncating division).
 pub fn half<const N: u32>() -> Goal {
     let x = Sym::<N>::var("x");
@@ -400,14 +418,17 @@ pub fn pi_update_bounded() -> Goal {
 // ------------------------------------------------------------------ P3: delay formula on lines
 
 /// P3 / REQ-DC-014, REQ-DC-016, REQ-DC-020 on a line of 3 DC slaves (`crate::dc_math::
-/// p3_line_kernel`, 64-bit words): the frame enters slave i at true local time E_i (any 32-bit
+/// p3_line_kernel`, 64-bit words, whose hop arithmetic is the shipped `ecdc_core::dc::delay::
+/// twice_delay_step`): the frame enters slave i at true local time E_i (any 32-bit
 /// phase: the stamps are the low 32 bits, so they may wrap anywhere) and returns through port 1
 /// X_i ns later, with X_0 ≥ X_1 + h (what slave 1 sees is inside what slave 0 sees: X_0 = X_1 +
 /// 2·hop, hop ≥ 0), round trips < 2^30 ns and 0 ≤ t_Diff < 2^16 ns (one common value, seed 000's
-/// assumption). Claims: no error flag, every delay ≥ 0, d_0 = 0 ≤ d_1 ≤ d_2 (monotone along
-/// the line), d_2 ≤ X_0 + t_Diff (bounded by the round trip), and d_i equals seed 000 eq. 23 (derived
-/// form, REQ-DC-020) evaluated on the true round trips at 66 bits: d_1 = ⌈(X_0 − X_1 + t_Diff)/2⌉,
-/// d_2 = ⌈(X_0 + t_Diff)/2⌉ (round half up of an integer halving).
+/// assumption). Claims: no error or overflow flag, every delay ≥ 0, d_0 = 0 ≤ d_1 ≤ d_2
+/// (monotone along the line), d_2 ≤ X_0 + t_Diff (bounded by the round trip), twice the delays
+/// from `twice_delay_step` equal 2·d_1 = X_0 − X_1 + t_Diff and 2·d_2 = X_0 + t_Diff exactly, and
+/// d_i equals seed 000 eq. 23 (derived form, REQ-DC-020) evaluated on the true round trips at 66
+/// bits: d_1 = ⌈(X_0 − X_1 + t_Diff)/2⌉, d_2 = ⌈(X_0 + t_Diff)/2⌉ (round half up of an integer
+/// halving).
 pub fn p3_line_kernel() -> Goal {
     let v32 = |n: &str| BV::new_const(ctx(), n, 32);
     let (e0, e1, e2) = (v32("E0"), v32("E1"), v32("E2"));
@@ -425,7 +446,7 @@ pub fn p3_line_kernel() -> Goal {
     let p0 = [z(&e0), z(&e1), z(&e2)];
     let p1 = [z(&e0.bvadd(&x0)), z(&e1.bvadd(&x1)), z(&e2)];
     let t = z(&td);
-    let (d, bad) = crate::dc_math::p3_line_kernel::<Sym<64>>(3, p0, p1, [t, t, t]);
+    let (d, twice, bad) = crate::dc_math::p3_line_kernel::<Sym<64>>(3, p0, p1, [t, t, t]);
     let w = |b: &BV<'static>| b.zero_ext(34);
     let half_up = |x: BV<'static>| x.bvadd(&int(1, 66)).bvlshr(&int(1, 66));
     let want1 = half_up(w(&x0).bvsub(&w(&x1)).bvadd(&w(&td)));
@@ -439,6 +460,13 @@ pub fn p3_line_kernel() -> Goal {
         &d2.bvsle(&w(&x0).extract(63, 0).bvadd(&w(&td).extract(63, 0))),
         &d1.sign_ext(2)._eq(&want1),
         &d2.sign_ext(2)._eq(&want2),
+        // The shipped `twice_delay_step` results, exactly (no rounding): 2·d_1 = X_0 − X_1 +
+        // t_Diff and 2·d_2 = X_0 + t_Diff.
+        &twice[1]
+            .bv()
+            .sign_ext(2)
+            ._eq(&w(&x0).bvsub(&w(&x1)).bvadd(&w(&td))),
+        &twice[2].bv().sign_ext(2)._eq(&w(&x0).bvadd(&w(&td))),
     ]);
     (pre, claim)
 }
