@@ -8,11 +8,11 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::Machine;
-use crate::dc::request::{le, Op, Pending, Tag};
+use crate::dc::request::{le, Op, Payload, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::state::State;
 use crate::time::SystemTime;
 use crate::wire::register::{reg, SystemTimeDifference};
-use crate::wire::FrameBuilder;
+use crate::wire::{put_small, Command, FrameBuilder, DATAGRAM_OVERHEAD};
 
 /// Steps of a delay re-measurement running inside cyclic frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -93,26 +93,51 @@ impl<const N: usize> Machine<N> {
         self.cyc.bound_wkc = None;
         self.cyc.topo_wkc = None;
         self.cyc.lost_station = None;
-        if !self.push_op(b, self.frmw_op(now), Tag::Frmw) {
+        let frmw = self.frmw_op(now);
+        if !self.push_cycle_block(b, frmw) && !self.push_cycle_each(b, frmw) {
             if before == 0 {
                 self.push_event(Event::Error(Error::BufferTooSmall));
             }
             return false;
         }
+        self.fill_remeasure(now, b);
+        self.busy = true;
+        self.cyc.sent_at = now;
+        let timeout = self.cfg.response_timeout_ns.min(period);
+        self.inflight.deadline = now.saturating_add(timeout);
+        self.cyc.cycles = self.cyc.cycles.saturating_add(1);
+        self.stats.cycles = self.stats.cycles.saturating_add(1);
+        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        true
+    }
+
+    /// The next round-robin position (and advances the cursor). `count > 0`; `rr < count`
+    /// except after a re-count.
+    #[inline]
+    fn rr_step(&mut self) -> u16 {
+        let pos = if self.cyc.rr < self.count {
+            self.cyc.rr
+        } else {
+            self.cyc.rr.checked_rem(self.count).unwrap_or(0)
+        };
+        let next = pos.wrapping_add(1);
+        self.cyc.rr = if next >= self.count { 0 } else { next };
+        pos
+    }
+
+    /// The cycle's fixed datagrams pushed one by one: FRMW, BRD 0x092C, BRD 0x0130, then
+    /// round robin over the slaves with a system time (up to `slaves_per_cycle` FPRD 0x092C),
+    /// as many as fit. False if not even the FRMW fits.
+    fn push_cycle_each(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
+        if !self.push_op(b, frmw, Tag::Frmw) {
+            return false;
+        }
         let _ = self.push_op(b, Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4), Tag::CycBound);
         let _ = self.push_op(b, Op::brd(reg::AL_STATUS, 2), Tag::CycTopology);
-        // Round robin over the slaves with a system time.
         let mut budget = self.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
         while budget > 0 && scanned < self.count {
-            // rr < count except after a re-count; `count > 0` inside the loop.
-            let pos = if self.cyc.rr < self.count {
-                self.cyc.rr
-            } else {
-                self.cyc.rr.checked_rem(self.count).unwrap_or(0)
-            };
-            let next = pos.wrapping_add(1);
-            self.cyc.rr = if next >= self.count { 0 } else { next };
+            let pos = self.rr_step();
             scanned = scanned.saturating_add(1);
             let Some((station, has_time)) =
                 self.slave(pos).map(|s| (s.station, s.dc.has_system_time()))
@@ -131,14 +156,136 @@ impl<const N: usize> Machine<N> {
             }
             budget = budget.saturating_sub(1);
         }
-        self.fill_remeasure(now, b);
-        self.busy = true;
-        self.cyc.sent_at = now;
-        let timeout = self.cfg.response_timeout_ns.min(period);
-        self.inflight.deadline = now.saturating_add(timeout);
-        self.cyc.cycles = self.cyc.cycles.saturating_add(1);
-        self.stats.cycles = self.stats.cycles.saturating_add(1);
-        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        true
+    }
+
+    /// The cycle's fixed datagrams (FRMW, BRD 0x092C, BRD 0x0130, the round robin's FPRD
+    /// 0x092C) written as one block: the same bytes, indexes, in-flight entries and
+    /// round-robin cursor as pushing them one by one with `push_op` (the fallback in
+    /// `fill_cyclic`), without the per-datagram checks. Applies only when every datagram fits
+    /// the frame and the in-flight table (else returns false having changed nothing, and the
+    /// caller pushes one by one, which also handles a partial fit).
+    fn push_cycle_block(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
+        /// Round-robin reads that fit the in-flight table next to the three fixed datagrams.
+        const MAX_RR: usize = MAX_INFLIGHT - 3;
+        const FPRD_LEN: usize = 4 + DATAGRAM_OVERHEAD;
+        let frmw_value = match frmw.payload {
+            Payload::Le(v) => v,
+            Payload::Zero => 0,
+        };
+        if frmw.len > 8
+            || frmw.address.check_for(frmw.command).is_err()
+            || !self.inflight.is_empty()
+        {
+            return false;
+        }
+        // Plan the round robin on a copy of the cursor.
+        let mut rr_stations = [(0u16, 0u16); MAX_RR];
+        let mut k = 0usize;
+        let saved_rr = self.cyc.rr;
+        let mut budget = self.cfg.monitor.slaves_per_cycle;
+        let mut scanned = 0u16;
+        while budget > 0 && scanned < self.count {
+            let pos = self.rr_step();
+            scanned = scanned.saturating_add(1);
+            let Some((station, has_time)) =
+                self.slave(pos).map(|s| (s.station, s.dc.has_system_time()))
+            else {
+                break;
+            };
+            if !has_time {
+                continue;
+            }
+            let Some(slot) = rr_stations.get_mut(k) else {
+                self.cyc.rr = saved_rr;
+                return false;
+            };
+            *slot = (pos, station);
+            k = k.wrapping_add(1);
+            budget = budget.saturating_sub(1);
+        }
+        let planned = rr_stations.get(..k).unwrap_or(&[]);
+        // FRMW, BRD 4 bytes, BRD 2 bytes, k FPRD 4 bytes.
+        let head = usize::from(frmw.len)
+            .wrapping_add(DATAGRAM_OVERHEAD)
+            .wrapping_add(4 + DATAGRAM_OVERHEAD)
+            .wrapping_add(2 + DATAGRAM_OVERHEAD);
+        let total = head.wrapping_add(k.wrapping_mul(FPRD_LEN));
+        let last_at = if k == 0 {
+            head.wrapping_sub(2 + DATAGRAM_OVERHEAD)
+        } else {
+            total.wrapping_sub(FPRD_LEN)
+        };
+        let Some(mut rest) = b.append_block(total, k.wrapping_add(3), last_at) else {
+            self.cyc.rr = saved_rr;
+            return false;
+        };
+        let bound = Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4);
+        let topo = Op::brd(reg::AL_STATUS, 2);
+        let fixed = [
+            (frmw, frmw_value, Tag::Frmw),
+            (bound, 0, Tag::CycBound),
+            (topo, 0, Tag::CycTopology),
+        ];
+        let mut ok = true;
+        for (i, (op, value, tag)) in fixed.into_iter().enumerate() {
+            let index = self.alloc_index();
+            let more = i < 2 || k > 0;
+            ok &= put_small(
+                &mut rest, op.command, index, op.address, op.len, more, value,
+            );
+            ok &= self.inflight.insert(Pending {
+                index,
+                command: op.command,
+                register: op.register(),
+                station: op.station(),
+                len: op.len,
+                tag,
+            });
+        }
+        for (i, &(pos, station)) in planned.iter().enumerate() {
+            let index = self.alloc_index();
+            let more = i.wrapping_add(1) < k;
+            let [s0, s1] = station.to_le_bytes();
+            let [r0, r1] = reg::SYSTEM_TIME_DIFFERENCE.to_le_bytes();
+            let m = if more { 0x80 } else { 0 };
+            let bytes = [
+                Command::Fprd.code(),
+                index,
+                s0,
+                s1,
+                r0,
+                r1,
+                4,
+                m,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            ];
+            let taken = core::mem::take(&mut rest);
+            match taken.split_first_chunk_mut::<FPRD_LEN>() {
+                Some((d, tail)) => {
+                    *d = bytes;
+                    rest = tail;
+                }
+                None => ok = false,
+            }
+            ok &= self.inflight.insert(Pending {
+                index,
+                command: Command::Fprd,
+                register: reg::SYSTEM_TIME_DIFFERENCE,
+                station,
+                len: 4,
+                tag: Tag::CycDiff(pos),
+            });
+        }
+        // The sizes above make every write fit; `ok` only documents it.
+        debug_assert!(ok && rest.is_empty(), "cyclic block layout");
         true
     }
 
@@ -319,5 +466,126 @@ impl<const N: usize> Machine<N> {
                 },
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dc::config::{Config, DriftCommand};
+    use crate::dc::slave::DcKind;
+    use crate::wire::{Address, EthernetFrame};
+    use std::format;
+    use std::string::String;
+
+    const T: u64 = 0x0123_4567_89AB_CDEF;
+
+    /// A machine in `Cyclic` with `n` slaves (every third without a system time, one 32-bit).
+    fn cyclic_machine(n: u16, per_cycle: u8, rr: u16, cmd: DriftCommand, next: u8) -> Machine<48> {
+        let mut cfg = Config::default();
+        cfg.monitor.slaves_per_cycle = per_cycle;
+        cfg.drift_command = cmd;
+        let mut m = Machine::<48>::new(cfg).unwrap();
+        m.state = State::Cyclic;
+        m.count = n;
+        m.sys_count = 0;
+        for (i, s) in m.slaves.iter_mut().enumerate().take(usize::from(n)) {
+            s.station = 0x1001 + i as u16 * 0x0101;
+            s.dc = match i % 3 {
+                1 => DcKind::None,
+                _ if i == 3 => DcKind::Bits32,
+                _ => DcKind::Bits64,
+            };
+            if s.dc.has_system_time() {
+                m.sys_count += 1;
+            }
+        }
+        m.cyc.rr = rr;
+        m.next_index = next;
+        m
+    }
+
+    fn snapshot(m: &Machine<48>) -> String {
+        format!("{m:?}")
+    }
+
+    /// The block path writes exactly what pushing one by one writes (bytes, M bits, header
+    /// length, indexes, in-flight entries, round-robin cursor, datagram a later push chains
+    /// to), and when it declines it changes nothing. Over slave counts, per-cycle budgets,
+    /// cursors (also past the count), both drift commands, the reference's width, buffer
+    /// sizes (partial fits), an index counter about to wrap and a caller's datagram in front.
+    #[test]
+    fn cycle_block_equals_one_by_one() {
+        let mut declined = 0u32;
+        let mut taken = 0u32;
+        for n in [0u16, 1, 2, 4, 5, 9, 31, 40] {
+            for per_cycle in [0u8, 1, 3, 8, 29, 30, 64] {
+                for rr in [0u16, n / 2, n.saturating_sub(1), n + 3] {
+                    for cmd in [DriftCommand::Frmw, DriftCommand::Armw] {
+                        for reference in [0u16, 3] {
+                            for next in [0x80u8, 0xFE, 0xFF] {
+                                for size in [60usize, 90, 120, 200, 1514] {
+                                    for caller in [false, true] {
+                                        let mut m = cyclic_machine(n, per_cycle, rr, cmd, next);
+                                        if reference < n {
+                                            m.reference = reference;
+                                        }
+                                        if compare(&m, size, caller) {
+                                            taken += 1;
+                                        } else {
+                                            declined += 1;
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(taken > 1000 && declined > 100, "{taken} {declined}");
+    }
+
+    /// Runs both paths on clones of `m`; returns whether the block path was taken.
+    fn compare(m: &Machine<48>, size: usize, caller: bool) -> bool {
+        let mut m1 = m.clone();
+        let mut m2 = m.clone();
+        let mut buf1 = std::vec![0xAAu8; size];
+        let mut buf2 = std::vec![0xAAu8; size];
+        let mut b1 = FrameBuilder::new(&mut buf1).unwrap();
+        let mut b2 = FrameBuilder::new(&mut buf2).unwrap();
+        if caller {
+            let a = Address::logical(0x1000);
+            b1.push(Command::Lrw, 7, a, &[1, 2, 3]).unwrap();
+            b2.push(Command::Lrw, 7, a, &[1, 2, 3]).unwrap();
+        }
+        let before = snapshot(&m1);
+        let frmw = m1.frmw_op(T);
+        let block = m1.push_cycle_block(&mut b1, frmw);
+        if !block {
+            assert_eq!(snapshot(&m1), before, "declined block changed the machine");
+            assert_eq!(b1.datagram_count(), usize::from(caller));
+            let each = m1.push_cycle_each(&mut b1, frmw);
+            let each2 = m2.push_cycle_each(&mut b2, frmw);
+            assert_eq!(each, each2);
+        } else {
+            assert!(m2.push_cycle_each(&mut b2, frmw));
+        }
+        assert_eq!(b1.datagram_count(), b2.datagram_count());
+        assert_eq!(b1.len(), b2.len());
+        // A later push chains to the same datagram.
+        let r1 = b1.push(Command::Brd, 9, Address::broadcast(0x0130), &[0, 0]);
+        let r2 = b2.push(Command::Brd, 9, Address::broadcast(0x0130), &[0, 0]);
+        assert_eq!(r1, r2);
+        let n1 = b1.finish();
+        let n2 = b2.finish();
+        assert_eq!(n1, n2);
+        assert_eq!(buf1, buf2);
+        assert_eq!(snapshot(&m1), snapshot(&m2));
+        if let Ok(n) = n1 {
+            let eth = EthernetFrame::new_checked(&buf1[..n]).unwrap();
+            assert!(eth.ecat_frame().is_ok());
+        }
+        block
     }
 }

@@ -317,6 +317,44 @@ impl<'a> FrameBuilder<'a> {
         })
     }
 
+    /// Appends a block of `n` datagrams that the caller writes into the returned `total` bytes
+    /// (crate-internal fast path for fixed datagram sets, e.g. the DC cycle). The caller must
+    /// write `n` complete datagrams, M set on all but the last, the last one starting at
+    /// `last_at` in the block (see [`put_small`]). Like `n` successful pushes of those
+    /// datagrams, this sets the previous datagram's M bit, the EtherCAT header length, the
+    /// datagram count and the datagram a later push chains to. `None`, with nothing changed,
+    /// if the block does not fit (the same room check as [`FrameBuilder::fits`] per datagram:
+    /// the sum of their sizes within the room) or `last_at` is not inside it.
+    #[inline]
+    pub(crate) fn append_block(
+        &mut self,
+        total: usize,
+        n: usize,
+        last_at: usize,
+    ) -> Option<&mut [u8]> {
+        if total > self.room() || last_at >= total || n == 0 {
+            return None;
+        }
+        let start = self.end;
+        let end = start.checked_add(total)?;
+        if end > self.buf.len() {
+            return None;
+        }
+        if let Some(prev) = self.last {
+            let at = prev.wrapping_add(dfield::LEN_FLAGS.end.wrapping_sub(1));
+            if at < start {
+                if let Some(b) = self.buf.get_mut(at) {
+                    *b |= 0x80;
+                }
+            }
+        }
+        self.last = Some(start.wrapping_add(last_at));
+        self.end = end;
+        self.count = self.count.wrapping_add(n);
+        self.write_header_len();
+        self.buf.get_mut(start..end)
+    }
+
     #[inline]
     fn write_header_len(&mut self) {
         let len = self
@@ -386,6 +424,65 @@ impl<'a> FrameBuilder<'a> {
         }
         Ok(len)
     }
+}
+
+/// Writes one datagram at the start of `*dst` and moves `*dst` past it: header (`command`,
+/// `index`, `address`, data length `len`, M = `more`, C clear, IRQ 0), the low `len` bytes of
+/// `value` little-endian as data (`len` ≤ 8), WKC 0 — the bytes [`FrameBuilder::push`] writes
+/// for that datagram (plus the M bit a following push would set). False, with `*dst`
+/// unchanged, if `len` > 8 or the datagram does not fit.
+#[inline]
+pub(crate) fn put_small(
+    dst: &mut &mut [u8],
+    command: Command,
+    index: u8,
+    address: Address,
+    len: u16,
+    more: bool,
+    value: u64,
+) -> bool {
+    if len > 8 {
+        return false;
+    }
+    let [a0, a1, a2, a3] = address.to_raw().to_le_bytes();
+    let flags = if more { dfield::MORE } else { 0 };
+    let [l0, l1] = ((len & dfield::LEN_MASK) | flags).to_le_bytes();
+    let c = command.code();
+    let [v0, v1, v2, v3, v4, v5, v6, v7] = value.to_le_bytes();
+    let total = usize::from(len).wrapping_add(dfield::MIN_LEN);
+    if dst.len() < total {
+        return false;
+    }
+    let taken = core::mem::take(dst);
+    let Some((d, tail)) = taken.split_at_mut_checked(total) else {
+        return false;
+    };
+    match len {
+        2 => put_array(d, [c, index, a0, a1, a2, a3, l0, l1, 0, 0, v0, v1, 0, 0]),
+        4 => put_array(
+            d,
+            [c, index, a0, a1, a2, a3, l0, l1, 0, 0, v0, v1, v2, v3, 0, 0],
+        ),
+        8 => put_array(
+            d,
+            [
+                c, index, a0, a1, a2, a3, l0, l1, 0, 0, v0, v1, v2, v3, v4, v5, v6, v7, 0, 0,
+            ],
+        ),
+        _ => {
+            let v = value.to_le_bytes();
+            let data = v.get(..usize::from(len)).unwrap_or(&[]);
+            if let Some((h, rest)) = d.split_first_chunk_mut::<{ dfield::HEADER_LEN }>() {
+                *h = [c, index, a0, a1, a2, a3, l0, l1, 0, 0];
+                if let Some((body, wkc)) = rest.split_at_mut_checked(data.len()) {
+                    body.copy_from_slice(data);
+                    wkc.fill(0);
+                }
+            }
+        }
+    }
+    *dst = tail;
+    true
 }
 
 /// `dst.fill(0)`, with the short lengths of DC datagrams written as fixed-size stores (no

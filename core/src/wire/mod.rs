@@ -60,6 +60,7 @@ mod frame;
 pub mod register;
 
 pub use address::Address;
+pub(crate) use builder::put_small;
 pub use builder::{DatagramSlot, FrameBuilder};
 pub use command::{Addressing, Command};
 pub use datagram::{Datagram, DatagramRepr, DATAGRAM_OVERHEAD};
