@@ -358,17 +358,17 @@ impl<const N: usize> Machine<N> {
             return self.count_foreign_frame();
         };
         let mut matched = 0u32;
-        for d in frame.iter() {
-            let Ok(d) = d else { break };
+        // `ecat_frame` validated every datagram: walk them once more without the checks.
+        for d in frame.iter_valid() {
             // A circulated datagram went round a broken ring: its contents are not a reply.
             if d.circulating() {
                 self.stats.foreign_datagrams = self.stats.foreign_datagrams.saturating_add(1);
                 continue;
             }
-            match self.inflight.take_match(&d) {
+            match self.inflight.take_match(d.header) {
                 Some(p) => {
                     matched = matched.saturating_add(1);
-                    self.on_reply(now, p, d.wkc(), d.data());
+                    self.on_reply(now, p, d.wkc, d.data);
                 }
                 None => {
                     self.stats.foreign_datagrams = self.stats.foreign_datagrams.saturating_add(1);

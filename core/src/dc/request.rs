@@ -154,15 +154,7 @@ impl Pending {
     pub fn matches<T: AsRef<[u8]>>(&self, d: &Datagram<T>) -> bool {
         // One read of the header bytes (the same fields as the accessors below).
         if let Some(h) = d.header_bytes() {
-            let [cmd, idx, p0, p1, o0, o1, l0, l1, _, _] = *h;
-            return idx == self.index
-                && cmd == self.command.code()
-                && u16::from_le_bytes([o0, o1]) == self.register
-                && u16::from_le_bytes([l0, l1]) & 0x07FF == self.len
-                && (!matches!(
-                    self.command,
-                    Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
-                ) || u16::from_le_bytes([p0, p1]) == self.station);
+            return self.matches_header(h);
         }
         d.index() == self.index
             && d.command_raw() == self.command.code()
@@ -172,6 +164,22 @@ impl Pending {
                 self.command,
                 Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
             ) || d.adp() == self.station)
+    }
+}
+
+impl Pending {
+    /// [`Pending::matches`] on a datagram's 10 header bytes.
+    #[inline]
+    pub(crate) fn matches_header(&self, h: &[u8; 10]) -> bool {
+        let [cmd, idx, p0, p1, o0, o1, l0, l1, _, _] = *h;
+        idx == self.index
+            && cmd == self.command.code()
+            && u16::from_le_bytes([o0, o1]) == self.register
+            && u16::from_le_bytes([l0, l1]) & 0x07FF == self.len
+            && (!matches!(
+                self.command,
+                Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
+            ) || u16::from_le_bytes([p0, p1]) == self.station)
     }
 }
 
@@ -243,17 +251,18 @@ impl Inflight {
         self.live = 0;
         self.hint = 0;
     }
-    /// Removes and returns the pending entry matching `d`, if any.
+    /// Removes and returns the pending entry matching the datagram with header bytes `d`, if
+    /// any.
     #[inline]
-    pub(crate) fn take_match<T: AsRef<[u8]>>(&mut self, d: &Datagram<T>) -> Option<Pending> {
+    pub(crate) fn take_match(&mut self, d: &[u8; 10]) -> Option<Pending> {
         let h = usize::from(self.hint);
         let pos = match self.entries.get(h) {
-            Some(Some(p)) if p.matches(d) => h,
+            Some(Some(p)) if p.matches_header(d) => h,
             _ => self
                 .entries
                 .iter()
                 .take(usize::from(self.used))
-                .position(|e| e.is_some_and(|p| p.matches(d)))?,
+                .position(|e| e.is_some_and(|p| p.matches_header(d)))?,
         };
         let taken = self.entries.get_mut(pos)?.take()?;
         self.live = self.live.saturating_sub(1);
@@ -333,21 +342,30 @@ mod tests {
         for i in [0usize, 1, 2, 7, 3, 31, 4] {
             let r = reply(&ps[i]);
             let d = Datagram::new_checked(&r[..]).unwrap();
-            assert_eq!(t.take_match(&d), Some(ps[i]));
-            assert_eq!(t.take_match(&d), None, "matched once");
+            assert!(ps[i].matches(&d));
+            let h = d.header_bytes().unwrap();
+            assert_eq!(t.take_match(h), Some(ps[i]));
+            assert_eq!(t.take_match(h), None, "matched once");
         }
         // A wrong station does not match.
         let mut other = ps[5];
         other.station = 0x2000;
         let r = reply(&other);
-        assert_eq!(t.take_match(&Datagram::new_checked(&r[..]).unwrap()), None);
+        let d = Datagram::new_checked(&r[..]).unwrap();
+        assert!(!ps[5].matches(&d));
+        assert_eq!(t.take_match(d.header_bytes().unwrap()), None);
         assert!(t.has_room());
         // Freed slots are reused although all 32 were used since the clear.
         let q = pending(0x40, 0x3000);
         assert!(t.insert(q));
         let r = reply(&q);
         assert_eq!(
-            t.take_match(&Datagram::new_checked(&r[..]).unwrap()),
+            t.take_match(
+                Datagram::new_checked(&r[..])
+                    .unwrap()
+                    .header_bytes()
+                    .unwrap()
+            ),
             Some(q)
         );
         t.clear();

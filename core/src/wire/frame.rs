@@ -194,6 +194,19 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
         Datagrams::new(self.buffer.as_ref())
     }
 
+    /// The datagrams of a frame that passed [`EcatFrame::check_len`], each split into header,
+    /// data and WKC, without validating again (crate-internal: one validating walk per
+    /// received frame). On such a frame it yields exactly the datagrams of
+    /// [`EcatFrame::iter`]; on any other buffer it stops at the first datagram that does not
+    /// fit (never panics) and reports nothing.
+    #[inline]
+    pub(crate) fn iter_valid(&self) -> ValidDatagrams<'_> {
+        ValidDatagrams {
+            rest: self.datagrams_bytes(),
+            done: false,
+        }
+    }
+
     /// Like [`EcatFrame::iter`] but yields `(start, len)` of each datagram, `start` counted
     /// from the first byte of this view's buffer (the EtherCAT header). With these a caller can
     /// build `Datagram<&mut [u8]>` over `buf[start..start + len]` itself.
@@ -538,6 +551,56 @@ impl<'a> Iterator for Datagrams<'a> {
 
 impl core::iter::FusedIterator for Datagrams<'_> {}
 
+/// One datagram of a validated frame: its header bytes, data and WKC.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct RawDatagram<'a> {
+    /// The 10 header bytes (command, index, address, length and flags, IRQ).
+    pub(crate) header: &'a [u8; dfield::HEADER_LEN],
+    /// The data bytes.
+    pub(crate) data: &'a [u8],
+    /// The working counter.
+    pub(crate) wkc: u16,
+}
+
+impl RawDatagram<'_> {
+    /// The C bit (circulating), as [`Datagram::circulating`].
+    #[inline]
+    pub(crate) fn circulating(&self) -> bool {
+        let [.., l1, _, _] = *self.header;
+        u16::from_le_bytes([0, l1]) & dfield::CIRCULATING != 0
+    }
+}
+
+/// Iterator over a validated frame's datagrams; see [`EcatFrame::iter_valid`].
+#[derive(Debug, Clone)]
+pub(crate) struct ValidDatagrams<'a> {
+    rest: &'a [u8],
+    done: bool,
+}
+
+impl<'a> Iterator for ValidDatagrams<'a> {
+    type Item = RawDatagram<'a>;
+
+    #[inline]
+    fn next(&mut self) -> Option<RawDatagram<'a>> {
+        if self.done {
+            return None;
+        }
+        let (header, tail) = self.rest.split_first_chunk::<{ dfield::HEADER_LEN }>()?;
+        let [.., l0, l1, _, _] = *header;
+        let lf = u16::from_le_bytes([l0, l1]);
+        let (data, tail) = tail.split_at_checked(usize::from(lf & dfield::LEN_MASK))?;
+        let (wkc, tail) = tail.split_first_chunk::<{ dfield::WKC_LEN }>()?;
+        self.rest = tail;
+        self.done = lf & dfield::MORE == 0;
+        Some(RawDatagram {
+            header,
+            data,
+            wkc: u16::from_le_bytes(*wkc),
+        })
+    }
+}
+
 /// Iterator over `(start, len)` of each datagram; see [`EcatFrame::datagram_offsets`].
 #[derive(Debug, Clone)]
 pub struct DatagramOffsets<'a> {
@@ -775,9 +838,26 @@ mod tests {
             for v in 0..=255u8 {
                 let mut x = b.clone();
                 x[at] = v;
-                let got = EcatFrame::new_unchecked(&x[..]).check_len();
+                let f = EcatFrame::new_unchecked(&x[..]);
+                let got = f.check_len();
                 assert_eq!(got, walk(&x), "byte {at} = {v:#04x}");
                 accepted += usize::from(got.is_ok());
+                if got.is_ok() {
+                    // The unvalidated split walk yields the same datagrams.
+                    let split: Vec<_> = f
+                        .iter_valid()
+                        .map(|r| (r.header.to_vec(), r.data.to_vec(), r.wkc, r.circulating()))
+                        .collect();
+                    let walked: Vec<_> = f
+                        .iter()
+                        .map(|d| {
+                            let d = d.unwrap();
+                            let h = d.header_bytes().unwrap().to_vec();
+                            (h, d.data().to_vec(), d.wkc(), d.circulating())
+                        })
+                        .collect();
+                    assert_eq!(split, walked, "byte {at} = {v:#04x}");
+                }
             }
         }
         assert!(
