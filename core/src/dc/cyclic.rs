@@ -7,7 +7,7 @@
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::Machine;
+use crate::dc::machine::{index_after, Machine};
 use crate::dc::request::{le, Op, Payload, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::state::State;
 use crate::time::SystemTime;
@@ -175,7 +175,7 @@ impl<const N: usize> Machine<N> {
         };
         if frmw.len > 8
             || frmw.address.check_for(frmw.command).is_err()
-            || !self.inflight.is_empty()
+            || !self.inflight.is_cleared()
         {
             return false;
         }
@@ -216,9 +216,23 @@ impl<const N: usize> Machine<N> {
         } else {
             total.wrapping_sub(FPRD_LEN)
         };
-        let Some(mut rest) = b.append_block(total, k.wrapping_add(3), last_at) else {
+        let n = k.wrapping_add(3);
+        // The in-flight table is empty (checked above): its first `n` slots, in send order.
+        let Some(slots) = self.inflight.entries.get_mut(..n) else {
             self.cyc.rr = saved_rr;
             return false;
+        };
+        let Some(mut rest) = b.append_block(total, n, last_at) else {
+            self.cyc.rr = saved_rr;
+            return false;
+        };
+        // Indexes as `alloc_index` hands them out, one per datagram in send order.
+        let (first, count) = (self.cfg.index_first, self.cfg.index_count);
+        let mut next = self.next_index;
+        let mut alloc = || {
+            let i = next;
+            next = index_after(i, first, count);
+            i
         };
         let bound = Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4);
         let topo = Op::brd(reg::AL_STATUS, 2);
@@ -227,28 +241,33 @@ impl<const N: usize> Machine<N> {
             (bound, 0, Tag::CycBound),
             (topo, 0, Tag::CycTopology),
         ];
+        let mut slots = slots.iter_mut();
         let mut ok = true;
         for (i, (op, value, tag)) in fixed.into_iter().enumerate() {
-            let index = self.alloc_index();
+            let index = alloc();
             let more = i < 2 || k > 0;
             ok &= put_small(
                 &mut rest, op.command, index, op.address, op.len, more, value,
             );
-            ok &= self.inflight.insert(Pending {
-                index,
-                command: op.command,
-                register: op.register(),
-                station: op.station(),
-                len: op.len,
-                tag,
-            });
+            match slots.next() {
+                Some(slot) => {
+                    *slot = Some(Pending {
+                        index,
+                        command: op.command,
+                        register: op.register(),
+                        station: op.station(),
+                        len: op.len,
+                        tag,
+                    })
+                }
+                None => ok = false,
+            }
         }
-        for (i, &(pos, station)) in planned.iter().enumerate() {
-            let index = self.alloc_index();
-            let more = i.wrapping_add(1) < k;
+        let [r0, r1] = reg::SYSTEM_TIME_DIFFERENCE.to_le_bytes();
+        for (i, (&(pos, station), slot)) in planned.iter().zip(slots).enumerate() {
+            let index = alloc();
+            let m = if i.wrapping_add(1) < k { 0x80 } else { 0 };
             let [s0, s1] = station.to_le_bytes();
-            let [r0, r1] = reg::SYSTEM_TIME_DIFFERENCE.to_le_bytes();
-            let m = if more { 0x80 } else { 0 };
             let bytes = [
                 Command::Fprd.code(),
                 index,
@@ -275,7 +294,7 @@ impl<const N: usize> Machine<N> {
                 }
                 None => ok = false,
             }
-            ok &= self.inflight.insert(Pending {
+            *slot = Some(Pending {
                 index,
                 command: Command::Fprd,
                 register: reg::SYSTEM_TIME_DIFFERENCE,
@@ -284,6 +303,8 @@ impl<const N: usize> Machine<N> {
                 tag: Tag::CycDiff(pos),
             });
         }
+        self.next_index = next;
+        ok &= self.inflight.mark_filled(n);
         // The sizes above make every write fit; `ok` only documents it.
         debug_assert!(ok && rest.is_empty(), "cyclic block layout");
         true

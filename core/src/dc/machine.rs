@@ -446,13 +446,7 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn alloc_index(&mut self) -> u8 {
         let i = self.next_index;
-        let first = self.cfg.index_first;
-        let off = i.wrapping_sub(first).wrapping_add(1);
-        self.next_index = if off >= self.cfg.index_count {
-            first
-        } else {
-            first.wrapping_add(off)
-        };
+        self.next_index = index_after(i, self.cfg.index_first, self.cfg.index_count);
         i
     }
 
@@ -542,7 +536,12 @@ impl<const N: usize> Machine<N> {
         true
     }
 
+    #[inline]
     fn on_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
+        // The cyclic path first (neither guard below holds in `Cyclic`).
+        if self.state == State::Cyclic {
+            return self.on_cyclic_reply(now, p, wkc, data);
+        }
         match p.tag {
             Tag::Item(i) if self.state.is_request_step() => {
                 if let Err(e) = self.on_item(now, i, p, wkc, data) {
@@ -604,6 +603,17 @@ impl<const N: usize> Machine<N> {
     /// Positions `0..count`, as u16.
     pub(crate) fn positions(&self) -> core::ops::Range<u16> {
         0..self.count
+    }
+}
+
+/// The datagram index handed out after `i` in the range of `count` indexes from `first`.
+#[inline]
+pub(crate) fn index_after(i: u8, first: u8, count: u8) -> u8 {
+    let off = i.wrapping_sub(first).wrapping_add(1);
+    if off >= count {
+        first
+    } else {
+        first.wrapping_add(off)
     }
 }
 

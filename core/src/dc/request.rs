@@ -242,6 +242,25 @@ impl Inflight {
             None => false,
         }
     }
+    /// No slot used since the last `clear`.
+    #[inline]
+    pub(crate) fn is_cleared(&self) -> bool {
+        self.used == 0 && self.live == 0
+    }
+    /// After writing `Some` into slots `0..n` of a cleared table (through `entries`): counts
+    /// them as used and live. False (nothing changed) if the table was not cleared or `n` is
+    /// more than its size.
+    #[inline]
+    pub(crate) fn mark_filled(&mut self, n: usize) -> bool {
+        match u8::try_from(n) {
+            Ok(n) if n <= MAX_INFLIGHT_U8 && self.is_cleared() => {
+                self.used = n;
+                self.live = n;
+                true
+            }
+            _ => false,
+        }
+    }
     #[inline]
     pub(crate) fn clear(&mut self) {
         for e in self.entries.iter_mut().take(usize::from(self.used)) {
