@@ -326,24 +326,22 @@ impl<T: AsRef<[u8]>> core::fmt::Display for EcatFrame<T> {
 fn valid_fast(buf: &[u8]) -> Option<()> {
     let walk = Walk::start(buf).ok()?;
     let end = usize::from(walk.length).wrapping_add(field::HEADER_LEN);
-    let region = buf.get(field::DATAGRAMS..end)?;
-    let mut off = 0usize;
+    let mut rest = buf.get(field::DATAGRAMS..end)?;
     loop {
-        let rest = region.get(off..)?;
         let h = rest.first_chunk::<{ dfield::HEADER_LEN }>()?;
-        let lf = u16::from_le_bytes([h[6], h[7]]);
+        let [cmd, .., l0, l1, _, _] = *h;
+        let lf = u16::from_le_bytes([l0, l1]);
         let len = usize::from(lf & dfield::LEN_MASK);
-        let total = len.wrapping_add(dfield::MIN_LEN);
         if len > MAX_DATAGRAM_DATA
-            || total > rest.len()
-            || usize::from(h[0]) >= super::Command::ALL.len()
+            || usize::from(cmd) >= super::Command::ALL.len()
             || lf & dfield::RESERVED_MASK != 0
         {
             return None;
         }
-        off = off.wrapping_add(total);
+        // `None` when the datagram runs past the header length.
+        rest = rest.get(len.wrapping_add(dfield::MIN_LEN)..)?;
         if lf & dfield::MORE == 0 {
-            return (off == region.len()).then_some(());
+            return rest.is_empty().then_some(());
         }
     }
 }
