@@ -270,6 +270,28 @@ impl Inflight {
         self.live = 0;
         self.hint = 0;
     }
+    /// The number of entries when the table holds slots `0..n` (n > 0) exactly as filled,
+    /// none taken yet and the hint at slot 0: then the reply datagram `i`, if it matches
+    /// `entries[i]`, is the one `take_match` takes from slot `i` ([`Inflight::take_at`]).
+    #[inline]
+    pub(crate) fn fresh_len(&self) -> Option<usize> {
+        (self.used > 0 && self.live == self.used && self.hint == 0)
+            .then_some(usize::from(self.used))
+    }
+    /// Slot `i`'s entry, if any.
+    #[inline]
+    pub(crate) fn get(&self, i: usize) -> Option<&Pending> {
+        self.entries.get(i)?.as_ref()
+    }
+    /// What `take_match` does once it has found slot `pos`: removes and returns its entry and
+    /// moves the hint past it.
+    #[inline]
+    pub(crate) fn take_at(&mut self, pos: usize) -> Option<Pending> {
+        let taken = self.entries.get_mut(pos)?.take()?;
+        self.live = self.live.saturating_sub(1);
+        self.hint = u8::try_from(pos.wrapping_add(1)).unwrap_or(0);
+        Some(taken)
+    }
     /// Removes and returns the pending entry matching the datagram with header bytes `d`, if
     /// any.
     #[inline]
@@ -283,10 +305,7 @@ impl Inflight {
                 .take(usize::from(self.used))
                 .position(|e| e.is_some_and(|p| p.matches_header(d)))?,
         };
-        let taken = self.entries.get_mut(pos)?.take()?;
-        self.live = self.live.saturating_sub(1);
-        self.hint = u8::try_from(pos.wrapping_add(1)).unwrap_or(0);
-        Some(taken)
+        self.take_at(pos)
     }
 }
 

@@ -140,6 +140,15 @@ impl<T: AsRef<[u8]>> EthernetFrame<T> {
         }
         EcatFrame::new_checked(self.payload())
     }
+
+    /// [`EthernetFrame::ecat_frame`]'s checks before the EtherCAT validation (length,
+    /// EtherType), then the payload's view *unchecked*: `None` where those checks fail. For a
+    /// caller that validates the datagram region itself (`EcatFrame::check_fast_each`).
+    #[inline]
+    pub(crate) fn ecat_frame_unvalidated(&self) -> Option<EcatFrame<&[u8]>> {
+        self.check_len().ok()?;
+        (self.ethertype() == ETHERTYPE_ETHERCAT).then(|| EcatFrame::new_unchecked(self.payload()))
+    }
 }
 
 impl<'a> EthernetFrame<&'a [u8]> {

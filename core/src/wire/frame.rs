@@ -207,6 +207,15 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
         }
     }
 
+    /// True iff the fast validation accepts the frame (then [`EcatFrame::check_len`] accepts
+    /// it too) and `f` agrees with every datagram's 10 header bytes, passed in walk order (the
+    /// datagrams of [`EcatFrame::iter_valid`]). False can also mean a valid frame that `f`
+    /// refused or that only the full walk accepts.
+    #[inline]
+    pub(crate) fn check_fast_each(&self, f: impl FnMut(&[u8; dfield::HEADER_LEN]) -> bool) -> bool {
+        valid_fast_each(self.buffer.as_ref(), f).is_some()
+    }
+
     /// Like [`EcatFrame::iter`] but yields `(start, len)` of each datagram, `start` counted
     /// from the first byte of this view's buffer (the EtherCAT header). With these a caller can
     /// build `Datagram<&mut [u8]>` over `buf[start..start + len]` itself.
@@ -324,6 +333,18 @@ impl<T: AsRef<[u8]>> core::fmt::Display for EcatFrame<T> {
 /// then runs the full walk for the exact error).
 #[inline]
 fn valid_fast(buf: &[u8]) -> Option<()> {
+    valid_fast_each(buf, |_| true)
+}
+
+/// [`valid_fast`] that also hands each datagram's 10 header bytes, in walk order, to `f`, and
+/// fails as soon as `f` returns false. The checks are `valid_fast`'s (it is this function with
+/// an `f` that always agrees), so `Some(())` means [`EcatFrame::check_len`] accepts `buf` and
+/// `f` saw the headers of exactly the datagrams [`EcatFrame::iter_valid`] yields.
+#[inline]
+pub(crate) fn valid_fast_each(
+    buf: &[u8],
+    mut f: impl FnMut(&[u8; dfield::HEADER_LEN]) -> bool,
+) -> Option<()> {
     let walk = Walk::start(buf).ok()?;
     let end = usize::from(walk.length).wrapping_add(field::HEADER_LEN);
     let mut rest = buf.get(field::DATAGRAMS..end)?;
@@ -335,6 +356,7 @@ fn valid_fast(buf: &[u8]) -> Option<()> {
         if len > MAX_DATAGRAM_DATA
             || usize::from(cmd) >= super::Command::ALL.len()
             || lf & dfield::RESERVED_MASK != 0
+            || !f(h)
         {
             return None;
         }
@@ -564,9 +586,15 @@ impl RawDatagram<'_> {
     /// The C bit (circulating), as [`Datagram::circulating`].
     #[inline]
     pub(crate) fn circulating(&self) -> bool {
-        let [.., l1, _, _] = *self.header;
-        u16::from_le_bytes([0, l1]) & dfield::CIRCULATING != 0
+        header_circulating(self.header)
     }
+}
+
+/// The C bit (circulating) of a datagram's 10 header bytes, as [`Datagram::circulating`].
+#[inline]
+pub(crate) fn header_circulating(h: &[u8; dfield::HEADER_LEN]) -> bool {
+    let [.., l1, _, _] = *h;
+    u16::from_le_bytes([0, l1]) & dfield::CIRCULATING != 0
 }
 
 /// Iterator over a validated frame's datagrams; see [`EcatFrame::iter_valid`].
