@@ -341,6 +341,7 @@ impl<const N: usize> Machine<N> {
         true
     }
 
+    #[inline]
     pub(crate) fn on_cyclic_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
         match p.tag {
             Tag::Frmw => {
