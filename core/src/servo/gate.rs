@@ -50,6 +50,9 @@ pub enum GateVerdict {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Gate {
     buf: [i64; GATE_WINDOW],
+    /// The same `len` entries as `buf`, kept in ascending order by [`Gate::push`] (entries
+    /// past `len` are unspecified), so the median and MAD need no sort per judgement.
+    sorted: [i64; GATE_WINDOW],
     len: u8,
     head: u8,
     run: u8,
@@ -62,13 +65,64 @@ impl Default for Gate {
     }
 }
 
-/// Median of the first `n` entries of `v` (sorted in place); lower middle for even `n`.
-fn median(v: &mut [i64; GATE_WINDOW], n: usize) -> i64 {
-    let Some(s) = v.get_mut(..n) else {
-        return 0;
+/// Remove one entry equal to `x` from the ascending prefix `s[..n]` (if present).
+fn sorted_remove(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
+    let Some(v) = s.get_mut(..n) else {
+        return;
     };
-    s.sort_unstable();
-    s.get(n.wrapping_sub(1) / 2).copied().unwrap_or(0)
+    if let Ok(i) = v.binary_search(&x) {
+        // i < n: the range i + 1..n is in bounds (possibly empty).
+        v.copy_within(i.wrapping_add(1).., i);
+    }
+}
+
+/// Insert `x` into the ascending prefix `s[..n]` (n < GATE_WINDOW), keeping it ascending.
+fn sorted_insert(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
+    let Some(v) = s.get_mut(..=n) else {
+        return;
+    };
+    let i = v.get(..n).map_or(0, |p| p.partition_point(|&y| y < x));
+    // i ≤ n < v.len(): the ranges are in bounds.
+    v.copy_within(i..n, i.wrapping_add(1));
+    if let Some(slot) = v.get_mut(i) {
+        *slot = x;
+    }
+}
+
+/// Median (lower middle for even n) and MAD (the same median of |x − median|) of an ascending
+/// slice, without sorting: the deviations below the median (read leftwards) and above it (read
+/// rightwards) are two ascending runs whose merge is the sorted deviation list, so its
+/// `(n − 1)/2`-th element is found by merging that many steps. Equal, value for value, to
+/// sorting a copy and the deviations (`median_mad_by_sorting` in the tests).
+fn median_mad_sorted(s: &[i64]) -> (i64, i64) {
+    let n = s.len();
+    let k = n.wrapping_sub(1) / 2;
+    let Some((lo, hi)) = s.split_at_checked(k.wrapping_add(1)) else {
+        return (0, 0);
+    };
+    let med = lo.last().copied().unwrap_or(0);
+    // Left run: med − s[k], med − s[k−1], …; right run: s[k+1] − med, …; both ascending.
+    let mut left = lo.iter().rev().map(|&x| med.wrapping_sub(x)).peekable();
+    let mut right = hi.iter().map(|&x| x.wrapping_sub(med)).peekable();
+    let mut mad = 0;
+    for _ in 0..=k {
+        mad = match (left.peek().copied(), right.peek().copied()) {
+            (Some(a), Some(b)) if b < a => {
+                right.next();
+                b
+            }
+            (Some(a), _) => {
+                left.next();
+                a
+            }
+            (None, Some(b)) => {
+                right.next();
+                b
+            }
+            (None, None) => 0,
+        };
+    }
+    (med, mad)
 }
 
 impl Gate {
@@ -76,6 +130,7 @@ impl Gate {
     pub const fn new() -> Self {
         Gate {
             buf: [0; GATE_WINDOW],
+            sorted: [0; GATE_WINDOW],
             len: 0,
             head: 0,
             run: 0,
@@ -99,14 +154,8 @@ impl Gate {
         if cfg.kappa_q8 == 0 || n < usize::from(cfg.min_samples.max(3)) {
             return None;
         }
-        let mut v = self.buf;
-        let med = median(&mut v, n);
-        let mut dev = [0i64; GATE_WINDOW];
-        for (d, x) in dev.iter_mut().zip(self.buf.iter()).take(n) {
-            // Window entries are clamped to ±2^40 on entry: no overflow.
-            *d = x.wrapping_sub(med).wrapping_abs();
-        }
-        let mad = median(&mut dev, n);
+        // Window entries are clamped to ±2^40 on entry: the deviations cannot overflow.
+        let (med, mad) = median_mad_sorted(self.sorted.get(..n)?);
         // MAD ≤ 2^41, κ_q8 < 2^32: the product fits in i64 before the shift.
         let t = mad.saturating_mul(i64::from(cfg.kappa_q8)) >> 8;
         Some((med, t.max(i64::from(cfg.floor_ns))))
@@ -141,9 +190,17 @@ impl Gate {
     /// Record an accepted error.
     pub fn push(&mut self, theta: i64) {
         let h = usize::from(self.head) % GATE_WINDOW;
+        let x = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP);
+        let mut n = self.len().min(GATE_WINDOW);
         if let Some(slot) = self.buf.get_mut(h) {
-            *slot = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP);
+            if n == GATE_WINDOW {
+                // Full: slot h holds the oldest entry, which leaves the window.
+                sorted_remove(&mut self.sorted, n, *slot);
+                n = n.wrapping_sub(1);
+            }
+            *slot = x;
         }
+        sorted_insert(&mut self.sorted, n, x);
         self.head = u8::try_from(h.wrapping_add(1) % GATE_WINDOW).unwrap_or(0);
         if self.len() < GATE_WINDOW {
             self.len = self.len.saturating_add(1);
@@ -180,6 +237,128 @@ mod tests {
         assert_eq!(g.judge(&cfg, 5_000), GateVerdict::Reject);
         assert_eq!(g.judge(&cfg, 5_000), GateVerdict::Confirmed);
         assert_eq!(g.judge(&cfg, i64::MIN), GateVerdict::Reject);
+    }
+
+    /// The former implementation, kept as the oracle: median of a sorted copy of the window,
+    /// then the median of the sorted absolute deviations.
+    fn median_by_sorting(v: &mut [i64; GATE_WINDOW], n: usize) -> i64 {
+        let s = &mut v[..n];
+        s.sort_unstable();
+        s[(n - 1) / 2]
+    }
+
+    fn threshold_by_sorting(g: &Gate, cfg: &GateConfig) -> Option<(i64, i64)> {
+        let n = g.len();
+        if cfg.kappa_q8 == 0 || n < usize::from(cfg.min_samples.max(3)) {
+            return None;
+        }
+        let mut v = g.buf;
+        let med = median_by_sorting(&mut v, n);
+        let mut dev = [0i64; GATE_WINDOW];
+        for (d, x) in dev.iter_mut().zip(g.buf.iter()).take(n) {
+            *d = x.wrapping_sub(med).wrapping_abs();
+        }
+        let mad = median_by_sorting(&mut dev, n);
+        let t = mad.saturating_mul(i64::from(cfg.kappa_q8)) >> 8;
+        Some((med, t.max(i64::from(cfg.floor_ns))))
+    }
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            // xorshift64*
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        }
+        fn value(&mut self, kind: u64) -> i64 {
+            let r = self.next();
+            match kind {
+                // Few distinct values: many ties.
+                0 => (r % 5) as i64 - 2,
+                // Typical jitter.
+                1 => (r % 2001) as i64 - 1000,
+                // Around and beyond the ±2^40 clamp, and the i64 extremes.
+                2 => match r % 6 {
+                    0 => i64::MIN,
+                    1 => i64::MAX,
+                    2 => WINDOW_CLAMP + (r >> 60) as i64 - 8,
+                    3 => -WINDOW_CLAMP - (r >> 60) as i64 + 8,
+                    4 => 0,
+                    _ => (r >> 20) as i64 - (1 << 43),
+                },
+                // Anything.
+                _ => r as i64,
+            }
+        }
+    }
+
+    #[test]
+    fn median_mad_equals_sorting() {
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        for case in 0..20_000u64 {
+            let n = 1 + (case % GATE_WINDOW as u64) as usize;
+            let mut v = [0i64; GATE_WINDOW];
+            for x in v.iter_mut().take(n) {
+                *x = rng.value(case % 4).clamp(-WINDOW_CLAMP, WINDOW_CLAMP);
+            }
+            let mut s = v;
+            s[..n].sort_unstable();
+            let mut a = v;
+            let med = median_by_sorting(&mut a, n);
+            let mut dev = [0i64; GATE_WINDOW];
+            for (d, x) in dev.iter_mut().zip(v.iter()).take(n) {
+                *d = x.wrapping_sub(med).wrapping_abs();
+            }
+            let mad = median_by_sorting(&mut dev, n);
+            assert_eq!(median_mad_sorted(&s[..n]), (med, mad), "{:?}", &v[..n]);
+        }
+    }
+
+    #[test]
+    fn incremental_window_equals_former_sorting_gate() {
+        let cfgs = [
+            GateConfig::with_floor(0),
+            GateConfig::with_floor(10_000),
+            GateConfig {
+                kappa_q8: u32::MAX,
+                floor_ns: 1,
+                min_samples: 0,
+                confirm: 1,
+            },
+            GateConfig {
+                kappa_q8: 0,
+                floor_ns: 5,
+                min_samples: 16,
+                confirm: 0,
+            },
+            GateConfig {
+                kappa_q8: 1,
+                floor_ns: 0,
+                min_samples: 200,
+                confirm: 3,
+            },
+        ];
+        let mut rng = Rng(12345);
+        for seq in 0..400u64 {
+            let mut g = Gate::new();
+            let kind = seq % 4;
+            for step in 0..200u64 {
+                let theta = rng.value(if step % 17 == 0 { 2 } else { kind });
+                let cfg = &cfgs[(rng.next() % cfgs.len() as u64) as usize];
+                assert_eq!(g.threshold(cfg), threshold_by_sorting(&g, cfg));
+                let mut sorted = g.buf;
+                sorted[..g.len()].sort_unstable();
+                assert_eq!(g.sorted[..g.len()], sorted[..g.len()]);
+                let _ = g.judge(cfg, theta);
+                if rng.next() % 64 == 0 {
+                    g.clear();
+                } else {
+                    g.push(theta);
+                }
+            }
+        }
     }
 
     #[test]
