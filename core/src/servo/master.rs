@@ -215,15 +215,41 @@ impl MasterServo {
         self.servo.integrator_q32() >> 32
     }
 
-    /// REQ-SERVO-100: θ = fold((app − ref) − target), the app-time correction that removes the
-    /// whole periods of raw − θ, and whether |raw| ≥ P. The difference is wrap-safe in the
-    /// configured width; raw is exact (i128), so no saturation can break "multiple of P".
-    fn measure(&self, app: u64, reference: u64) -> (i64, i64, bool) {
-        let d = if self.ref_32bit {
+    /// The wrap-safe difference app − ref in the configured width.
+    #[inline]
+    fn difference(&self, app: u64, reference: u64) -> i64 {
+        if self.ref_32bit {
             i64::from(wrapping_diff::<u32>(low32(app), low32(reference)))
         } else {
             wrapping_diff::<u64>(app, reference)
-        };
+        }
+    }
+
+    /// REQ-SERVO-100: θ = fold((app − ref) − target), the app-time correction that removes the
+    /// whole periods of raw − θ, and whether |raw| ≥ P — the same values as
+    /// [`MasterServo::measure_wide`] for every input, cheaper on the common path: when
+    /// (app − ref) lies within two periods of the fold window no division is needed, and when
+    /// raw and θ − raw fit in i64 (always, unless |app − ref| is within 2^29 of 2^63) the
+    /// correction is θ − raw itself (that is what `fit_multiple` returns for a value that fits).
+    #[inline]
+    fn measure(&self, app: u64, reference: u64) -> (i64, i64, bool) {
+        let d = self.difference(app, reference);
+        let p = i64::from(self.period);
+        // |fold(d)| ≤ P/2, |target| ≤ P ≤ 2^29: no overflow; ≡ raw (mod P).
+        let theta = fold_near(fold_near(d, p).wrapping_sub(self.target), p);
+        match d.checked_sub(self.target) {
+            Some(raw) => match theta.checked_sub(raw) {
+                Some(correction) => (theta, correction, raw.unsigned_abs() >= p.unsigned_abs()),
+                None => self.measure_wide(app, reference),
+            },
+            None => self.measure_wide(app, reference),
+        }
+    }
+
+    /// [`MasterServo::measure`] computed in i128 throughout (the former code; the fallback when
+    /// an i64 intermediate could overflow, and the oracle of the equality test).
+    fn measure_wide(&self, app: u64, reference: u64) -> (i64, i64, bool) {
+        let d = self.difference(app, reference);
         let p = u64::from(self.period);
         // |fold(d)| ≤ P/2 and |target| ≤ P ≤ 2^29: the inner difference cannot overflow, and
         // it is ≡ raw (mod P), so folding it again gives fold(raw).
@@ -317,6 +343,41 @@ fn fit_multiple(v: i128, p: i128) -> i64 {
     i64::try_from(v).unwrap_or(0)
 }
 
+/// `fold::<u64>(x, p)` for `p` in [1000, 2^29]: the representative of x mod p in
+/// (⌊p/2⌋ − p, ⌊p/2⌋]. Within two periods of that window it is reached by adding or subtracting
+/// p at most twice (the representative is unique, so this is the same value); elsewhere by the
+/// division in [`fold`].
+#[inline]
+fn fold_near(x: i64, p: i64) -> i64 {
+    let hi = p >> 1;
+    let lo = hi.wrapping_sub(p); // exclusive
+    if x > lo {
+        if x <= hi {
+            return x;
+        }
+        let y = x.wrapping_sub(p);
+        if y <= hi {
+            return y;
+        }
+        // y > hi ≥ 0 here: y − p cannot overflow.
+        let y = y.wrapping_sub(p);
+        if y <= hi {
+            return y;
+        }
+    } else {
+        // x ≤ lo < 0: x + p cannot overflow.
+        let y = x.wrapping_add(p);
+        if y > lo {
+            return y;
+        }
+        let y = y.wrapping_add(p);
+        if y > lo {
+            return y;
+        }
+    }
+    fold::<u64>(x, p.unsigned_abs())
+}
+
 /// Low 32 bits (a 32-bit DC keeps only these).
 #[inline]
 fn low32(x: u64) -> u32 {
@@ -326,6 +387,7 @@ fn low32(x: u64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::{vec, vec::Vec};
 
     /// Closed loop against a timer drifting `ppm`, no noise: locks and stays inside ±2 ns.
     fn run(ppm: i64, initial: i64) -> (MasterServo, i64) {
@@ -421,6 +483,92 @@ mod tests {
         }
         assert_eq!(fit_multiple((1i128 << 63) + 192, 1000), i64::MAX - 807);
         assert_eq!(fit_multiple(-(1i128 << 63) - 192, 1000), i64::MIN + 808);
+    }
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            // xorshift64*
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        }
+    }
+
+    #[test]
+    fn fold_near_equals_fold() {
+        let mut rng = Rng(0xD1B5_4A32_D192_ED03);
+        for p in [
+            1000i64,
+            1001,
+            999_999,
+            1_000_000,
+            1_000_001,
+            PERIOD_MAX_NS as i64,
+        ] {
+            let mut xs = vec![0, 1, -1, i64::MIN, i64::MAX, i64::MIN + 1, i64::MAX - 1];
+            for k in -4..=4i64 {
+                for off in -2..=2i64 {
+                    xs.push(k * p + off);
+                    xs.push(k * p + p / 2 + off);
+                    xs.push(k * p - p / 2 + off);
+                }
+            }
+            for _ in 0..20_000 {
+                let r = rng.next();
+                xs.push(r as i64);
+                xs.push((r % (10 * p as u64)) as i64 - 5 * p);
+            }
+            for &x in &xs {
+                assert_eq!(fold_near(x, p), fold::<u64>(x, p as u64), "x {x} p {p}");
+            }
+        }
+    }
+
+    #[test]
+    fn measure_equals_wide_measure() {
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        for p in [1000u32, 1001, 333_333, 1_000_000, 1_000_001, PERIOD_MAX_NS] {
+            let pi = i64::from(p);
+            let mut targets = vec![0, 1, -1, pi, -pi, pi - 1, -pi + 1, pi / 2, -pi / 2];
+            for _ in 0..4 {
+                targets.push((rng.next() % (2 * p as u64 + 1)) as i64 - pi);
+            }
+            let mut ds: Vec<i64> = vec![i64::MIN, i64::MAX, 0, 1 << 31, -(1 << 31), 1 << 32];
+            for base in [0, i64::MIN, i64::MAX, 1 << 31, -(1 << 31), 1 << 32] {
+                for k in -3..=3i64 {
+                    for off in [-pi / 2 - 1, -pi / 2, -1, 0, 1, pi / 2, pi / 2 + 1] {
+                        ds.push(base.wrapping_add(k * pi).wrapping_add(off));
+                    }
+                }
+            }
+            for &target in &targets {
+                for ref_32bit in [false, true] {
+                    let mut cfg = MasterConfig::for_period(p).unwrap();
+                    cfg.target_ns = target;
+                    cfg.ref_32bit = ref_32bit;
+                    let m = MasterServo::new(cfg).unwrap();
+                    let check = |app: u64, reference: u64| {
+                        assert_eq!(
+                            m.measure(app, reference),
+                            m.measure_wide(app, reference),
+                            "p {p} target {target} 32-bit {ref_32bit} app {app} ref {reference}"
+                        );
+                    };
+                    for &d in &ds {
+                        let app = rng.next();
+                        check(app, app.wrapping_sub(d as u64));
+                    }
+                    for _ in 0..2000 {
+                        let app = rng.next();
+                        check(app, rng.next());
+                        let near = (rng.next() % (8 * u64::from(p))) as i64 - 4 * pi;
+                        check(app, app.wrapping_sub(near as u64));
+                    }
+                }
+            }
+        }
     }
 
     #[test]
