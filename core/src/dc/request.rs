@@ -263,8 +263,11 @@ impl Inflight {
     }
     #[inline]
     pub(crate) fn clear(&mut self) {
-        for e in self.entries.iter_mut().take(usize::from(self.used)) {
-            *e = None;
+        // With no live entry every slot is already `None` (the usual case after a cycle).
+        if self.live != 0 {
+            for e in self.entries.iter_mut().take(usize::from(self.used)) {
+                *e = None;
+            }
         }
         self.used = 0;
         self.live = 0;
