@@ -90,37 +90,27 @@ fn sorted_insert(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
 }
 
 /// Median (lower middle for even n) and MAD (the same median of |x − median|) of an ascending
-/// slice, without sorting: the deviations below the median (read leftwards) and above it (read
-/// rightwards) are two ascending runs whose merge is the sorted deviation list, so its
-/// `(n − 1)/2`-th element is found by merging that many steps. Equal, value for value, to
-/// sorting a copy and the deviations (`median_mad_by_sorting` in the tests).
+/// slice, without sorting. With k = (n − 1)/2 and m = s[k], the deviations below the median
+/// (m − s[k], m − s[k−1], …, m − s[0]: k + 1 of them) and above it (s[k+1] − m, …) are two
+/// ascending runs; the MAD is the (k+1)-th smallest of their union. Taking t from the upper run
+/// and k + 1 − t from the lower one, the largest taken, max(m − s[t], s[k+t] − m), is at least
+/// that element for every t and equal to it for the merge's own split, so the MAD is the
+/// minimum over t (t = k + 1 is never needed: the lower run starts with m − s[k] = 0, so the
+/// split t = k already has max = s[2k] − m ≤ s[2k+1] − m): k + 1 branch-free steps. Equal,
+/// value for value, to sorting a copy and the deviations (`median_mad_equals_sorting` in the
+/// tests).
 fn median_mad_sorted(s: &[i64]) -> (i64, i64) {
-    let n = s.len();
-    let k = n.wrapping_sub(1) / 2;
-    let Some((lo, hi)) = s.split_at_checked(k.wrapping_add(1)) else {
+    let k = s.len().wrapping_sub(1) / 2;
+    let (Some(&med), Some(&first)) = (s.get(k), s.first()) else {
         return (0, 0);
     };
-    let med = lo.last().copied().unwrap_or(0);
-    // Left run: med − s[k], med − s[k−1], …; right run: s[k+1] − med, …; both ascending.
-    let mut left = lo.iter().rev().map(|&x| med.wrapping_sub(x)).peekable();
-    let mut right = hi.iter().map(|&x| x.wrapping_sub(med)).peekable();
-    let mut mad = 0;
-    for _ in 0..=k {
-        mad = match (left.peek().copied(), right.peek().copied()) {
-            (Some(a), Some(b)) if b < a => {
-                right.next();
-                b
-            }
-            (Some(a), _) => {
-                left.next();
-                a
-            }
-            (None, Some(b)) => {
-                right.next();
-                b
-            }
-            (None, None) => 0,
-        };
+    // t = 0: the whole lower run.
+    let mut mad = med.wrapping_sub(first);
+    // t = 1..=k.
+    if let (Some(lower), Some(upper)) = (s.get(1..=k), s.get(k.wrapping_add(1)..)) {
+        for (&x, &y) in lower.iter().zip(upper) {
+            mad = mad.min(med.wrapping_sub(x).max(y.wrapping_sub(med)));
+        }
     }
     (med, mad)
 }
