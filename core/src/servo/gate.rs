@@ -65,14 +65,37 @@ impl Default for Gate {
     }
 }
 
-/// Remove one entry equal to `x` from the ascending prefix `s[..n]` (if present).
-fn sorted_remove(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
+/// Replace one entry equal to `old` in the ascending prefix `s[..n]` by `new` (if `old` is
+/// present), keeping it ascending: the entries between the two positions shift by one.
+fn sorted_replace(s: &mut [i64; GATE_WINDOW], n: usize, old: i64, new: i64) {
     let Some(v) = s.get_mut(..n) else {
         return;
     };
-    if let Ok(i) = v.binary_search(&x) {
-        // i < n: the range i + 1..n is in bounds (possibly empty).
-        v.copy_within(i.wrapping_add(1).., i);
+    let Ok(mut i) = v.binary_search(&old) else {
+        return;
+    };
+    // Larger entries to the right move left while they are below `new` ...
+    while let Some(&next) = v.get(i.wrapping_add(1)) {
+        if next >= new {
+            break;
+        }
+        if let Some(slot) = v.get_mut(i) {
+            *slot = next;
+        }
+        i = i.wrapping_add(1);
+    }
+    // ... or smaller entries to the left move right while they are above it.
+    while let Some(prev) = i.checked_sub(1).and_then(|k| v.get(k).copied()) {
+        if prev <= new {
+            break;
+        }
+        if let Some(slot) = v.get_mut(i) {
+            *slot = prev;
+        }
+        i = i.wrapping_sub(1);
+    }
+    if let Some(slot) = v.get_mut(i) {
+        *slot = new;
     }
 }
 
@@ -181,16 +204,16 @@ impl Gate {
     pub fn push(&mut self, theta: i64) {
         let h = usize::from(self.head) % GATE_WINDOW;
         let x = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP);
-        let mut n = self.len().min(GATE_WINDOW);
+        let n = self.len().min(GATE_WINDOW);
         if let Some(slot) = self.buf.get_mut(h) {
             if n == GATE_WINDOW {
                 // Full: slot h holds the oldest entry, which leaves the window.
-                sorted_remove(&mut self.sorted, n, *slot);
-                n = n.wrapping_sub(1);
+                sorted_replace(&mut self.sorted, n, *slot, x);
+            } else {
+                sorted_insert(&mut self.sorted, n, x);
             }
             *slot = x;
         }
-        sorted_insert(&mut self.sorted, n, x);
         self.head = u8::try_from(h.wrapping_add(1) % GATE_WINDOW).unwrap_or(0);
         if self.len() < GATE_WINDOW {
             self.len = self.len.saturating_add(1);
