@@ -65,13 +65,14 @@ pub fn require_line_of_dc64(link: &Link) -> anyhow::Result<usize> {
     Ok(n)
 }
 
-/// BRD 0x0000 (count), APWR 0x0010 (addresses), BWR 0x0900 (latch), FPRD 0x0900..0x091F.
-pub fn discover_and_latch(link: &mut Link, n: usize) -> anyhow::Result<Latched> {
+/// BRD 0x0000: the number of slaves on the line (its working counter).
+pub fn count_slaves(link: &mut Link) -> anyhow::Result<usize> {
     let r = link.txn(&[(Command::Brd, Address::broadcast(0x0000), &[0u8; 2])])?;
-    let count = usize::from(r.first().map(|r| r.wkc).unwrap_or(0));
-    if count != n {
-        bail!("BRD counted {count} slaves, expected {n}");
-    }
+    Ok(usize::from(r.first().map_or(0, |r| r.wkc)))
+}
+
+/// APWR 0x0010: station address [`station`]`(i)` to each of the first `n` positions.
+pub fn assign_addresses(link: &mut Link, n: usize) -> anyhow::Result<()> {
     for i in 0..n {
         let pos = u16::try_from(i).context("position")?;
         link.one(
@@ -81,6 +82,16 @@ pub fn discover_and_latch(link: &mut Link, n: usize) -> anyhow::Result<Latched> 
             1,
         )?;
     }
+    Ok(())
+}
+
+/// BRD 0x0000 (count), APWR 0x0010 (addresses), BWR 0x0900 (latch), FPRD 0x0900..0x091F.
+pub fn discover_and_latch(link: &mut Link, n: usize) -> anyhow::Result<Latched> {
+    let count = count_slaves(link)?;
+    if count != n {
+        bail!("BRD counted {count} slaves, expected {n}");
+    }
+    assign_addresses(link, n)?;
     let wkc = u16::try_from(n).context("count")?;
     link.one(
         Command::Bwr,

@@ -28,7 +28,7 @@ use anyhow::{bail, Context};
 use ecdc_core::wire::register::{reg, DlStatus, EscFeatures};
 use ecdc_core::wire::{Address, Command};
 
-use super::bringup::station;
+use super::bringup::{assign_addresses, count_slaves, station};
 use super::link::{le_u32, le_u64, Link};
 use super::{Scheme, Written};
 use crate::emu::{Network, TrueTime};
@@ -352,22 +352,11 @@ impl Ethercrab {
         self.bwr(reg::SYSTEM_TIME_DIFF_FILTER_DEPTH, &0x0C00u16.to_le_bytes())?;
         self.bwr(reg::SPEED_COUNTER_START, &0x1000u16.to_le_bytes())?;
         // Discovery.
-        let r = self
-            .link
-            .txn(&[(Command::Brd, Address::broadcast(0x0000), &[0u8; 2])])?;
-        let n = usize::from(r.first().map_or(0, |r| r.wkc));
+        let n = count_slaves(&mut self.link)?;
         if n == 0 {
             bail!("no devices");
         }
-        for i in 0..n {
-            let pos = u16::try_from(i).context("position")?;
-            self.link.one(
-                Command::Apwr,
-                Address::position(pos, reg::STATION_ADDRESS),
-                &station(i).to_le_bytes(),
-                1,
-            )?;
-        }
+        assign_addresses(&mut self.link, n)?;
         let mut devs = vec![Device::default(); n];
         let mut active = vec![[false; 4]; n];
         for i in 0..n {
@@ -492,11 +481,7 @@ impl Scheme for Ethercrab {
                 }
             }
         }
-        let net = &mut self.link.net;
-        if until > net.now() {
-            net.advance_to(until)?;
-        }
-        Ok(())
+        self.link.advance_to(until)
     }
 
     fn net(&mut self) -> &mut Network {

@@ -37,7 +37,7 @@ use anyhow::{bail, Context};
 use ecdc_core::wire::register::{reg, DlStatus, EscFeatures, SystemTimeDifference};
 use ecdc_core::wire::{Address, Command};
 
-use super::bringup::station;
+use super::bringup::{assign_addresses, count_slaves, station};
 use super::link::{le_u32, le_u64, Link};
 use super::{Scheme, Written};
 use crate::emu::{Network, TrueTime};
@@ -242,20 +242,11 @@ impl Igh {
 
     fn idle_phase(&mut self) -> anyhow::Result<()> {
         let link = &mut self.link;
-        let r = link.txn(&[(Command::Brd, Address::broadcast(0x0000), &[0u8; 2])])?;
-        let n = usize::from(r.first().map(|r| r.wkc).unwrap_or(0));
+        let n = count_slaves(link)?;
         if n == 0 {
             bail!("no slaves");
         }
-        for i in 0..n {
-            let pos = u16::try_from(i).context("position")?;
-            link.one(
-                Command::Apwr,
-                Address::position(pos, reg::STATION_ADDRESS),
-                &station(i).to_le_bytes(),
-                1,
-            )?;
-        }
+        assign_addresses(link, n)?;
         let mut slaves = vec![Slave::default(); n];
         for (i, sl) in slaves.iter_mut().enumerate() {
             let (d, _) = fprd(link, i, reg::ESC_FEATURES, 2)?;
@@ -481,11 +472,7 @@ impl Scheme for Igh {
             self.cycle(t)?;
             self.next_cycle += u64::from(self.cycle_ns.max(1));
         }
-        let net = &mut self.link.net;
-        if until > net.now() {
-            net.advance_to(until)?;
-        }
-        Ok(())
+        self.link.advance_to(until)
     }
 
     fn net(&mut self) -> &mut Network {

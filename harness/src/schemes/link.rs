@@ -56,6 +56,15 @@ impl Link {
         }
     }
 
+    /// Lets the network run on, without frames, to `until` if it is not there yet (the end
+    /// of a scheme's `advance`).
+    pub fn advance_to(&mut self, until: TrueTime) -> anyhow::Result<()> {
+        if until > self.net.now() {
+            self.net.advance_to(until)?;
+        }
+        Ok(())
+    }
+
     /// Sends one frame with `dgs` at `self.now` and returns the replies in order, or `None`
     /// if the frame was lost (the cursor then moves on by [`LOSS_TIMEOUT_NS`]).
     pub fn try_txn(

@@ -142,11 +142,7 @@ impl Scheme for Seed000 {
                 }
             }
         }
-        let net = &mut self.link.net;
-        if until > net.now() {
-            net.advance_to(until)?;
-        }
-        Ok(())
+        self.link.advance_to(until)
     }
 
     fn net(&mut self) -> &mut Network {

@@ -67,11 +67,7 @@ impl Scheme for Uncompensated {
             self.bring_up()?;
             self.done = true;
         }
-        let net = &mut self.link.net;
-        if until > net.now() {
-            net.advance_to(until)?;
-        }
-        Ok(())
+        self.link.advance_to(until)
     }
 
     fn net(&mut self) -> &mut Network {
