@@ -127,6 +127,24 @@ impl<const N: usize> Machine<N> {
         pos
     }
 
+    /// The round robin's next slave with a system time, as (position, station); `scanned`
+    /// counts the positions stepped over this cycle, at most `count`. `None` when they are
+    /// used up (or the position is beyond the table).
+    #[inline]
+    fn rr_next_monitored(&mut self, scanned: &mut u16) -> Option<(u16, u16)> {
+        while *scanned < self.count {
+            let pos = self.rr_step();
+            *scanned = scanned.saturating_add(1);
+            let (station, has_time) = self
+                .slave(pos)
+                .map(|s| (s.station, s.dc.has_system_time()))?;
+            if has_time {
+                return Some((pos, station));
+            }
+        }
+        None
+    }
+
     /// The cycle's fixed datagrams pushed one by one: FRMW, BRD 0x092C, BRD 0x0130, then
     /// round robin over the slaves with a system time (up to `slaves_per_cycle` FPRD 0x092C),
     /// as many as fit. False if not even the FRMW fits.
@@ -138,17 +156,10 @@ impl<const N: usize> Machine<N> {
         let _ = self.push_op(b, Op::brd(reg::AL_STATUS, 2), Tag::CycTopology);
         let mut budget = self.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
-        while budget > 0 && scanned < self.count {
-            let pos = self.rr_step();
-            scanned = scanned.saturating_add(1);
-            let Some((station, has_time)) =
-                self.slave(pos).map(|s| (s.station, s.dc.has_system_time()))
-            else {
+        while budget > 0 {
+            let Some((pos, station)) = self.rr_next_monitored(&mut scanned) else {
                 break;
             };
-            if !has_time {
-                continue;
-            }
             if !self.push_op(
                 b,
                 Op::fprd(station, reg::SYSTEM_TIME_DIFFERENCE, 4),
@@ -187,17 +198,10 @@ impl<const N: usize> Machine<N> {
         let saved_rr = self.cyc.rr;
         let mut budget = self.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
-        while budget > 0 && scanned < self.count {
-            let pos = self.rr_step();
-            scanned = scanned.saturating_add(1);
-            let Some((station, has_time)) =
-                self.slave(pos).map(|s| (s.station, s.dc.has_system_time()))
-            else {
+        while budget > 0 {
+            let Some((pos, station)) = self.rr_next_monitored(&mut scanned) else {
                 break;
             };
-            if !has_time {
-                continue;
-            }
             let Some(slot) = rr_stations.get_mut(k) else {
                 self.cyc.rr = saved_rr;
                 return false;

@@ -13,10 +13,7 @@ use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Pending, Tag};
 use crate::dc::state::State;
 use crate::wire::register::{reg, SystemTimeDifference};
-use crate::wire::FrameBuilder;
-
-/// Bytes of a datagram besides its data: 10-byte header and 2-byte WKC.
-const DATAGRAM_OVERHEAD: usize = 12;
+use crate::wire::{FrameBuilder, DATAGRAM_OVERHEAD};
 
 impl<const N: usize> Machine<N> {
     /// Frames of the current burst: `burst_frames` back to back while the gate has not passed
