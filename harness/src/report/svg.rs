@@ -192,28 +192,8 @@ fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
         out,
         r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
     );
-    let (lo, hi) = (0.0f64, 6.0f64); // log10 ns
     let x = |t: f64| LEFT + (t / t_end).min(1.0) * pw;
-    let y = |e: f64| y0 + ph - ((e.max(1.0).log10().clamp(lo, hi) - lo) / (hi - lo)) * ph;
-    for (k, label) in ["1 ns", "10 ns", "100 ns", "1 µs", "10 µs", "100 µs", "1 ms"]
-        .iter()
-        .enumerate()
-    {
-        let v = 10f64.powi(k as i32);
-        let dash = if k == 2 {
-            ""
-        } else {
-            r#" stroke-dasharray="2 4""#
-        };
-        let _ = writeln!(
-            out,
-            r##"<line x1="{LEFT}" y1="{0:.1}" x2="{1}" y2="{0:.1}" stroke="#ccc"{dash}/><text x="{2}" y="{3:.1}" font-size="11" text-anchor="end">{label}</text>"##,
-            y(v),
-            LEFT + pw,
-            LEFT - 6.0,
-            y(v) + 4.0
-        );
-    }
+    let y = log_axis(out, y0, pw, 6);
     for k in 0..=5 {
         let t = t_end * f64::from(k) / 5.0;
         let _ = writeln!(
