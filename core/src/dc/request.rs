@@ -117,7 +117,8 @@ impl Op {
 pub enum Tag {
     /// Item number of the current request step.
     Item(u16),
-    /// The FRMW that leads every drift-check frame and every cyclic frame.
+    /// The FRMW that leads every cyclic frame and closes every drift-check frame but a
+    /// check's last.
     Frmw,
     /// Cyclic BRD 0x092C (upper bound; WKC = slaves with a system time).
     CycBound,
