@@ -7,14 +7,12 @@
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::{index_after, Machine};
-use crate::dc::request::{le, Op, Payload, Pending, Tag, MAX_INFLIGHT};
+use crate::dc::machine::Machine;
+use crate::dc::request::{le, Op, Pending, Tag};
 use crate::dc::state::State;
 use crate::time::SystemTime;
 use crate::wire::register::{reg, SystemTimeDifference};
-use crate::wire::{
-    header_circulating, put_small, Command, EcatFrame, FrameBuilder, DATAGRAM_OVERHEAD,
-};
+use crate::wire::FrameBuilder;
 
 /// Steps of a delay re-measurement running inside cyclic frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -131,7 +129,7 @@ impl<const N: usize> Machine<N> {
     /// counts the positions stepped over this cycle, at most `count`. `None` when they are
     /// used up (or the position is beyond the table).
     #[inline]
-    fn rr_next_monitored(&mut self, scanned: &mut u16) -> Option<(u16, u16)> {
+    pub(crate) fn rr_next_monitored(&mut self, scanned: &mut u16) -> Option<(u16, u16)> {
         while *scanned < self.count {
             let pos = self.rr_step();
             *scanned = scanned.saturating_add(1);
@@ -148,7 +146,7 @@ impl<const N: usize> Machine<N> {
     /// The cycle's fixed datagrams pushed one by one: FRMW, BRD 0x092C, BRD 0x0130, then
     /// round robin over the slaves with a system time (up to `slaves_per_cycle` FPRD 0x092C),
     /// as many as fit. False if not even the FRMW fits.
-    fn push_cycle_each(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
+    pub(crate) fn push_cycle_each(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
         if !self.push_op(b, frmw, Tag::Frmw) {
             return false;
         }
@@ -172,217 +170,63 @@ impl<const N: usize> Machine<N> {
         true
     }
 
-    /// The cycle's fixed datagrams (FRMW, BRD 0x092C, BRD 0x0130, the round robin's FPRD
-    /// 0x092C) written as one block: the same bytes, indexes, in-flight entries and
-    /// round-robin cursor as pushing them one by one with `push_op` (the fallback in
-    /// `fill_cyclic`), without the per-datagram checks. Applies only when every datagram fits
-    /// the frame and the in-flight table (else returns false having changed nothing, and the
-    /// caller pushes one by one, which also handles a partial fit).
-    fn push_cycle_block(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
-        /// Round-robin reads that fit the in-flight table next to the three fixed datagrams.
-        const MAX_RR: usize = MAX_INFLIGHT - 3;
-        const FPRD_LEN: usize = 4 + DATAGRAM_OVERHEAD;
-        let frmw_value = match frmw.payload {
-            Payload::Le(v) => v,
-            Payload::Zero => 0,
-        };
-        if frmw.len > 8
-            || frmw.address.check_for(frmw.command).is_err()
-            || !self.inflight.is_cleared()
-        {
-            return false;
-        }
-        // Plan the round robin on a copy of the cursor.
-        let mut rr_stations = [(0u16, 0u16); MAX_RR];
-        let mut k = 0usize;
-        let saved_rr = self.cyc.rr;
-        let mut budget = self.cfg.monitor.slaves_per_cycle;
-        let mut scanned = 0u16;
-        while budget > 0 {
-            let Some((pos, station)) = self.rr_next_monitored(&mut scanned) else {
-                break;
-            };
-            let Some(slot) = rr_stations.get_mut(k) else {
-                self.cyc.rr = saved_rr;
-                return false;
-            };
-            *slot = (pos, station);
-            k = k.wrapping_add(1);
-            budget = budget.saturating_sub(1);
-        }
-        let planned = rr_stations.get(..k).unwrap_or(&[]);
-        // FRMW, BRD 4 bytes, BRD 2 bytes, k FPRD 4 bytes.
-        let head = usize::from(frmw.len)
-            .wrapping_add(DATAGRAM_OVERHEAD)
-            .wrapping_add(4 + DATAGRAM_OVERHEAD)
-            .wrapping_add(2 + DATAGRAM_OVERHEAD);
-        let total = head.wrapping_add(k.wrapping_mul(FPRD_LEN));
-        let last_at = if k == 0 {
-            head.wrapping_sub(2 + DATAGRAM_OVERHEAD)
-        } else {
-            total.wrapping_sub(FPRD_LEN)
-        };
-        let n = k.wrapping_add(3);
-        // The in-flight table is empty (checked above): its first `n` slots, in send order.
-        let Some(slots) = self.inflight.entries.get_mut(..n) else {
-            self.cyc.rr = saved_rr;
-            return false;
-        };
-        let Some(mut rest) = b.append_block(total, n, last_at) else {
-            self.cyc.rr = saved_rr;
-            return false;
-        };
-        // Indexes as `alloc_index` hands them out, one per datagram in send order.
-        let (first, count) = (self.cfg.index_first, self.cfg.index_count);
-        let mut next = self.next_index;
-        let mut alloc = || {
-            let i = next;
-            next = index_after(i, first, count);
-            i
-        };
-        let bound = Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4);
-        let topo = Op::brd(reg::AL_STATUS, 2);
-        let fixed = [
-            (frmw, frmw_value, Tag::Frmw),
-            (bound, 0, Tag::CycBound),
-            (topo, 0, Tag::CycTopology),
-        ];
-        let mut slots = slots.iter_mut();
-        let mut ok = true;
-        for (i, (op, value, tag)) in fixed.into_iter().enumerate() {
-            let index = alloc();
-            let more = i < 2 || k > 0;
-            ok &= put_small(
-                &mut rest, op.command, index, op.address, op.len, more, value,
-            );
-            match slots.next() {
-                Some(slot) => {
-                    *slot = Some(Pending {
-                        index,
-                        command: op.command,
-                        register: op.register(),
-                        station: op.station(),
-                        len: op.len,
-                        tag,
-                    })
-                }
-                None => ok = false,
-            }
-        }
-        let [r0, r1] = reg::SYSTEM_TIME_DIFFERENCE.to_le_bytes();
-        for (i, (&(pos, station), slot)) in planned.iter().zip(slots).enumerate() {
-            let index = alloc();
-            let m = if i.wrapping_add(1) < k { 0x80 } else { 0 };
-            let [s0, s1] = station.to_le_bytes();
-            let bytes = [
-                Command::Fprd.code(),
-                index,
-                s0,
-                s1,
-                r0,
-                r1,
-                4,
-                m,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-                0,
-            ];
-            let taken = core::mem::take(&mut rest);
-            match taken.split_first_chunk_mut::<FPRD_LEN>() {
-                Some((d, tail)) => {
-                    *d = bytes;
-                    rest = tail;
-                }
-                None => ok = false,
-            }
-            *slot = Some(Pending {
-                index,
-                command: Command::Fprd,
-                register: reg::SYSTEM_TIME_DIFFERENCE,
-                station,
-                len: 4,
-                tag: Tag::CycDiff(pos),
-            });
-        }
-        self.next_index = next;
-        ok &= self.inflight.mark_filled(n);
-        // The sizes above make every write fit; `ok` only documents it.
-        debug_assert!(ok && rest.is_empty(), "cyclic block layout");
-        true
-    }
-
-    /// The cyclic receive fast path: when the in-flight table is as filled (none taken yet) and
-    /// the frame passes the fast validation with exactly its datagrams, in send order, none
-    /// circulating, each matching its slot, hands every reply to `on_cyclic_reply` and returns
-    /// true — what `handle_frame`'s general path does with such a frame (its in-order hint
-    /// takes slot `i` for datagram `i`; `on_cyclic_reply` changes neither the state nor the
-    /// table). Otherwise returns false having changed nothing.
-    pub(crate) fn cyclic_fast(&mut self, now: u64, frame: &EcatFrame<&[u8]>) -> bool {
-        let Some(n) = self.inflight.fresh_len() else {
-            return false;
-        };
-        let inflight = &self.inflight;
-        let mut i = 0usize;
-        let ok = frame.check_fast_each(|h| {
-            let hit =
-                !header_circulating(h) && inflight.get(i).is_some_and(|p| p.matches_header(h));
-            i = i.wrapping_add(1);
-            hit
-        });
-        if !ok || i != n {
-            return false;
-        }
-        for (pos, d) in frame.iter_valid().enumerate() {
-            if let Some(p) = self.inflight.take_at(pos) {
-                self.on_cyclic_reply(now, p, d.wkc, d.data);
-            }
-        }
-        true
-    }
-
     #[inline]
     pub(crate) fn on_cyclic_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
         match p.tag {
-            Tag::Frmw => {
-                self.cyc.frmw_wkc = Some(wkc);
-                if wkc == self.sys_count {
-                    if let Some(v) = le(data, usize::from(p.len)) {
-                        let t = if p.len == 8 {
-                            v
-                        } else {
-                            let low = u32::try_from(v).unwrap_or(0);
-                            SystemTime::extend_low32(low, SystemTime(now)).0
-                        };
-                        self.cyc.ref_time = Some(t);
-                    }
-                }
-            }
-            Tag::CycBound => {
-                self.cyc.bound_wkc = Some(wkc);
-                if wkc == self.sys_count {
-                    if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
-                        self.cyc.bound_ns = Some(SystemTimeDifference::from_raw(raw).magnitude());
-                    }
-                }
-            }
+            Tag::Frmw => self.on_frmw_reply(now, p.len, wkc, data),
+            Tag::CycBound => self.on_bound_reply(wkc, data),
             Tag::CycTopology => self.cyc.topo_wkc = Some(wkc),
             Tag::CycDiff(pos) => {
-                if wkc != 1 {
+                if let Some(&raw) = data.first_chunk::<4>().filter(|_| data.len() == 4) {
+                    self.on_diff_reply(pos, p.station, wkc, raw);
+                } else if wkc != 1 {
                     self.cyc.lost_station.get_or_insert(p.station);
-                } else if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
-                    if let Some(s) = self.slave_mut(pos) {
-                        s.last_diff_ns =
-                            Some(i64::from(SystemTimeDifference::from_raw(raw).to_ns()));
-                    }
                 }
             }
             Tag::CycRemeasure(i) => self.remeasure_reply(i, p, wkc, data),
             Tag::Item(_) => {}
+        }
+    }
+
+    /// The cycle's FRMW (or ARMW) reply: the reference's system time (`len` 8, or 4 extended
+    /// around `now`), used only with the full working counter.
+    #[inline(always)]
+    pub(crate) fn on_frmw_reply(&mut self, now: u64, len: u16, wkc: u16, data: &[u8]) {
+        self.cyc.frmw_wkc = Some(wkc);
+        if wkc == self.sys_count {
+            if let Some(v) = le(data, usize::from(len)) {
+                let t = if len == 8 {
+                    v
+                } else {
+                    let low = u32::try_from(v).unwrap_or(0);
+                    SystemTime::extend_low32(low, SystemTime(now)).0
+                };
+                self.cyc.ref_time = Some(t);
+            }
+        }
+    }
+
+    /// The cycle's BRD 0x092C reply: the upper bound of every |Δt|, used only with the full
+    /// working counter.
+    #[inline(always)]
+    pub(crate) fn on_bound_reply(&mut self, wkc: u16, data: &[u8]) {
+        self.cyc.bound_wkc = Some(wkc);
+        if wkc == self.sys_count {
+            if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
+                self.cyc.bound_ns = Some(SystemTimeDifference::from_raw(raw).magnitude());
+            }
+        }
+    }
+
+    /// A round-robin FPRD 0x092C reply (4 data bytes `raw`) of the slave at `pos`: its Δt,
+    /// or, if it did not answer (WKC ≠ 1), the first lost station of the cycle.
+    #[inline(always)]
+    pub(crate) fn on_diff_reply(&mut self, pos: u16, station: u16, wkc: u16, raw: [u8; 4]) {
+        if wkc != 1 {
+            self.cyc.lost_station.get_or_insert(station);
+        } else if let Some(s) = self.slave_mut(pos) {
+            let d = SystemTimeDifference::from_raw(u32::from_le_bytes(raw));
+            s.last_diff_ns = Some(i64::from(d.to_ns()));
         }
     }
 
@@ -531,7 +375,7 @@ mod tests {
     use super::*;
     use crate::dc::config::{Config, DriftCommand};
     use crate::dc::slave::DcKind;
-    use crate::wire::{Address, EthernetFrame};
+    use crate::wire::{Address, Command, EthernetFrame};
     use std::format;
     use std::string::String;
 
@@ -610,9 +454,18 @@ mod tests {
     fn cyclic_fast_equals_general() {
         let mut fast_taken = 0u32;
         let mut cases = 0u32;
-        for (n, per_cycle) in [(1u16, 8u8), (5, 3), (9, 8), (40, 29)] {
+        let mut block_taken = 0u32;
+        let mut pattern_taken = 0u32;
+        let shapes = [(1u16, 8u8), (5, 3), (9, 8), (40, 29), (3, 0)];
+        for ((n, per_cycle), remeasure) in shapes.into_iter().flat_map(|s| [(s, false), (s, true)])
+        {
             let mut m = cyclic_machine(n, per_cycle, 0, DriftCommand::Frmw, 0x80);
             m.reference = 0;
+            if remeasure {
+                // Re-measurement reads ride behind the cycle's own datagrams: the table is
+                // no longer the cycle's block, so the pattern walk applies.
+                m.request_delay_measurement();
+            }
             let mut buf = std::vec![0u8; 1514];
             let len = m.poll_transmit(SystemTime(T), &mut buf).unwrap();
             assert!(m.busy);
@@ -637,13 +490,28 @@ mod tests {
                 }
             }
             variants.push(reply[..reply.len() - 1].to_vec());
+            // The unchanged reply takes the path the table's shape calls for.
+            {
+                let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
+                let f = eth.ecat_frame_unvalidated().unwrap().into_inner();
+                let n_sent = m.inflight.fresh_len().unwrap();
+                let mut c = m.clone();
+                match c.cyclic_block_reply(T + 1, f, n_sent) {
+                    Some(true) => block_taken += 1,
+                    Some(false) => panic!("block path refused its own reply"),
+                    None => {
+                        assert!(c.cyclic_pattern_reply(T + 1, f, n_sent));
+                        pattern_taken += 1;
+                    }
+                }
+            }
             for v in &variants {
                 let mut a = m.clone();
                 let mut b = m.clone();
                 let mut c = m.clone();
                 let eth = EthernetFrame::new_checked(&v[..]).unwrap();
                 if let Some(f) = eth.ecat_frame_unvalidated() {
-                    if c.cyclic_fast(T + 1, &f) {
+                    if c.cyclic_fast(T + 1, f.into_inner()) {
                         fast_taken += 1;
                     }
                 }
@@ -655,13 +523,17 @@ mod tests {
                     let before = format!("{a:?}");
                     let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
                     let f = eth.ecat_frame_unvalidated().unwrap();
-                    assert!(!a.cyclic_fast(T + 2, &f));
+                    assert!(!a.cyclic_fast(T + 2, f.into_inner()));
                     assert_eq!(format!("{a:?}"), before);
                 }
                 cases += 1;
             }
         }
         assert!(cases > 1000 && fast_taken > 100, "{cases} {fast_taken}");
+        assert!(
+            block_taken >= 5 && pattern_taken >= 1,
+            "{block_taken} {pattern_taken}"
+        );
     }
 
     /// Runs both paths on clones of `m`; returns whether the block path was taken.

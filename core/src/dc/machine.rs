@@ -364,7 +364,7 @@ impl<const N: usize> Machine<N> {
         // pass (same result as the general path below, which handles everything else).
         if fast && self.state == State::Cyclic && self.busy {
             if let Some(frame) = eth.ecat_frame_unvalidated() {
-                if self.cyclic_fast(now, &frame) {
+                if self.cyclic_fast(now, frame.into_inner()) {
                     return self.replies_done(now);
                 }
             }

@@ -17,6 +17,7 @@ mod adjust;
 mod bridge;
 pub mod config;
 pub mod cyclic;
+mod cyclic_fast;
 mod discovery;
 mod drift;
 pub mod error;

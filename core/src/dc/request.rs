@@ -6,7 +6,7 @@
 //! its command, register (ADO), station (for FP commands) and length equal the request's
 //! (REQ-DC-113); anything else in a frame is someone else's datagram and is counted, not used.
 
-use crate::wire::{Address, Command, Datagram, FrameBuilder};
+use crate::wire::{Address, Command, Datagram, FrameBuilder, HeaderPattern};
 
 /// Most datagrams of the machine in one frame. Per-slave steps on bigger networks take several
 /// frames. ecdc choice: 32 datagrams of up to 44 bytes fit one 1 498-byte EtherCAT payload.
@@ -131,16 +131,21 @@ pub enum Tag {
 }
 
 /// A datagram in flight: enough to match its reply and route it.
+///
+/// `repr(C)` in header order: the first 8 bytes are the datagram's first 8 header bytes
+/// (command, index, ADP = station, ADO = register, length) as sent without the M bit, so
+/// [`Pending::key`] is one load and a reply's header compares with it in one go.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
 pub struct Pending {
-    /// Index sent.
-    pub index: u8,
     /// Command sent.
     pub command: Command,
-    /// Register (ADO) sent.
-    pub register: u16,
+    /// Index sent.
+    pub index: u8,
     /// Station (FP commands) or 0.
     pub station: u16,
+    /// Register (ADO) sent.
+    pub register: u16,
     /// Data length sent.
     pub len: u16,
     /// Where the reply goes.
@@ -169,6 +174,37 @@ impl Pending {
 }
 
 impl Pending {
+    /// Command, index, station, register and length in the order and width of a datagram
+    /// header's first 8 bytes read as a little-endian `u64` (M, C and reserved bits clear).
+    #[inline]
+    pub(crate) fn key(&self) -> u64 {
+        u64::from(self.command.code())
+            | u64::from(self.index) << 8
+            | u64::from(self.station) << 16
+            | u64::from(self.register) << 32
+            | u64::from(self.len) << 48
+    }
+
+    /// The reply header this entry accepts, for [`crate::wire::matches_pattern`]: command,
+    /// index, register, length and, for FP commands, station — [`Pending::matches_header`]'s
+    /// fields.
+    #[inline]
+    pub(crate) fn pattern(&self) -> HeaderPattern {
+        let fp = matches!(
+            self.command,
+            Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
+        );
+        HeaderPattern {
+            want: self.key(),
+            mask: if fp {
+                0xFFFF_FFFF_FFFF
+            } else {
+                0xFFFF_0000_FFFF
+            },
+            len: self.len,
+        }
+    }
+
     /// [`Pending::matches`] on a datagram's 10 header bytes.
     #[inline]
     pub(crate) fn matches_header(&self, h: &[u8; 10]) -> bool {
@@ -295,6 +331,17 @@ impl Inflight {
         self.live = self.live.saturating_sub(1);
         self.hint = u8::try_from(pos.wrapping_add(1)).unwrap_or(0);
         Some(taken)
+    }
+    /// After the replies to all `n` entries of a table in the state [`Inflight::fresh_len`]
+    /// describes were handled in slot order: the table `take_at(0..n)` leaves (every slot
+    /// empty, the hint past the last).
+    #[inline]
+    pub(crate) fn took_all(&mut self, n: usize) {
+        for e in self.entries.iter_mut().take(n) {
+            *e = None;
+        }
+        self.live = 0;
+        self.hint = u8::try_from(n).unwrap_or(0);
     }
     /// Removes and returns the pending entry matching the datagram with header bytes `d`, if
     /// any.

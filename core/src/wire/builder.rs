@@ -418,11 +418,13 @@ impl<'a> FrameBuilder<'a> {
         if !self.pad {
             return Ok(self.end);
         }
-        let len = self.end.max(MIN_FRAME_LEN);
-        if let Some(p) = self.buf.get_mut(self.end..len) {
+        if self.end >= MIN_FRAME_LEN {
+            return Ok(self.end);
+        }
+        if let Some(p) = self.buf.get_mut(self.end..MIN_FRAME_LEN) {
             p.fill(0);
         }
-        Ok(len)
+        Ok(MIN_FRAME_LEN)
     }
 }
 

@@ -54,6 +54,9 @@ pub(crate) mod field {
 /// Smallest datagram: 10-byte header + 2-byte WKC.
 pub const DATAGRAM_OVERHEAD: usize = field::MIN_LEN;
 
+/// Datagram header length: the data starts 10 bytes into a datagram.
+pub const DATAGRAM_HEADER_LEN: usize = field::HEADER_LEN;
+
 /// A zero-copy view of one datagram starting at the first byte of `buffer`. Bytes after the
 /// WKC are ignored. REQ-WIRE-004
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

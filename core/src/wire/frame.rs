@@ -207,15 +207,6 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
         }
     }
 
-    /// True iff the fast validation accepts the frame (then [`EcatFrame::check_len`] accepts
-    /// it too) and `f` agrees with every datagram's 10 header bytes, passed in walk order (the
-    /// datagrams of [`EcatFrame::iter_valid`]). False can also mean a valid frame that `f`
-    /// refused or that only the full walk accepts.
-    #[inline]
-    pub(crate) fn check_fast_each(&self, f: impl FnMut(&[u8; dfield::HEADER_LEN]) -> bool) -> bool {
-        valid_fast_each(self.buffer.as_ref(), f).is_some()
-    }
-
     /// Like [`EcatFrame::iter`] but yields `(start, len)` of each datagram, `start` counted
     /// from the first byte of this view's buffer (the EtherCAT header). With these a caller can
     /// build `Datagram<&mut [u8]>` over `buf[start..start + len]` itself.
@@ -366,6 +357,83 @@ pub(crate) fn valid_fast_each(
             return rest.is_empty().then_some(());
         }
     }
+}
+
+/// What one datagram of a frame must look like for [`matches_pattern`]: its first 8 header
+/// bytes (command, index, ADP, ADO, length word) read as a little-endian `u64`, compared where
+/// `mask` is set. The length word (bits 48..63) is always compared in full: `len` with C and
+/// the reserved bits clear, and M set on every datagram but the last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct HeaderPattern {
+    /// Command (bits 0..7), index (8..15), ADP (16..31), ADO (32..47); bits 48..63 ignored.
+    pub want: u64,
+    /// Which of bits 0..47 are compared (ADP is left out where slaves change it).
+    pub mask: u64,
+    /// Data length.
+    pub len: u16,
+}
+
+/// Bits 48..63 of a [`HeaderPattern`]: the length word.
+const LEN_WORD: u64 = 0xFFFF << 48;
+
+/// True iff `buf` (EtherCAT header + datagrams) holds exactly `n` ≥ 1 datagrams, datagram `i`
+/// matching `pattern(i)` ([`HeaderPattern`]), and [`EcatFrame::check_len`] accepts it: a
+/// DLPDU header, reserved bit clear, length ≤ 1498 inside `buf`, every datagram a known
+/// command with data ≤ 1486 bytes, and the last ending exactly at the header length. The
+/// datagrams are then those [`EcatFrame::iter_valid`] yields, at the offsets their lengths give.
+///
+/// This is [`valid_fast_each`] for a caller who knows the layout it sent: one 8-byte compare
+/// per datagram instead of a field-by-field walk. False also when `pattern` returns `None`.
+#[inline]
+pub(crate) fn matches_pattern(
+    buf: &[u8],
+    n: usize,
+    mut pattern: impl FnMut(usize) -> Option<HeaderPattern>,
+) -> bool {
+    let Some(&[h0, h1]) = buf.first_chunk::<{ field::HEADER_LEN }>() else {
+        return false;
+    };
+    let h = u16::from_le_bytes([h0, h1]);
+    let length = usize::from(h & field::LEN_MASK);
+    // DLPDU type, reserved bit clear (REQ-WIRE-012..014), the whole region present.
+    if h & !field::LEN_MASK != u16::from(FrameType::Dlpdu.to_u8()) << field::TYPE_SHIFT
+        || length > MAX_ECAT_PAYLOAD
+        || n == 0
+    {
+        return false;
+    }
+    let Some(region) = buf.get(field::DATAGRAMS..length.wrapping_add(field::HEADER_LEN)) else {
+        return false;
+    };
+    let mut at = 0usize;
+    for i in 0..n {
+        let Some(p) = pattern(i) else {
+            return false;
+        };
+        let len = usize::from(p.len);
+        let more = if i.wrapping_add(1) < n {
+            dfield::MORE
+        } else {
+            0
+        };
+        let word = u64::from(p.len | more) << 48;
+        let Some(head) = region
+            .get(at..)
+            .and_then(|r| r.first_chunk::<{ dfield::LEN_FLAGS.end }>())
+        else {
+            return false;
+        };
+        let got = u64::from_le_bytes(*head);
+        let [cmd, ..] = *head;
+        if (got ^ (p.want & !LEN_WORD | word)) & (p.mask & !LEN_WORD | LEN_WORD) != 0
+            || len > MAX_DATAGRAM_DATA
+            || usize::from(cmd) >= super::Command::ALL.len()
+        {
+            return false;
+        }
+        at = at.wrapping_add(len).wrapping_add(dfield::MIN_LEN);
+    }
+    at == region.len()
 }
 
 /// The state of an M-bit walk over a datagram region of exactly `length` bytes.

@@ -63,10 +63,10 @@ pub use address::Address;
 pub(crate) use builder::put_small;
 pub use builder::{DatagramSlot, FrameBuilder};
 pub use command::{Addressing, Command};
-pub use datagram::{Datagram, DatagramRepr, DATAGRAM_OVERHEAD};
+pub use datagram::{Datagram, DatagramRepr, DATAGRAM_HEADER_LEN, DATAGRAM_OVERHEAD};
 pub use error::{Error, Result};
 pub use ethernet::{EthernetFrame, HEADER_LEN as ETHERNET_HEADER_LEN};
-pub(crate) use frame::header_circulating;
+pub(crate) use frame::{matches_pattern, HeaderPattern};
 pub use frame::{DatagramOffsets, Datagrams, DatagramsMut, EcatFrame, FrameType, ECAT_HEADER_LEN};
 
 /// EtherType of EtherCAT (big-endian on the wire like every EtherType). REQ-WIRE-001

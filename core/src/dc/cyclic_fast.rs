@@ -1,0 +1,421 @@
+//! The cyclic exchange's fast paths (REQ-DC-106). Each does exactly what the general code
+//! does with the frame it applies to, and declines (changing nothing) on anything else:
+//! - transmit: the cycle's fixed datagrams written as one block (general: `push_op` each);
+//! - receive: a reply laid out exactly as the cycle was sent, validated and matched in one
+//!   8-byte compare per datagram, then routed by slot (general: `ecat_frame` + `take_match`).
+//!   When the table holds just the cycle's own datagrams (FRMW, BRD 0x092C, BRD 0x0130, the
+//!   round robin's FPRD 0x092C) the fixed sizes of the FPRD replies are used directly.
+//!
+//! Oracle tests compare each path with the general one (`cyclic.rs` tests).
+
+use crate::dc::machine::{index_after, Machine};
+use crate::dc::request::{Op, Payload, Pending, Tag};
+use crate::dc::slave::SlaveInfo;
+use crate::wire::register::reg;
+use crate::wire::{
+    matches_pattern, put_small, Command, FrameBuilder, HeaderPattern, DATAGRAM_HEADER_LEN,
+    DATAGRAM_OVERHEAD, ECAT_HEADER_LEN,
+};
+
+/// Size of one round-robin FPRD 0x092C datagram.
+const FPRD_LEN: usize = 4 + DATAGRAM_OVERHEAD;
+/// The M bit of a datagram's length word, in the first 8 header bytes read as a `u64`.
+const MORE_BIT: u64 = 1 << 63;
+
+impl<const N: usize> Machine<N> {
+    /// The cycle's fixed datagrams (FRMW, BRD 0x092C, BRD 0x0130, the round robin's FPRD
+    /// 0x092C) written as one block: the same bytes, indexes, in-flight entries and
+    /// round-robin cursor as pushing them one by one with `push_op` (the fallback in
+    /// `fill_cyclic`), without the per-datagram checks. Applies only when every datagram fits
+    /// the frame and the in-flight table (else returns false having changed nothing, and the
+    /// caller pushes one by one, which also handles a partial fit).
+    pub(crate) fn push_cycle_block(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
+        let frmw_value = match frmw.payload {
+            Payload::Le(v) => v,
+            Payload::Zero => 0,
+        };
+        if frmw.len > 8
+            || frmw.address.check_for(frmw.command).is_err()
+            || !self.inflight.is_cleared()
+        {
+            return false;
+        }
+        // Indexes as `alloc_index` hands them out, one per datagram in send order.
+        let (first, range) = (self.cfg.index_first, self.cfg.index_count);
+        let mut next = self.next_index;
+        let mut alloc = || {
+            let i = next;
+            next = index_after(i, first, range);
+            i
+        };
+        let (i0, i1, i2) = (alloc(), alloc(), alloc());
+        // The round robin's reads, planned straight into slots 3.. of the (empty) table;
+        // undone if the block then does not apply.
+        let count = self.count;
+        let Some(slaves) = self.slaves.get(..usize::from(count)) else {
+            return false;
+        };
+        let Some((fixed_slots, rr_slots)) = self.inflight.entries.split_at_mut_checked(3) else {
+            return false;
+        };
+        let start = if self.cyc.rr < count {
+            self.cyc.rr
+        } else {
+            self.cyc.rr.checked_rem(count).unwrap_or(0)
+        };
+        let budget = usize::from(self.cfg.monitor.slaves_per_cycle);
+        let Some((k, steps, pos)) = plan_reads(rr_slots, slaves, start, count, budget) else {
+            return false;
+        };
+        // FRMW, BRD 4 bytes, BRD 2 bytes, k FPRD 4 bytes.
+        let head = usize::from(frmw.len)
+            .wrapping_add(DATAGRAM_OVERHEAD)
+            .wrapping_add(4 + DATAGRAM_OVERHEAD)
+            .wrapping_add(2 + DATAGRAM_OVERHEAD);
+        let total = head.wrapping_add(k.wrapping_mul(FPRD_LEN));
+        let last_at = if k == 0 {
+            head.wrapping_sub(2 + DATAGRAM_OVERHEAD)
+        } else {
+            total.wrapping_sub(FPRD_LEN)
+        };
+        let n = k.wrapping_add(3);
+        let Some(mut rest) = b.append_block(total, n, last_at) else {
+            clear(rr_slots, k);
+            return false;
+        };
+        let fixed = [
+            Pending {
+                command: frmw.command,
+                index: i0,
+                station: frmw.station(),
+                register: frmw.register(),
+                len: frmw.len,
+                tag: Tag::Frmw,
+            },
+            Pending {
+                command: Command::Brd,
+                index: i1,
+                station: 0,
+                register: reg::SYSTEM_TIME_DIFFERENCE,
+                len: 4,
+                tag: Tag::CycBound,
+            },
+            Pending {
+                command: Command::Brd,
+                index: i2,
+                station: 0,
+                register: reg::AL_STATUS,
+                len: 2,
+                tag: Tag::CycTopology,
+            },
+        ];
+        let mut ok = put_small(
+            &mut rest,
+            frmw.command,
+            i0,
+            frmw.address,
+            frmw.len,
+            true,
+            frmw_value,
+        );
+        // The BRDs: `put_small`'s bytes (header with ADP 0, zero data, WKC 0).
+        let more = if k > 0 { MORE_BIT } else { 0 };
+        let bound = u128::from(fixed[1].key() | MORE_BIT).to_le_bytes();
+        let topo = u128::from(fixed[2].key() | more).to_le_bytes();
+        match core::mem::take(&mut rest).split_first_chunk_mut::<{ 4 + DATAGRAM_OVERHEAD }>() {
+            Some((d, tail)) => {
+                *d = bound;
+                rest = tail;
+            }
+            None => ok = false,
+        }
+        match (
+            core::mem::take(&mut rest).split_first_chunk_mut::<{ 2 + DATAGRAM_OVERHEAD }>(),
+            topo.first_chunk::<{ 2 + DATAGRAM_OVERHEAD }>(),
+        ) {
+            (Some((d, tail)), Some(t)) => {
+                *d = *t;
+                rest = tail;
+            }
+            _ => ok = false,
+        }
+        for (slot, p) in fixed_slots.iter_mut().zip(fixed) {
+            *slot = Some(p);
+        }
+        // The reads, their indexes in send order: each header is its entry's key (FP: all of
+        // it is the header), M set on all but the last.
+        let reads_len = k.wrapping_mul(FPRD_LEN);
+        match core::mem::take(&mut rest).split_at_mut_checked(reads_len) {
+            Some((reads, tail)) => {
+                rest = tail;
+                let mut chunks = reads.chunks_exact_mut(FPRD_LEN);
+                for (slot, d) in rr_slots.iter_mut().zip(&mut chunks) {
+                    let key = match slot {
+                        Some(p) => {
+                            let planned = p.key();
+                            let index = alloc();
+                            p.index = index;
+                            planned | u64::from(index) << 8
+                        }
+                        None => 0,
+                    };
+                    d.copy_from_slice(&u128::from(key | MORE_BIT).to_le_bytes());
+                }
+                if let Some(m) = reads.get_mut(reads_len.wrapping_sub(FPRD_LEN - 7)) {
+                    *m &= 0x7F;
+                }
+            }
+            None => ok = false,
+        }
+        if steps > 0 {
+            self.cyc.rr = pos;
+        }
+        self.next_index = next;
+        ok &= self.inflight.mark_filled(n);
+        // The sizes above make every write fit; `ok` only documents it.
+        debug_assert!(ok && rest.is_empty(), "cyclic block layout");
+        true
+    }
+
+    /// The receive fast path on `ecat` (EtherCAT header + datagrams, trailing padding
+    /// allowed): [`Machine::cyclic_block_reply`] when the table holds the cycle's own
+    /// datagrams, else the per-datagram pattern walk. True if the frame was handled.
+    #[inline]
+    pub(crate) fn cyclic_fast(&mut self, now: u64, ecat: &[u8]) -> bool {
+        let Some(n) = self.inflight.fresh_len() else {
+            return false;
+        };
+        match self.cyclic_block_reply(now, ecat, n) {
+            Some(handled) => handled,
+            None => self.cyclic_pattern_reply(now, ecat, n),
+        }
+    }
+
+    /// The reply to a cycle whose table holds exactly FRMW (or ARMW), BRD 0x092C, BRD 0x0130
+    /// and FPRD 0x092C × k, fresh (`n` entries): `None` if the table is not of that shape;
+    /// else whether the frame is that cycle's reply, exactly as sent (header length, every
+    /// datagram's command, index, address, length, M and C bits), in which case every reply
+    /// went to `on_cyclic_reply` in slot order, as `cyclic_pattern_reply` would have done.
+    #[inline]
+    pub(crate) fn cyclic_block_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> Option<bool> {
+        let e = &self.inflight.entries;
+        let (Some(Some(p0)), Some(Some(p1)), Some(Some(p2))) = (e.first(), e.get(1), e.get(2))
+        else {
+            return None;
+        };
+        let (p0, p1, p2) = (*p0, *p1, *p2);
+        let fprds = e.get(3..n)?;
+        // Anything else in flight (re-measurement steps) is pushed after the cycle's reads.
+        let only_reads = match fprds.last() {
+            None => true,
+            Some(p) => p.is_some_and(|p| matches!(p.tag, Tag::CycDiff(_))),
+        };
+        if !only_reads
+            || p0.tag != Tag::Frmw
+            || p1.tag != Tag::CycBound
+            || p2.tag != Tag::CycTopology
+            || p1.len != 4
+            || p2.len != 2
+        {
+            return None;
+        }
+        let k = fprds.len();
+        let l0 = usize::from(p0.len).wrapping_add(DATAGRAM_OVERHEAD);
+        let l1 = 4 + DATAGRAM_OVERHEAD;
+        let l2 = 2 + DATAGRAM_OVERHEAD;
+        let head = l0.wrapping_add(l1).wrapping_add(l2);
+        let total = head.wrapping_add(k.wrapping_mul(FPRD_LEN));
+        // Type DLPDU, reserved bit clear, exactly the length sent (≤ 32 × 20 bytes).
+        let word = u16::try_from(total).ok()? | 0x1000;
+        let Some(region) = ecat
+            .get(..ECAT_HEADER_LEN.wrapping_add(total))
+            .filter(|r| r.first_chunk::<2>() == Some(&word.to_le_bytes()))
+            .and_then(|r| r.get(ECAT_HEADER_LEN..))
+        else {
+            return Some(false);
+        };
+        let split = || {
+            let (fixed, rr) = region.split_at_checked(head)?;
+            let (d0, rest) = fixed.split_at_checked(l0)?;
+            let (d1, d2) = rest.split_at_checked(l1)?;
+            Some((d0, d1, d2, rr))
+        };
+        let Some((d0, d1, d2, rr)) = split() else {
+            return Some(false);
+        };
+        let last_fixed_more = if k > 0 { MORE_BIT } else { 0 };
+        if !header_is(d0, p0.pattern(), MORE_BIT)
+            || !header_is(d1, p1.pattern(), MORE_BIT)
+            || !header_is(d2, p2.pattern(), last_fixed_more)
+        {
+            return Some(false);
+        }
+        if !fprds_match(rr, fprds) {
+            return Some(false);
+        }
+        // Matched: route every reply in slot order.
+        // (`on_cyclic_reply` for these tags.)
+        let (data, wkc) = data_wkc(d0);
+        self.on_frmw_reply(now, p0.len, wkc, data);
+        let (data, wkc) = data_wkc(d1);
+        self.on_bound_reply(wkc, data);
+        self.cyc.topo_wkc = Some(data_wkc(d2).1);
+        for (i, d) in rr.chunks_exact(FPRD_LEN).enumerate() {
+            let Some(Some(p)) = self.inflight.entries.get(i.wrapping_add(3)).copied() else {
+                continue;
+            };
+            if let (Tag::CycDiff(pos), Some((_, data)), Some((_, wkc))) = (
+                p.tag,
+                d.split_first_chunk::<DATAGRAM_HEADER_LEN>(),
+                d.split_last_chunk::<2>(),
+            ) {
+                if let Some(raw) = data.first_chunk::<4>() {
+                    self.on_diff_reply(pos, p.station, u16::from_le_bytes(*wkc), *raw);
+                }
+            }
+        }
+        self.inflight.took_all(n);
+        Some(true)
+    }
+
+    /// The reply to the `n` fresh entries of the table, validated and matched in one pattern
+    /// walk (one 8-byte compare per datagram): the frame must hold exactly those datagrams in
+    /// send order, none circulating, each matching its slot — then `handle_frame`'s general
+    /// path would take slot `i` for datagram `i` (its in-order hint), and `on_cyclic_reply`
+    /// changes neither the state nor the table. Routes every reply and returns true; else
+    /// returns false having changed nothing.
+    pub(crate) fn cyclic_pattern_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> bool {
+        let inflight = &self.inflight;
+        if !matches_pattern(ecat, n, |i| inflight.get(i).map(Pending::pattern)) {
+            return false;
+        }
+        // Validated: `n` datagrams at the offsets their lengths give, slot `i` for datagram `i`.
+        let mut rest = ecat.get(ECAT_HEADER_LEN..).unwrap_or(&[]);
+        for i in 0..n {
+            let Some(p) = self.inflight.get(i).copied() else {
+                break;
+            };
+            let Some((data, wkc, tail)) = rest
+                .get(DATAGRAM_HEADER_LEN..)
+                .and_then(|r| r.split_at_checked(usize::from(p.len)))
+                .and_then(|(data, r)| r.split_first_chunk::<2>().map(|(w, t)| (data, w, t)))
+            else {
+                break;
+            };
+            rest = tail;
+            self.on_cyclic_reply(now, p, u16::from_le_bytes(*wkc), data);
+        }
+        self.inflight.took_all(n);
+        true
+    }
+}
+
+/// The round robin of `rr_next_monitored` from position `start` (< `count`, or 0): steps
+/// over positions until `budget` slaves with a system time are found or all `count` positions
+/// were stepped over, and writes an FPRD 0x092C entry (index 0, set when sent) for each found
+/// into `slots`, in order. Returns (reads, positions stepped over, the cursor after them);
+/// `None`, with `slots` as they were, if the reads do not fit `slots`.
+#[inline]
+fn plan_reads(
+    slots: &mut [Option<Pending>],
+    slaves: &[SlaveInfo],
+    start: u16,
+    count: u16,
+    budget: usize,
+) -> Option<(usize, u16, u16)> {
+    let (mut k, mut steps, mut pos) = (0usize, 0u16, start);
+    while k < budget && steps < count {
+        let here = pos;
+        pos = rr_after(pos, count);
+        steps = steps.wrapping_add(1);
+        let Some(s) = slaves
+            .get(usize::from(here))
+            .filter(|s| s.dc.has_system_time())
+        else {
+            continue;
+        };
+        let Some(slot) = slots.get_mut(k) else {
+            // More reads than the table holds next to the fixed three.
+            clear(slots, k);
+            return None;
+        };
+        *slot = Some(Pending {
+            command: Command::Fprd,
+            index: 0,
+            station: s.station,
+            register: reg::SYSTEM_TIME_DIFFERENCE,
+            len: 4,
+            tag: Tag::CycDiff(here),
+        });
+        k = k.wrapping_add(1);
+    }
+    Some((k, steps, pos))
+}
+
+/// Empties the first `k` slots of `slots` (entries a declined block had written).
+fn clear(slots: &mut [Option<Pending>], k: usize) {
+    for s in slots.iter_mut().take(k) {
+        *s = None;
+    }
+}
+
+/// The round-robin position after `pos` among `count` (as `rr_step`).
+#[inline]
+fn rr_after(pos: u16, count: u16) -> u16 {
+    let next = pos.wrapping_add(1);
+    if next >= count {
+        0
+    } else {
+        next
+    }
+}
+
+/// Whether `rr` is exactly the replies to the round-robin reads `fprds`, in order: each slot a
+/// `CycDiff` entry for FPRD 0x092C of 4 bytes, each reply's first 8 header bytes its key with
+/// M on all but the last (every bit compared: FP commands keep their station).
+#[inline]
+fn fprds_match(rr: &[u8], fprds: &[Option<Pending>]) -> bool {
+    /// Command, register and length bits of a key.
+    const FIXED: u64 = 0xFFFF_FFFF_0000_00FF;
+    const FPRD: u64 =
+        Command::Fprd.code() as u64 | (reg::SYSTEM_TIME_DIFFERENCE as u64) << 32 | 4 << 48;
+    let mut rest = rr;
+    let mut left = fprds.len();
+    let mut ok = true;
+    for p in fprds {
+        let (Some(p), Some((d, tail))) = (p, rest.split_first_chunk::<FPRD_LEN>()) else {
+            return false;
+        };
+        rest = tail;
+        left = left.wrapping_sub(1);
+        let more = if left > 0 { MORE_BIT } else { 0 };
+        let [h0, h1, h2, h3, h4, h5, h6, h7, ..] = *d;
+        let got = u64::from_le_bytes([h0, h1, h2, h3, h4, h5, h6, h7]);
+        let key = p.key();
+        ok &= key & FIXED == FPRD && matches!(p.tag, Tag::CycDiff(_)) && got == key | more;
+    }
+    ok && rest.is_empty()
+}
+
+/// Whether a datagram's first 8 header bytes are `p`'s with M as `more` (C and the reserved
+/// bits clear), i.e. [`matches_pattern`]'s test for one datagram.
+#[inline]
+fn header_is(d: &[u8], p: HeaderPattern, more: u64) -> bool {
+    let Some(h) = d.first_chunk::<8>() else {
+        return false;
+    };
+    let len_word = u64::from(p.len) << 48 | more;
+    let mask = p.mask | 0xFFFF << 48;
+    usize::from(p.len) <= crate::wire::MAX_DATAGRAM_DATA
+        && (u64::from_le_bytes(*h) ^ (p.want & 0xFFFF_FFFF_FFFF | len_word)) & mask == 0
+}
+
+/// A datagram's data (between the header and the WKC) and its working counter.
+#[inline]
+fn data_wkc(d: &[u8]) -> (&[u8], u16) {
+    let body = d.get(DATAGRAM_HEADER_LEN..).unwrap_or(&[]);
+    match body.split_last_chunk::<2>() {
+        Some((data, wkc)) => (data, u16::from_le_bytes(*wkc)),
+        None => (&[], 0),
+    }
+}
