@@ -786,6 +786,79 @@ mod tests {
         assert_eq!(f.datagram_count(), Ok(2));
     }
 
+    /// The patterns of a valid frame's own datagrams (ADP compared or not).
+    fn patterns(b: &[u8], with_adp: bool) -> Vec<HeaderPattern> {
+        EcatFrame::new_checked(b)
+            .unwrap()
+            .iter()
+            .map(|d| {
+                let d = d.unwrap();
+                let h = u64::from_le_bytes(d.header_bytes().unwrap()[..8].try_into().unwrap());
+                HeaderPattern {
+                    want: h,
+                    mask: if with_adp {
+                        0xFFFF_FFFF_FFFF
+                    } else {
+                        0xFFFF_0000_FFFF
+                    },
+                    len: d.data_len(),
+                }
+            })
+            .collect()
+    }
+
+    /// `matches_pattern` is sound (it accepts only what `check_len` accepts, with exactly the
+    /// datagrams patterned) and exact (it accepts a frame with its own patterns; it refuses a
+    /// wrong count, a changed compared field, a circulating or reserved bit): over the base
+    /// frame and every single-byte change of it, and over padding, truncation and count.
+    #[test]
+    fn matches_pattern_sound_and_exact() {
+        let b = base();
+        for with_adp in [false, true] {
+            let pats = patterns(&b, with_adp);
+            let by = |i: usize| pats.get(i).copied();
+            assert!(matches_pattern(&b, 2, by));
+            assert!(matches_pattern(&b[..36], 2, by), "padding is not required");
+            assert!(!matches_pattern(&b[..35], 2, by), "truncated");
+            assert!(!matches_pattern(&b, 1, by) && !matches_pattern(&b, 3, by));
+            assert!(!matches_pattern(&b, 0, by));
+            let mut accepted = 0;
+            for at in 0..b.len() {
+                for x in [0x01u8, 0x02, 0x08, 0x10, 0x40, 0x80, 0xFF] {
+                    let mut v = b.clone();
+                    v[at] ^= x;
+                    if !matches_pattern(&v, 2, by) {
+                        continue;
+                    }
+                    accepted += 1;
+                    let f = EcatFrame::new_checked(&v[..]).expect("sound: check_len accepts");
+                    let ds: Vec<_> = f.iter().map(|d| d.unwrap()).collect();
+                    assert_eq!(ds.len(), 2);
+                    for (d, p) in ds.iter().zip(&pats) {
+                        let h = d.header_bytes().unwrap();
+                        assert_eq!(h[0], p.want as u8, "command");
+                        assert_eq!(h[1], (p.want >> 8) as u8, "index");
+                        assert_eq!(d.ado(), (p.want >> 32) as u16, "ADO");
+                        assert_eq!(d.data_len(), p.len);
+                        assert!(!d.circulating());
+                        if with_adp {
+                            assert_eq!(d.adp(), (p.want >> 16) as u16, "ADP");
+                        }
+                    }
+                    // Only data, WKC, IRQ, padding (and ADP where not compared) may differ.
+                    let in_header =
+                        |o: usize| [2usize, 16].iter().any(|&s| (s..s + 8).contains(&o));
+                    let adp = |o: usize| [4usize, 5, 18, 19].contains(&o);
+                    assert!(
+                        !in_header(at) || (!with_adp && adp(at)),
+                        "byte {at} ^ {x:#x}"
+                    );
+                }
+            }
+            assert!(accepted > 50, "{accepted}");
+        }
+    }
+
     fn err(b: &[u8]) -> Error {
         let e = EcatFrame::new_checked(b).unwrap_err();
         // iter on the unchecked view reports the same first error
