@@ -352,8 +352,20 @@ impl<const N: usize> Replay<N> {
         if let Some(r) = self.ring.get_mut(self.next) {
             if let Some((off, w)) = r.frmw {
                 let v = now.wrapping_add(r.ref_minus_sent as u64).to_le_bytes();
-                if let (Some(d), Some(s)) = (r.frame.get_mut(off..off + w), v.get(..w)) {
-                    d.copy_from_slice(s);
+                // Fixed-width stores (no `memcpy` call in the timed loop).
+                match (w, r.frame.get_mut(off..)) {
+                    (8, Some(d)) => {
+                        if let Some(d) = d.first_chunk_mut::<8>() {
+                            *d = v;
+                        }
+                    }
+                    (4, Some(d)) => {
+                        if let (Some(d), Some(s)) = (d.first_chunk_mut::<4>(), v.first_chunk::<4>())
+                        {
+                            *d = *s;
+                        }
+                    }
+                    _ => {}
                 }
             }
         }

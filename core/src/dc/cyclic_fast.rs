@@ -109,15 +109,32 @@ impl<const N: usize> Machine<N> {
                 tag: Tag::CycTopology,
             },
         ];
-        let mut ok = put_small(
-            &mut rest,
-            frmw.command,
-            i0,
-            frmw.address,
-            frmw.len,
-            true,
-            frmw_value,
-        );
+        // The FRMW of a 64-bit reference: `put_small`'s bytes (its key is its header: FP).
+        let mut ok = if frmw.command == Command::Frmw && frmw.len == 8 {
+            let [h0, h1, h2, h3, h4, h5, h6, h7] = (fixed[0].key() | MORE_BIT).to_le_bytes();
+            let [v0, v1, v2, v3, v4, v5, v6, v7] = frmw_value.to_le_bytes();
+            let bytes = [
+                h0, h1, h2, h3, h4, h5, h6, h7, 0, 0, v0, v1, v2, v3, v4, v5, v6, v7, 0, 0,
+            ];
+            match core::mem::take(&mut rest).split_first_chunk_mut::<{ 8 + DATAGRAM_OVERHEAD }>() {
+                Some((d, tail)) => {
+                    *d = bytes;
+                    rest = tail;
+                    true
+                }
+                None => false,
+            }
+        } else {
+            put_small(
+                &mut rest,
+                frmw.command,
+                i0,
+                frmw.address,
+                frmw.len,
+                true,
+                frmw_value,
+            )
+        };
         // The BRDs: `put_small`'s bytes (header with ADP 0, zero data, WKC 0).
         let more = if k > 0 { MORE_BIT } else { 0 };
         let bound = u128::from(fixed[1].key() | MORE_BIT).to_le_bytes();
