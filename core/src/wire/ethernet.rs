@@ -143,11 +143,18 @@ impl<T: AsRef<[u8]>> EthernetFrame<T> {
 
     /// [`EthernetFrame::ecat_frame`]'s checks before the EtherCAT validation (length,
     /// EtherType), then the payload's view *unchecked*: `None` where those checks fail. For a
-    /// caller that validates the datagram region itself (`EcatFrame::check_fast_each`).
+    /// caller that validates the datagram region itself (`wire::matches_pattern`). The tag is
+    /// looked at once.
     #[inline]
     pub(crate) fn ecat_frame_unvalidated(&self) -> Option<EcatFrame<&[u8]>> {
-        self.check_len().ok()?;
-        (self.ethertype() == ETHERTYPE_ETHERCAT).then(|| EcatFrame::new_unchecked(self.payload()))
+        let b = self.buffer.as_ref();
+        let (ethertype, at) = if self.is_tagged() {
+            (be16(b, field::INNER_ETHERTYPE), field::TAGGED_HEADER_LEN)
+        } else {
+            (self.outer_ethertype(), field::HEADER_LEN)
+        };
+        let payload = b.get(at..)?;
+        (ethertype == ETHERTYPE_ETHERCAT).then(|| EcatFrame::new_unchecked(payload))
     }
 }
 
