@@ -27,6 +27,8 @@ pub mod gate;
 pub mod ieee1588;
 pub mod lock;
 pub mod master;
+#[cfg(test)]
+mod oracle;
 pub mod pi;
 pub mod ptp;
 pub mod refclock;
