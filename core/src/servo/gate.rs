@@ -65,37 +65,28 @@ impl Default for Gate {
     }
 }
 
-/// Replace one entry equal to `old` in the ascending prefix `s[..n]` by `new` (if `old` is
-/// present), keeping it ascending: the entries between the two positions shift by one.
-fn sorted_replace(s: &mut [i64; GATE_WINDOW], n: usize, old: i64, new: i64) {
-    let Some(v) = s.get_mut(..n) else {
+/// Replace one entry equal to `old` in the full ascending window by `new` (if `old` is present),
+/// keeping it ascending: `old` and the rank of `new` are found by bisection, then the entries
+/// between the two positions move by one slot in a single block copy.
+#[inline]
+fn replace_full(s: &mut [i64; GATE_WINDOW], old: i64, new: i64) {
+    let p = count_below(s, old);
+    if s.get(p) != Some(&old) {
         return;
-    };
-    let Ok(mut i) = v.binary_search(&old) else {
-        return;
-    };
-    // Larger entries to the right move left while they are below `new` ...
-    while let Some(&next) = v.get(i.wrapping_add(1)) {
-        if next >= new {
-            break;
-        }
-        if let Some(slot) = v.get_mut(i) {
-            *slot = next;
-        }
-        i = i.wrapping_add(1);
     }
-    // ... or smaller entries to the left move right while they are above it.
-    while let Some(prev) = i.checked_sub(1).and_then(|k| v.get(k).copied()) {
-        if prev <= new {
-            break;
-        }
-        if let Some(slot) = v.get_mut(i) {
-            *slot = prev;
-        }
-        i = i.wrapping_sub(1);
-    }
-    if let Some(slot) = v.get_mut(i) {
-        *slot = new;
+    // l entries are below `new`: l > p when new > old, l ≤ p otherwise.
+    let l = count_below(s, new);
+    let slot = if l > p {
+        // s[p+1..l] move left into s[p..l-1]; `new` goes to l − 1.
+        s.copy_within(p.wrapping_add(1)..l, p);
+        l.wrapping_sub(1)
+    } else {
+        // s[l..p] move right into s[l+1..=p]; `new` goes to l.
+        s.copy_within(l..p, l.wrapping_add(1));
+        l
+    };
+    if let Some(v) = s.get_mut(slot) {
+        *v = new;
     }
 }
 
@@ -138,6 +129,51 @@ fn median_mad_sorted(s: &[i64]) -> (i64, i64) {
     (med, mad)
 }
 
+/// `s[i]` for an index the caller keeps below [`GATE_WINDOW`] (masked, so no bounds check).
+#[inline(always)]
+fn at(s: &[i64; GATE_WINDOW], i: usize) -> i64 {
+    s.get(i & (GATE_WINDOW - 1)).copied().unwrap_or(0)
+}
+
+/// Median and MAD of a full ascending window: [`median_mad_sorted`] for n = 16 (k = 7), with
+/// the minimum over the split t found by bisection instead of a scan. With a_t = m − s[t]
+/// (non-increasing in t) and b_t = s[7+t] − m (non-decreasing), the predicate b_t ≥ a_t is
+/// monotone in t and true at t = 7 (a_7 = 0); for its first true t*, max(a_t, b_t) is a_t
+/// (non-increasing) below t* and b_t (non-decreasing) from t* on, so the minimum over t is
+/// min(b_{t*}, a_{t*−1}) (only b_{t*} when t* = 0). Three branch-free halvings find t*.
+#[inline]
+fn median_mad_full(s: &[i64; GATE_WINDOW]) -> (i64, i64) {
+    const K: usize = (GATE_WINDOW - 1) / 2;
+    let med = s[K];
+    // b_t ≥ a_t; entries are clamped to ±2^40, so the differences cannot overflow.
+    let upper = |t: usize| at(s, K.wrapping_add(t)).wrapping_sub(med) >= med.wrapping_sub(at(s, t));
+    let mut t: usize = if upper(3) { 0 } else { 4 };
+    if !upper(t.wrapping_add(1)) {
+        t = t.wrapping_add(2);
+    }
+    if !upper(t) {
+        t = t.wrapping_add(1);
+    }
+    let b = at(s, K.wrapping_add(t)).wrapping_sub(med);
+    let a = match t.checked_sub(1) {
+        Some(u) => med.wrapping_sub(at(s, u)),
+        None => i64::MAX,
+    };
+    (med, a.min(b))
+}
+
+/// Number of entries of the full ascending window below `x`, in [0, 16] (branch-free bisection).
+#[inline(always)]
+fn count_below(s: &[i64; GATE_WINDOW], x: i64) -> usize {
+    let mut i = 0usize;
+    for half in [8usize, 4, 2, 1] {
+        if at(s, i.wrapping_add(half).wrapping_sub(1)) < x {
+            i = i.wrapping_add(half);
+        }
+    }
+    i.wrapping_add(usize::from(at(s, i) < x))
+}
+
 impl Gate {
     /// An empty, unarmed gate.
     pub const fn new() -> Self {
@@ -162,19 +198,25 @@ impl Gate {
     }
 
     /// (median, threshold) of the current window, or `None` while not armed.
+    #[inline]
     pub fn threshold(&self, cfg: &GateConfig) -> Option<(i64, i64)> {
         let n = self.len();
         if cfg.kappa_q8 == 0 || n < usize::from(cfg.min_samples.max(3)) {
             return None;
         }
         // Window entries are clamped to ±2^40 on entry: the deviations cannot overflow.
-        let (med, mad) = median_mad_sorted(self.sorted.get(..n)?);
+        let (med, mad) = if n == GATE_WINDOW {
+            median_mad_full(&self.sorted)
+        } else {
+            median_mad_sorted(self.sorted.get(..n)?)
+        };
         // MAD ≤ 2^41, κ_q8 < 2^32: the product fits in i64 before the shift.
         let t = mad.saturating_mul(i64::from(cfg.kappa_q8)) >> 8;
         Some((med, t.max(i64::from(cfg.floor_ns))))
     }
 
     /// REQ-SERVO-050: judge `theta`. Does not record it; call [`Gate::push`] for accepted ones.
+    #[inline]
     pub fn judge(&mut self, cfg: &GateConfig, theta: i64) -> GateVerdict {
         let Some((med, thr)) = self.threshold(cfg) else {
             self.run = 0;
@@ -201,6 +243,7 @@ impl Gate {
     }
 
     /// Record an accepted error.
+    #[inline]
     pub fn push(&mut self, theta: i64) {
         let h = usize::from(self.head) % GATE_WINDOW;
         let x = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP);
@@ -208,7 +251,7 @@ impl Gate {
         if let Some(slot) = self.buf.get_mut(h) {
             if n == GATE_WINDOW {
                 // Full: slot h holds the oldest entry, which leaves the window.
-                sorted_replace(&mut self.sorted, n, *slot, x);
+                replace_full(&mut self.sorted, *slot, x);
             } else {
                 sorted_insert(&mut self.sorted, n, x);
             }
@@ -326,6 +369,9 @@ mod tests {
             }
             let mad = median_by_sorting(&mut dev, n);
             assert_eq!(median_mad_sorted(&s[..n]), (med, mad), "{:?}", &v[..n]);
+            if n == GATE_WINDOW {
+                assert_eq!(median_mad_full(&s), (med, mad), "{v:?}");
+            }
         }
     }
 
