@@ -293,7 +293,7 @@ impl MasterServo {
             }
         }
         self.started = true;
-        let out = self.servo.update(Input::Sample {
+        let out = self.servo.update_inline(Input::Sample {
             local_ns,
             theta_ns: theta,
         });
