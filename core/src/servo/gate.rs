@@ -145,8 +145,9 @@ fn at(s: &[i64; GATE_WINDOW], i: usize) -> i64 {
 fn median_mad_full(s: &[i64; GATE_WINDOW]) -> (i64, i64) {
     const K: usize = (GATE_WINDOW - 1) / 2;
     let med = s[K];
-    // b_t ≥ a_t; entries are clamped to ±2^40, so the differences cannot overflow.
-    let upper = |t: usize| at(s, K.wrapping_add(t)).wrapping_sub(med) >= med.wrapping_sub(at(s, t));
+    // b_t ≥ a_t ⇔ s[7+t] + s[t] ≥ 2m; entries are clamped to ±2^40, so nothing overflows.
+    let twice = med.wrapping_mul(2);
+    let upper = |t: usize| at(s, K.wrapping_add(t)).wrapping_add(at(s, t)) >= twice;
     let mut t: usize = if upper(3) { 0 } else { 4 };
     if !upper(t.wrapping_add(1)) {
         t = t.wrapping_add(2);
@@ -204,26 +205,40 @@ impl Gate {
         if cfg.kappa_q8 == 0 || n < usize::from(cfg.min_samples.max(3)) {
             return None;
         }
+        let med = *self.sorted.get(..n)?.get(n.wrapping_sub(1) / 2)?;
+        Some((med, self.spread(cfg, n).max(i64::from(cfg.floor_ns))))
+    }
+
+    /// κ·MAD (Q8 product shifted back, saturating) of the first `n` sorted entries, n ≤ 16.
+    #[inline]
+    fn spread(&self, cfg: &GateConfig, n: usize) -> i64 {
         // Window entries are clamped to ±2^40 on entry: the deviations cannot overflow.
-        let (med, mad) = if n == GATE_WINDOW {
-            median_mad_full(&self.sorted)
+        let mad = if n == GATE_WINDOW {
+            median_mad_full(&self.sorted).1
         } else {
-            median_mad_sorted(self.sorted.get(..n)?)
+            self.sorted.get(..n).map_or(0, |s| median_mad_sorted(s).1)
         };
-        // MAD ≤ 2^41, κ_q8 < 2^32: the product fits in i64 before the shift.
-        let t = mad.saturating_mul(i64::from(cfg.kappa_q8)) >> 8;
-        Some((med, t.max(i64::from(cfg.floor_ns))))
+        mad.saturating_mul(i64::from(cfg.kappa_q8)) >> 8
     }
 
     /// REQ-SERVO-050: judge `theta`. Does not record it; call [`Gate::push`] for accepted ones.
+    ///
+    /// The same decision as comparing |θ − median| with [`Gate::threshold`]'s max(κ·MAD, floor),
+    /// but the MAD is only computed when the distance exceeds the floor (below it the sample is
+    /// inside the threshold whatever the MAD is).
     #[inline]
     pub fn judge(&mut self, cfg: &GateConfig, theta: i64) -> GateVerdict {
-        let Some((med, thr)) = self.threshold(cfg) else {
+        let n = self.len();
+        // Not armed: exactly when `threshold` is None (n ≤ GATE_WINDOW always holds).
+        if cfg.kappa_q8 == 0 || n < usize::from(cfg.min_samples.max(3)) || n > GATE_WINDOW {
             self.run = 0;
             return GateVerdict::Accept;
-        };
+        }
+        // n in [3, 16]: the median index (n − 1)/2 is in bounds.
+        let med = at(&self.sorted, n.wrapping_sub(1) / 2);
         let e = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP).wrapping_sub(med);
-        if e.wrapping_abs() <= thr {
+        let dist = e.wrapping_abs();
+        if dist <= i64::from(cfg.floor_ns) || dist <= self.spread(cfg, n) {
             self.run = 0;
             return GateVerdict::Accept;
         }

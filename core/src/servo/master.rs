@@ -227,21 +227,25 @@ impl MasterServo {
 
     /// REQ-SERVO-100: θ = fold((app − ref) − target), the app-time correction that removes the
     /// whole periods of raw − θ, and whether |raw| ≥ P — the same values as
-    /// [`MasterServo::measure_wide`] for every input, cheaper on the common path: when
-    /// (app − ref) lies within two periods of the fold window no division is needed, and when
-    /// raw and θ − raw fit in i64 (always, unless |app − ref| is within 2^29 of 2^63) the
+    /// [`MasterServo::measure_wide`] for every input, cheaper on the common path: when raw and
+    /// θ − raw fit in i64 (always, unless |app − ref| is within 2^29 of 2^63) θ is raw folded
+    /// once (no division when raw lies within two periods of the fold window) and the
     /// correction is θ − raw itself (that is what `fit_multiple` returns for a value that fits).
     #[inline]
     fn measure(&self, app: u64, reference: u64) -> (i64, i64, bool) {
         let d = self.difference(app, reference);
         let p = i64::from(self.period);
-        // |fold(d)| ≤ P/2, |target| ≤ P ≤ 2^29: no overflow; ≡ raw (mod P).
-        let theta = fold_near(fold_near(d, p).wrapping_sub(self.target), p);
         match d.checked_sub(self.target) {
-            Some(raw) => match theta.checked_sub(raw) {
-                Some(correction) => (theta, correction, raw.unsigned_abs() >= p.unsigned_abs()),
-                None => self.measure_wide(app, reference),
-            },
+            Some(raw) => {
+                // raw is exact here, so folding it once gives the representative of raw mod P
+                // that the wide path reaches by folding d, subtracting the target and folding
+                // again.
+                let theta = fold_near(raw, p);
+                match theta.checked_sub(raw) {
+                    Some(correction) => (theta, correction, raw.unsigned_abs() >= p.unsigned_abs()),
+                    None => self.measure_wide(app, reference),
+                }
+            }
             None => self.measure_wide(app, reference),
         }
     }

@@ -856,6 +856,7 @@ mod tests {
     fn gate_equals_oracle() {
         let mut r = Rng(0x0123_4567_89AB_CDEF);
         let mut full_judged = 0u64;
+        let mut by_mad = 0u64;
         for seq in 0..3000u64 {
             let mut new = Gate::new();
             let mut old = super::gate::Gate::new();
@@ -875,7 +876,15 @@ mod tests {
                 if new.len() == GATE_WINDOW {
                     full_judged += 1;
                 }
-                assert_eq!(new.judge(cfg, theta), old.judge(cfg, theta));
+                let verdict = new.judge(cfg, theta);
+                assert_eq!(verdict, old.judge(cfg, theta));
+                // Accepted by the MAD term although outside the floor (judge's slow path).
+                if let Some((med, thr)) = old.threshold(cfg) {
+                    let dist = theta.clamp(-(1 << 40), 1 << 40).wrapping_sub(med).abs();
+                    if dist > i64::from(cfg.floor_ns) && dist <= thr {
+                        by_mad += 1;
+                    }
+                }
                 match r.below(100) {
                     0 => {
                         new.clear();
@@ -892,6 +901,7 @@ mod tests {
             }
         }
         assert!(full_judged > 300_000, "{full_judged}");
+        assert!(by_mad > 10_000, "{by_mad}");
     }
 
     #[test]
