@@ -276,6 +276,10 @@ impl MasterServo {
                 ref_ns,
             } => (local_ns, self.measure(app_ns, ref_ns)),
         };
+        // θ is folded into (−P/2, P/2] with P ≤ 2^29, so this clamp never changes it; it tells
+        // the optimiser the bound, which removes the engine's, the gate's and the PI kernel's
+        // own (wider or equal) clamps from this path.
+        let theta = theta.clamp(-THETA_MAX, THETA_MAX);
         let mut app_step = 0i64;
         if correction == 0 {
             self.whole_run = 0;
