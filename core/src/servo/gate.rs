@@ -226,7 +226,7 @@ impl Gate {
     /// The same decision as comparing |θ − median| with [`Gate::threshold`]'s max(κ·MAD, floor),
     /// but the MAD is only computed when the distance exceeds the floor (below it the sample is
     /// inside the threshold whatever the MAD is).
-    #[inline]
+    #[inline(always)]
     pub fn judge(&mut self, cfg: &GateConfig, theta: i64) -> GateVerdict {
         let n = self.len();
         // Not armed: exactly when `threshold` is None (n ≤ GATE_WINDOW always holds).
@@ -258,7 +258,7 @@ impl Gate {
     }
 
     /// Record an accepted error.
-    #[inline]
+    #[inline(always)]
     pub fn push(&mut self, theta: i64) {
         let h = usize::from(self.head) % GATE_WINDOW;
         let x = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP);

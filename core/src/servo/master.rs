@@ -227,27 +227,27 @@ impl MasterServo {
 
     /// REQ-SERVO-100: θ = fold((app − ref) − target), the app-time correction that removes the
     /// whole periods of raw − θ, and whether |raw| ≥ P — the same values as
-    /// [`MasterServo::measure_wide`] for every input, cheaper on the common path: when raw and
-    /// θ − raw fit in i64 (always, unless |app − ref| is within 2^29 of 2^63) θ is raw folded
-    /// once (no division when raw lies within two periods of the fold window) and the
-    /// correction is θ − raw itself (that is what `fit_multiple` returns for a value that fits).
-    #[inline]
+    /// [`MasterServo::measure_wide`] for every input (see [`MasterServo::measure_fast`]).
+    #[cfg(test)]
     fn measure(&self, app: u64, reference: u64) -> (i64, i64, bool) {
+        self.measure_fast(app, reference)
+            .unwrap_or_else(|| self.measure_wide(app, reference))
+    }
+
+    /// [`MasterServo::measure`] on the common path, `None` where it needs the wide path: when
+    /// raw and θ − raw fit in i64 (always, unless |app − ref| is within 2^29 of 2^63) θ is raw
+    /// folded once (raw is exact, so this is the representative of raw mod P that the wide path
+    /// reaches by folding d, subtracting the target and folding again; no division when raw
+    /// lies within two periods of the fold window) and the correction is θ − raw itself (that is
+    /// what `fit_multiple` returns for a value that fits).
+    #[inline]
+    fn measure_fast(&self, app: u64, reference: u64) -> Option<(i64, i64, bool)> {
         let d = self.difference(app, reference);
         let p = i64::from(self.period);
-        match d.checked_sub(self.target) {
-            Some(raw) => {
-                // raw is exact here, so folding it once gives the representative of raw mod P
-                // that the wide path reaches by folding d, subtracting the target and folding
-                // again.
-                let theta = fold_near(raw, p);
-                match theta.checked_sub(raw) {
-                    Some(correction) => (theta, correction, raw.unsigned_abs() >= p.unsigned_abs()),
-                    None => self.measure_wide(app, reference),
-                }
-            }
-            None => self.measure_wide(app, reference),
-        }
+        let raw = d.checked_sub(self.target)?;
+        let theta = fold_near(raw, p);
+        let correction = theta.checked_sub(raw)?;
+        Some((theta, correction, raw.unsigned_abs() >= p.unsigned_abs()))
     }
 
     /// [`MasterServo::measure`] computed in i128 throughout (the former code; the fallback when
@@ -265,17 +265,38 @@ impl MasterServo {
 
     /// REQ-SERVO-100..105: process one cycle.
     pub fn update(&mut self, input: MasterInput) -> MasterOutput {
-        let (local_ns, (theta, correction, beyond)) = match input {
+        match input {
             MasterInput::Lost => {
                 let out = self.servo.update(Input::Missing);
-                return self.finish(out, 0, 0);
+                self.finish(out, 0, 0)
             }
             MasterInput::Sample {
                 local_ns,
                 app_ns,
                 ref_ns,
-            } => (local_ns, self.measure(app_ns, ref_ns)),
-        };
+            } => match self.measure_fast(app_ns, ref_ns) {
+                Some(m) => self.sample(local_ns, m),
+                None => self.sample_wide(local_ns, app_ns, ref_ns),
+            },
+        }
+    }
+
+    /// A sample whose measurement needs [`MasterServo::measure_wide`] (|app − ref| within 2^29
+    /// of 2^63): out of line, so the common path keeps its values in registers.
+    #[cold]
+    #[inline(never)]
+    fn sample_wide(&mut self, local_ns: u64, app_ns: u64, ref_ns: u64) -> MasterOutput {
+        let m = self.measure_wide(app_ns, ref_ns);
+        self.sample(local_ns, m)
+    }
+
+    /// One sample with its measurement (θ, whole-period correction, |raw| ≥ P).
+    #[inline(always)]
+    fn sample(
+        &mut self,
+        local_ns: u64,
+        (theta, correction, beyond): (i64, i64, bool),
+    ) -> MasterOutput {
         // θ is folded into (−P/2, P/2] with P ≤ 2^29, so this clamp never changes it; it tells
         // the optimiser the bound, which removes the engine's, the gate's and the PI kernel's
         // own (wider or equal) clamps from this path.

@@ -963,6 +963,7 @@ mod tests {
         let mut r = Rng(0x5151_7777_0000_1234);
         let mut steps = 0u64;
         let mut locked_tracking = 0u64;
+        let mut wide = 0u64;
         for _ in 0..400 {
             let period = r.pick(&[1000u32, 1_000_000, 250_000, 1 << 29, 1_000_001]);
             let mut cfg = MasterConfig::for_period(period).unwrap();
@@ -997,7 +998,16 @@ mod tests {
                 } else {
                     let jitter = r.below(2 * noise as u64 + 1) as i64 - noise;
                     let reference = app.wrapping_sub(offset.wrapping_add(jitter) as u64);
-                    let reference = if r.chance(100) { r.next() } else { reference };
+                    let reference = match r.below(100) {
+                        0 => r.next(),
+                        // (app − ref) within a few periods of ±2^63: the wide path.
+                        1 | 2 => app.wrapping_sub(
+                            (1u64 << 63)
+                                .wrapping_add(r.below(8 * period as u64))
+                                .wrapping_sub(4 * period as u64),
+                        ),
+                        _ => reference,
+                    };
                     MasterInput::Sample {
                         local_ns: if r.chance(100) { r.next() } else { local },
                         app_ns: app,
@@ -1011,6 +1021,13 @@ mod tests {
                 if r.chance(700) {
                     new.reset();
                     old.reset();
+                }
+                if let MasterInput::Sample { app_ns, ref_ns, .. } = input {
+                    // (app − ref) near ±2^63: the measurement takes the wide (i128) path.
+                    let d = app_ns.wrapping_sub(ref_ns) as i64;
+                    if !cfg.ref_32bit && d.unsigned_abs() > (1u64 << 63) - (1 << 30) {
+                        wide += 1;
+                    }
                 }
                 let (a, b) = (new.update(input), old.update(input));
                 assert_eq!(a, b, "{input:?}");
@@ -1033,5 +1050,6 @@ mod tests {
         }
         assert!(steps >= 200_000);
         assert!(locked_tracking > 20_000, "{locked_tracking}");
+        assert!(wide > 1000, "{wide}");
     }
 }
