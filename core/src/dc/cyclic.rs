@@ -9,6 +9,7 @@ use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::Machine;
 use crate::dc::request::{le, Op, Pending, Tag};
+use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::time::SystemTime;
 use crate::wire::register::{reg, SystemTimeDifference};
@@ -218,16 +219,18 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// A round-robin FPRD 0x092C reply (4 data bytes `raw`) of the slave at `pos`: its Δt,
-    /// or, if it did not answer (WKC ≠ 1), the first lost station of the cycle.
+    /// A round-robin FPRD 0x092C reply: [`diff_reply`].
     #[inline(always)]
     pub(crate) fn on_diff_reply(&mut self, pos: u16, station: u16, wkc: u16, raw: [u8; 4]) {
-        if wkc != 1 {
-            self.cyc.lost_station.get_or_insert(station);
-        } else if let Some(s) = self.slave_mut(pos) {
-            let d = SystemTimeDifference::from_raw(u32::from_le_bytes(raw));
-            s.last_diff_ns = Some(i64::from(d.to_ns()));
-        }
+        diff_reply(
+            &mut self.slaves,
+            self.count,
+            &mut self.cyc,
+            pos,
+            station,
+            wkc,
+            raw,
+        );
     }
 
     /// All of this cycle's datagrams came back: evaluate faults, then lock.
@@ -367,6 +370,27 @@ impl<const N: usize> Machine<N> {
                 },
             );
         }
+    }
+}
+
+/// A round-robin FPRD 0x092C reply (4 data bytes `raw`) of the slave at `pos` (of `count` in
+/// `slaves`): its Δt, or, if it did not answer (WKC ≠ 1), the cycle's first lost station.
+/// (Split borrows: the cyclic receive path reads the in-flight table meanwhile.)
+#[inline(always)]
+pub(crate) fn diff_reply(
+    slaves: &mut [SlaveInfo],
+    count: u16,
+    cyc: &mut CyclicState,
+    pos: u16,
+    station: u16,
+    wkc: u16,
+    raw: [u8; 4],
+) {
+    if wkc != 1 {
+        cyc.lost_station.get_or_insert(station);
+    } else if let Some(s) = slaves.get_mut(usize::from(pos)).filter(|_| pos < count) {
+        let d = SystemTimeDifference::from_raw(u32::from_le_bytes(raw));
+        s.last_diff_ns = Some(i64::from(d.to_ns()));
     }
 }
 

@@ -8,6 +8,7 @@
 //!
 //! Oracle tests compare each path with the general one (`cyclic.rs` tests).
 
+use crate::dc::cyclic::diff_reply;
 use crate::dc::machine::{index_after, Machine};
 use crate::dc::request::{Op, Payload, Pending, Tag};
 use crate::dc::slave::SlaveInfo;
@@ -215,13 +216,9 @@ impl<const N: usize> Machine<N> {
     /// went to `on_cyclic_reply` in slot order, as `cyclic_pattern_reply` would have done.
     #[inline]
     pub(crate) fn cyclic_block_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> Option<bool> {
-        let e = &self.inflight.entries;
-        let (Some(Some(p0)), Some(Some(p1)), Some(Some(p2))) = (e.first(), e.get(1), e.get(2))
-        else {
+        let [Some(p0), Some(p1), Some(p2), fprds @ ..] = self.inflight.entries.get(..n)? else {
             return None;
         };
-        let (p0, p1, p2) = (*p0, *p1, *p2);
-        let fprds = e.get(3..n)?;
         // Anything else in flight (re-measurement steps) is pushed after the cycle's reads.
         let only_reads = match fprds.last() {
             None => true,
@@ -270,24 +267,37 @@ impl<const N: usize> Machine<N> {
         if !fprds_match(rr, fprds) {
             return Some(false);
         }
-        // Matched: route every reply in slot order.
-        // (`on_cyclic_reply` for these tags.)
+        // Matched: route every reply in slot order (`on_cyclic_reply` for these tags).
+        let len0 = p0.len;
         let (data, wkc) = data_wkc(d0);
-        self.on_frmw_reply(now, p0.len, wkc, data);
+        self.on_frmw_reply(now, len0, wkc, data);
         let (data, wkc) = data_wkc(d1);
         self.on_bound_reply(wkc, data);
         self.cyc.topo_wkc = Some(data_wkc(d2).1);
-        for (i, d) in rr.chunks_exact(FPRD_LEN).enumerate() {
-            let Some(Some(p)) = self.inflight.entries.get(i.wrapping_add(3)).copied() else {
-                continue;
-            };
-            if let (Tag::CycDiff(pos), Some((_, data)), Some((_, wkc))) = (
-                p.tag,
+        let Machine {
+            inflight,
+            slaves,
+            count,
+            cyc,
+            ..
+        } = self;
+        let reads = inflight.entries.get(3..n).unwrap_or(&[]);
+        for (p, d) in reads.iter().zip(rr.chunks_exact(FPRD_LEN)) {
+            if let (Some(p), Some((_, data)), Some((_, wkc))) = (
+                p,
                 d.split_first_chunk::<DATAGRAM_HEADER_LEN>(),
                 d.split_last_chunk::<2>(),
             ) {
-                if let Some(raw) = data.first_chunk::<4>() {
-                    self.on_diff_reply(pos, p.station, u16::from_le_bytes(*wkc), *raw);
+                if let (Tag::CycDiff(pos), Some(raw)) = (p.tag, data.first_chunk::<4>()) {
+                    diff_reply(
+                        slaves,
+                        *count,
+                        cyc,
+                        pos,
+                        p.station,
+                        u16::from_le_bytes(*wkc),
+                        *raw,
+                    );
                 }
             }
         }
