@@ -140,4 +140,8 @@ impl<const N: usize> Scheme for EcdcN<N> {
             })
             .collect()
     }
+
+    fn frames_lost(&self) -> u64 {
+        self.sim.stats().lost
+    }
 }

@@ -494,6 +494,10 @@ impl Scheme for Igh {
     fn written(&self) -> Vec<Written> {
         self.written.clone()
     }
+
+    fn frames_lost(&self) -> u64 {
+        self.link.lost
+    }
 }
 
 #[cfg(test)]

@@ -102,10 +102,17 @@ pub fn window_start(r: &Record) -> Option<u64> {
 pub fn window_skews(r: &Record) -> Vec<(usize, i64)> {
     let win_start = window_start(r);
     let in_win = |t: u64| win_start.is_some_and(|w| t >= w && t <= r.end);
+    // With 32-bit slaves a pulse is identified by the low 32 bits of its programmed time
+    // (unique for 2^32 / gcd(cycle, 2^32) cycles: 67 s at 1 ms).
+    let key_mask = if r.has_32bit {
+        u64::from(u32::MAX)
+    } else {
+        u64::MAX
+    };
     let mut pulses: BTreeMap<u64, Vec<(usize, u64)>> = BTreeMap::new();
     for e in &r.sync0 {
         pulses
-            .entry(e.system_time)
+            .entry(e.system_time & key_mask)
             .or_default()
             .push((e.slave, e.true_time));
     }

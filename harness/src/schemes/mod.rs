@@ -51,4 +51,6 @@ pub trait Scheme {
     fn static_drift_frames(&self) -> Option<u64>;
     /// Per slave (emulator index), what was written to 0x0920 and 0x0928.
     fn written(&self) -> Vec<Written>;
+    /// Frames this master sent that the network lost (every kind of frame).
+    fn frames_lost(&self) -> u64;
 }

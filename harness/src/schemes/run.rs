@@ -64,6 +64,24 @@ pub struct Record {
     pub end: TrueTime,
     /// Why the scheme stopped early, if it did.
     pub error: Option<String>,
+    /// Some slave has a 32-bit system time: clock errors involving it are compared on the low
+    /// 32 bits (what its ESC loop compares) and SYNC0 pulses are matched by the low 32 bits of
+    /// their programmed time (a 32-bit slave's copy of the 64-bit start time).
+    pub has_32bit: bool,
+    /// Only when `has_32bit`: the reference's system time at each `cyc_t` sample.
+    pub ref_sys: Vec<Option<u64>>,
+    /// Frames the master sent that the network lost.
+    pub frames_lost: u64,
+}
+
+/// Clock error `a − b` of two system times: wrapping on 64 bits when both slaves are 64-bit,
+/// otherwise on the low 32 bits (the width a 32-bit slave and its loop work with).
+pub fn clock_error(a: u64, b: u64, both_64bit: bool) -> i64 {
+    if both_64bit {
+        a.wrapping_sub(b) as i64
+    } else {
+        i64::from((a as u32).wrapping_sub(b as u32) as i32)
+    }
 }
 
 /// Drives `s` for `opts.duration_ns`, calling `progress(t)` after each sample.
@@ -73,9 +91,17 @@ pub fn run_scheme(
     progress: &mut dyn FnMut(TrueTime),
 ) -> anyhow::Result<Record> {
     let n = s.net().slave_count();
+    let wide: Vec<bool> = (0..n)
+        .map(|i| {
+            s.net()
+                .slave_info(i)
+                .is_none_or(|x| !x.kind.has_system_time() || x.kind.is_64bit())
+        })
+        .collect();
     let mut r = Record {
         name: s.name(),
         slaves: n,
+        has_32bit: wide.iter().any(|w| !w),
         cyc_err: vec![Vec::new(); n],
         cyc_diff: vec![Vec::new(); n],
         ..Record::default()
@@ -98,10 +124,12 @@ pub fn run_scheme(
             *v = net.clock(i, ts)?.system_time;
         }
         let rsys = sys.get(reference).copied().flatten();
+        let rwide = wide.get(reference).copied().unwrap_or(true);
         let errs: Vec<Option<i64>> = sys
             .iter()
-            .map(|v| match (v, rsys) {
-                (Some(a), Some(b)) => Some(a.wrapping_sub(b) as i64),
+            .zip(&wide)
+            .map(|(v, &w)| match (v, rsys) {
+                (Some(a), Some(b)) => Some(clock_error(*a, b, w && rwide)),
                 _ => None,
             })
             .collect();
@@ -116,6 +144,9 @@ pub fn run_scheme(
         if ts >= next_cycle {
             next_cycle = (ts / cycle + 1) * cycle;
             r.cyc_t.push(ts);
+            if r.has_32bit {
+                r.ref_sys.push(rsys);
+            }
             let net = s.net();
             for (i, e) in errs.iter().enumerate() {
                 r.cyc_err[i].push(*e);
@@ -144,5 +175,21 @@ pub fn run_scheme(
     r.written.resize(n, Written::default());
     r.static_drift_frames = s.static_drift_frames();
     r.dist_frames = s.dist_frames();
+    r.frames_lost = s.frames_lost();
     Ok(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::clock_error;
+
+    #[test]
+    fn clock_error_is_taken_on_the_narrower_width() {
+        assert_eq!(clock_error(5, 7, true), -2);
+        assert_eq!(clock_error(1 << 40, 0, true), 1 << 40);
+        // A 64-bit slave against a 32-bit reference: only the low halves count.
+        assert_eq!(clock_error((7 << 32) | 10, 4, false), 6);
+        // Across the 32-bit wrap.
+        assert_eq!(clock_error(3, u64::from(u32::MAX) - 2, false), 6);
+    }
 }

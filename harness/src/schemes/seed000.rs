@@ -164,4 +164,8 @@ impl Scheme for Seed000 {
     fn written(&self) -> Vec<Written> {
         self.written.clone()
     }
+
+    fn frames_lost(&self) -> u64 {
+        self.link.lost
+    }
 }

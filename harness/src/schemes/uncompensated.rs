@@ -89,4 +89,8 @@ impl Scheme for Uncompensated {
     fn written(&self) -> Vec<Written> {
         self.written.clone()
     }
+
+    fn frames_lost(&self) -> u64 {
+        self.link.lost
+    }
 }
