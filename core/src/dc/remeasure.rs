@@ -154,7 +154,11 @@ impl<const N: usize> Machine<N> {
         };
     }
 
-    /// One latch round's delays into `delay_new`, range-checked.
+    /// One latch round's delays into `delay_new`, range-checked. Out of line and cold: the
+    /// topology and delay tables it builds (O(N) on the stack) must not enlarge the frame of
+    /// `cyclic_complete`, which runs every cycle.
+    #[cold]
+    #[inline(never)]
     fn remeasure_compute(&mut self) -> Result<(), Error> {
         for s in self.slaves.iter_mut() {
             s.delay_sum = 0;
