@@ -63,6 +63,7 @@ pub(crate) struct CyclicState {
 impl<const N: usize> Machine<N> {
     pub(crate) fn cyclic_enter(&mut self) {
         self.cyc = CyclicState::default();
+        self.monitor.invalidate();
     }
 
     pub(crate) fn fill_cyclic(

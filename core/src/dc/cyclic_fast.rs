@@ -11,7 +11,6 @@
 use crate::dc::cyclic::diff_reply;
 use crate::dc::machine::{index_after, Machine};
 use crate::dc::request::{Op, Payload, Pending, Tag};
-use crate::dc::slave::SlaveInfo;
 use crate::wire::register::reg;
 use crate::wire::{
     matches_pattern, put_small, Command, FrameBuilder, HeaderPattern, DATAGRAM_HEADER_LEN,
@@ -50,12 +49,11 @@ impl<const N: usize> Machine<N> {
             i
         };
         let (i0, i1, i2) = (alloc(), alloc(), alloc());
-        // The round robin's reads, planned straight into slots 3.. of the (empty) table;
-        // undone if the block then does not apply.
+        // The round robin of `rr_next_monitored` over the list of slaves with a system time:
+        // from the first at or after the cursor, `k` of them, wrapping; the cursor then stands
+        // after the last read once `budget` were found, or where it started when fewer than
+        // `budget` exist (the scan went all the way round).
         let count = self.count;
-        let Some(slaves) = self.slaves.get(..usize::from(count)) else {
-            return false;
-        };
         let Some((fixed_slots, rr_slots)) = self.inflight.entries.split_at_mut_checked(3) else {
             return false;
         };
@@ -64,9 +62,27 @@ impl<const N: usize> Machine<N> {
         } else {
             self.cyc.rr.checked_rem(count).unwrap_or(0)
         };
+        let (list, j) = self.monitor.get(&self.slaves, count, start);
         let budget = usize::from(self.cfg.monitor.slaves_per_cycle);
-        let Some((k, steps, pos)) = plan_reads(rr_slots, slaves, start, count, budget) else {
+        let (before, after) = list.split_at(j.min(list.len()));
+        let k = budget.min(list.len());
+        if k > rr_slots.len() {
+            // More reads than the table holds next to the fixed three.
             return false;
+        }
+        let new_rr = if count == 0 || budget == 0 {
+            self.cyc.rr
+        } else if budget <= list.len() {
+            // The budget-th read: list[j + budget − 1], wrapped.
+            let at = j.wrapping_add(budget).wrapping_sub(1);
+            let at = if at >= list.len() {
+                at.wrapping_sub(list.len())
+            } else {
+                at
+            };
+            list.get(at).map_or(start, |&(p, _)| rr_after(p, count))
+        } else {
+            start
         };
         // FRMW, BRD 4 bytes, BRD 2 bytes, k FPRD 4 bytes.
         let head = usize::from(frmw.len)
@@ -81,7 +97,6 @@ impl<const N: usize> Machine<N> {
         };
         let n = k.wrapping_add(3);
         let Some(mut rest) = b.append_block(total, n, last_at) else {
-            clear(rr_slots, k);
             return false;
         };
         let fixed = [
@@ -160,24 +175,24 @@ impl<const N: usize> Machine<N> {
         for (slot, p) in fixed_slots.iter_mut().zip(fixed) {
             *slot = Some(p);
         }
-        // The reads, their indexes in send order: each header is its entry's key (FP: all of
-        // it is the header), M set on all but the last.
+        // The reads, their indexes in send order: entries into slots 3.., headers (their keys:
+        // FP) into the block, M set on all but the last.
         let reads_len = k.wrapping_mul(FPRD_LEN);
         match core::mem::take(&mut rest).split_at_mut_checked(reads_len) {
             Some((reads, tail)) => {
                 rest = tail;
-                let mut chunks = reads.chunks_exact_mut(FPRD_LEN);
-                for (slot, d) in rr_slots.iter_mut().zip(&mut chunks) {
-                    let key = match slot {
-                        Some(p) => {
-                            let planned = p.key();
-                            let index = alloc();
-                            p.index = index;
-                            planned | u64::from(index) << 8
-                        }
-                        None => 0,
+                let targets = rr_slots.iter_mut().zip(reads.chunks_exact_mut(FPRD_LEN));
+                for ((slot, d), &(pos, station)) in targets.zip(after.iter().chain(before)) {
+                    let p = Pending {
+                        command: Command::Fprd,
+                        index: alloc(),
+                        station,
+                        register: reg::SYSTEM_TIME_DIFFERENCE,
+                        len: 4,
+                        tag: Tag::CycDiff(pos),
                     };
-                    d.copy_from_slice(&u128::from(key | MORE_BIT).to_le_bytes());
+                    d.copy_from_slice(&u128::from(p.key() | MORE_BIT).to_le_bytes());
+                    *slot = Some(p);
                 }
                 if let Some(m) = reads.get_mut(reads_len.wrapping_sub(FPRD_LEN - 7)) {
                     *m &= 0x7F;
@@ -185,9 +200,7 @@ impl<const N: usize> Machine<N> {
             }
             None => ok = false,
         }
-        if steps > 0 {
-            self.cyc.rr = pos;
-        }
+        self.cyc.rr = new_rr;
         self.next_index = next;
         ok &= self.inflight.mark_filled(n);
         // The sizes above make every write fit; `ok` only documents it.
@@ -334,55 +347,6 @@ impl<const N: usize> Machine<N> {
         }
         self.inflight.took_all(n);
         true
-    }
-}
-
-/// The round robin of `rr_next_monitored` from position `start` (< `count`, or 0): steps
-/// over positions until `budget` slaves with a system time are found or all `count` positions
-/// were stepped over, and writes an FPRD 0x092C entry (index 0, set when sent) for each found
-/// into `slots`, in order. Returns (reads, positions stepped over, the cursor after them);
-/// `None`, with `slots` as they were, if the reads do not fit `slots`.
-#[inline]
-fn plan_reads(
-    slots: &mut [Option<Pending>],
-    slaves: &[SlaveInfo],
-    start: u16,
-    count: u16,
-    budget: usize,
-) -> Option<(usize, u16, u16)> {
-    let (mut k, mut steps, mut pos) = (0usize, 0u16, start);
-    while k < budget && steps < count {
-        let here = pos;
-        pos = rr_after(pos, count);
-        steps = steps.wrapping_add(1);
-        let Some(s) = slaves
-            .get(usize::from(here))
-            .filter(|s| s.dc.has_system_time())
-        else {
-            continue;
-        };
-        let Some(slot) = slots.get_mut(k) else {
-            // More reads than the table holds next to the fixed three.
-            clear(slots, k);
-            return None;
-        };
-        *slot = Some(Pending {
-            command: Command::Fprd,
-            index: 0,
-            station: s.station,
-            register: reg::SYSTEM_TIME_DIFFERENCE,
-            len: 4,
-            tag: Tag::CycDiff(here),
-        });
-        k = k.wrapping_add(1);
-    }
-    Some((k, steps, pos))
-}
-
-/// Empties the first `k` slots of `slots` (entries a declined block had written).
-fn clear(slots: &mut [Option<Pending>], k: usize) {
-    for s in slots.iter_mut().take(k) {
-        *s = None;
     }
 }
 

@@ -5,6 +5,7 @@ use crate::dc::cyclic::CyclicState;
 use crate::dc::delay::Delays;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
+use crate::dc::monitor::MonitorList;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
@@ -104,6 +105,8 @@ pub struct Machine<const N: usize> {
     pub(crate) drift_bound_sum: u64,
     pub(crate) sync_start: u64,
     pub(crate) cyc: CyclicState,
+    /// The round robin's slave list (a cache of `slaves`, see `dc/monitor.rs`).
+    pub(crate) monitor: MonitorList<N>,
 }
 
 impl<const N: usize> Machine<N> {
@@ -139,6 +142,7 @@ impl<const N: usize> Machine<N> {
             drift_bound_sum: 0,
             sync_start: 0,
             cyc: CyclicState::default(),
+            monitor: MonitorList::new(),
         })
     }
 

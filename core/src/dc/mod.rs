@@ -24,6 +24,7 @@ pub mod error;
 pub mod event;
 pub mod machine;
 mod measure;
+mod monitor;
 mod remeasure;
 pub mod request;
 pub mod slave;
