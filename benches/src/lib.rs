@@ -7,8 +7,10 @@
 //!   after one latch, for the delay-computation benches.
 //! - [`svg`]: a small line-plot writer for `benches/results/*.svg`.
 //! - [`timed`]: a bring-up driver that times the core's calls apart from the emulator's.
+//! - [`provenance`]: date, commit and machine for the header of a generated result file.
 
 pub mod cyclic;
+pub mod provenance;
 pub mod svg;
 pub mod timed;
 pub mod trees;

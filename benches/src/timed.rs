@@ -124,6 +124,19 @@ pub fn thread_cpu_ns() -> u64 {
 /// `start`): the core's whole work of that bring-up with no emulator. Returns the thread CPU
 /// time up to the `DriftMark` (if any) and in total, ns, and the frames the machine sent.
 pub fn replay<const N: usize>(mut machine: Machine<N>, log: &CallLog) -> (Option<u64>, u64, u64) {
+    replay_in(&mut machine, log)
+}
+
+/// [`replay`] on a machine that lives on the heap (the `stack` binary measures the core's own
+/// stack use this way: no `Machine` value on the replaying thread's stack).
+pub fn replay_boxed<const N: usize>(
+    mut machine: Box<Machine<N>>,
+    log: &CallLog,
+) -> (Option<u64>, u64, u64) {
+    replay_in(&mut machine, log)
+}
+
+fn replay_in<const N: usize>(machine: &mut Machine<N>, log: &CallLog) -> (Option<u64>, u64, u64) {
     let mut buf = vec![0u8; 1514];
     let mut mark = None;
     let t0 = thread_cpu_ns();
