@@ -91,7 +91,7 @@ fn replace_full(s: &mut [i64; GATE_WINDOW], old: i64, new: i64) {
 }
 
 /// Insert `x` into the ascending prefix `s[..n]` (n < GATE_WINDOW), keeping it ascending.
-fn sorted_insert(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
+pub(super) fn sorted_insert(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
     let Some(v) = s.get_mut(..=n) else {
         return;
     };
@@ -113,7 +113,7 @@ fn sorted_insert(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
 /// split t = k already has max = s[2k] − m ≤ s[2k+1] − m): k + 1 branch-free steps. Equal,
 /// value for value, to sorting a copy and the deviations (`median_mad_equals_sorting` in the
 /// tests).
-fn median_mad_sorted(s: &[i64]) -> (i64, i64) {
+pub(super) fn median_mad_sorted(s: &[i64]) -> (i64, i64) {
     let k = s.len().wrapping_sub(1) / 2;
     let (Some(&med), Some(&first)) = (s.get(k), s.first()) else {
         return (0, 0);
@@ -334,15 +334,8 @@ mod tests {
         Some((med, t.max(i64::from(cfg.floor_ns))))
     }
 
-    struct Rng(u64);
+    use crate::servo::test_rng::Rng;
     impl Rng {
-        fn next(&mut self) -> u64 {
-            // xorshift64*
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-        }
         fn value(&mut self, kind: u64) -> i64 {
             let r = self.next();
             match kind {

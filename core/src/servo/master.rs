@@ -346,7 +346,7 @@ impl MasterServo {
 
 /// The multiple of `p` nearest to `v` toward zero that fits in i64 (`v` itself when it fits).
 /// `v` is a multiple of `p` with |v| < 2^64; `p` in [1000, 2^29].
-fn fit_multiple(v: i128, p: i128) -> i64 {
+pub(super) fn fit_multiple(v: i128, p: i128) -> i64 {
     let max = i128::from(i64::MAX);
     let min = i128::from(i64::MIN);
     let excess = if v > max {
@@ -377,7 +377,7 @@ fn fit_multiple(v: i128, p: i128) -> i64 {
 /// p at most twice (the representative is unique, so this is the same value); elsewhere by the
 /// division in [`fold`].
 #[inline]
-fn fold_near(x: i64, p: i64) -> i64 {
+pub(super) fn fold_near(x: i64, p: i64) -> i64 {
     let hi = p >> 1;
     let lo = hi.wrapping_sub(p); // exclusive
     if x > lo {
@@ -409,7 +409,7 @@ fn fold_near(x: i64, p: i64) -> i64 {
 
 /// Low 32 bits (a 32-bit DC keeps only these).
 #[inline]
-fn low32(x: u64) -> u32 {
+pub(super) fn low32(x: u64) -> u32 {
     u32::try_from(x & 0xFFFF_FFFF).unwrap_or(0)
 }
 
@@ -514,16 +514,7 @@ mod tests {
         assert_eq!(fit_multiple(-(1i128 << 63) - 192, 1000), i64::MIN + 808);
     }
 
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            // xorshift64*
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-        }
-    }
+    use crate::servo::test_rng::Rng;
 
     #[test]
     fn fold_near_equals_fold() {

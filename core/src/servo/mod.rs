@@ -32,6 +32,8 @@ mod oracle;
 pub mod pi;
 pub mod ptp;
 pub mod refclock;
+#[cfg(test)]
+mod test_rng;
 
 pub use engine::{ConfigError, Counters, Input, Mode, Output, Servo, ServoConfig, Verdict};
 pub use gains::{GainError, PiGains, Pole};

@@ -2,9 +2,13 @@
 //! 34e7a71, before the per-update instruction work. The differential tests drive it and the
 //! current code with the same inputs and require equal outputs and equal `Debug` of the whole
 //! state after every step (the structs keep their names, so the `Debug` text is comparable).
+//! Helpers the work left unchanged (`sorted_insert`, `median_mad_sorted`, `fold_near`,
+//! `fit_multiple`, `low32`) are not copied: the oracle calls the live ones.
 #![allow(dead_code, missing_docs, clippy::all)]
 
 pub mod gate {
+    // Unchanged since 34e7a71: the live helpers (their own tests pin them).
+    use crate::servo::gate::{median_mad_sorted, sorted_insert};
     use crate::servo::gate::{GateConfig, GateVerdict, GATE_WINDOW};
 
     /// Gate state: a ring of recent accepted errors plus the current rejection run.
@@ -58,45 +62,6 @@ pub mod gate {
         if let Some(slot) = v.get_mut(i) {
             *slot = new;
         }
-    }
-
-    /// Insert `x` into the ascending prefix `s[..n]` (n < GATE_WINDOW), keeping it ascending.
-    fn sorted_insert(s: &mut [i64; GATE_WINDOW], n: usize, x: i64) {
-        let Some(v) = s.get_mut(..=n) else {
-            return;
-        };
-        let i = v.get(..n).map_or(0, |p| p.partition_point(|&y| y < x));
-        // i ≤ n < v.len(): the ranges are in bounds.
-        v.copy_within(i..n, i.wrapping_add(1));
-        if let Some(slot) = v.get_mut(i) {
-            *slot = x;
-        }
-    }
-
-    /// Median (lower middle for even n) and MAD (the same median of |x − median|) of an ascending
-    /// slice, without sorting. With k = (n − 1)/2 and m = s[k], the deviations below the median
-    /// (m − s[k], m − s[k−1], …, m − s[0]: k + 1 of them) and above it (s[k+1] − m, …) are two
-    /// ascending runs; the MAD is the (k+1)-th smallest of their union. Taking t from the upper run
-    /// and k + 1 − t from the lower one, the largest taken, max(m − s[t], s[k+t] − m), is at least
-    /// that element for every t and equal to it for the merge's own split, so the MAD is the
-    /// minimum over t (t = k + 1 is never needed: the lower run starts with m − s[k] = 0, so the
-    /// split t = k already has max = s[2k] − m ≤ s[2k+1] − m): k + 1 branch-free steps. Equal,
-    /// value for value, to sorting a copy and the deviations (`median_mad_equals_sorting` in the
-    /// tests).
-    fn median_mad_sorted(s: &[i64]) -> (i64, i64) {
-        let k = s.len().wrapping_sub(1) / 2;
-        let (Some(&med), Some(&first)) = (s.get(k), s.first()) else {
-            return (0, 0);
-        };
-        // t = 0: the whole lower run.
-        let mut mad = med.wrapping_sub(first);
-        // t = 1..=k.
-        if let (Some(lower), Some(upper)) = (s.get(1..=k), s.get(k.wrapping_add(1)..)) {
-            for (&x, &y) in lower.iter().zip(upper) {
-                mad = mad.min(med.wrapping_sub(x).max(y.wrapping_sub(med)));
-            }
-        }
-        (med, mad)
     }
 
     impl Gate {
@@ -499,6 +464,8 @@ pub mod master {
     use crate::servo::engine::{ConfigError, Counters, Input, Mode, Output, Verdict};
     use crate::servo::master::{MasterConfig, MasterInput, MasterOutput, PERIOD_MAX_NS};
     use crate::servo::pi::THETA_MAX;
+    // Unchanged since 34e7a71: the live helpers (their own tests pin them).
+    use crate::servo::master::{fit_multiple, fold_near, low32};
 
     /// Master-follows-reference servo state.
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -669,75 +636,6 @@ pub mod master {
             }
         }
     }
-
-    /// The multiple of `p` nearest to `v` toward zero that fits in i64 (`v` itself when it fits).
-    /// `v` is a multiple of `p` with |v| < 2^64; `p` in [1000, 2^29].
-    fn fit_multiple(v: i128, p: i128) -> i64 {
-        let max = i128::from(i64::MAX);
-        let min = i128::from(i64::MIN);
-        let excess = if v > max {
-            v.wrapping_sub(max)
-        } else if v < min {
-            v.wrapping_sub(min)
-        } else {
-            0
-        };
-        // Round the excess away from zero to whole periods and remove it.
-        let k = excess
-            .unsigned_abs()
-            .checked_add(p.unsigned_abs().saturating_sub(1))
-            .and_then(|e| e.checked_div(p.unsigned_abs()))
-            .unwrap_or(0);
-        let k = i128::try_from(k).unwrap_or(0);
-        let adj = k.wrapping_mul(p);
-        let v = if excess > 0 {
-            v.wrapping_sub(adj)
-        } else {
-            v.wrapping_add(adj)
-        };
-        i64::try_from(v).unwrap_or(0)
-    }
-
-    /// `fold::<u64>(x, p)` for `p` in [1000, 2^29]: the representative of x mod p in
-    /// (⌊p/2⌋ − p, ⌊p/2⌋]. Within two periods of that window it is reached by adding or subtracting
-    /// p at most twice (the representative is unique, so this is the same value); elsewhere by the
-    /// division in [`fold`].
-    #[inline]
-    fn fold_near(x: i64, p: i64) -> i64 {
-        let hi = p >> 1;
-        let lo = hi.wrapping_sub(p); // exclusive
-        if x > lo {
-            if x <= hi {
-                return x;
-            }
-            let y = x.wrapping_sub(p);
-            if y <= hi {
-                return y;
-            }
-            // y > hi ≥ 0 here: y − p cannot overflow.
-            let y = y.wrapping_sub(p);
-            if y <= hi {
-                return y;
-            }
-        } else {
-            // x ≤ lo < 0: x + p cannot overflow.
-            let y = x.wrapping_add(p);
-            if y > lo {
-                return y;
-            }
-            let y = y.wrapping_add(p);
-            if y > lo {
-                return y;
-            }
-        }
-        fold::<u64>(x, p.unsigned_abs())
-    }
-
-    /// Low 32 bits (a 32-bit DC keeps only these).
-    #[inline]
-    fn low32(x: u64) -> u32 {
-        u32::try_from(x & 0xFFFF_FFFF).unwrap_or(0)
-    }
 }
 
 #[cfg(test)]
@@ -750,15 +648,8 @@ mod tests {
     use crate::servo::pi::PiLimits;
     use std::format;
 
-    struct Rng(u64);
+    use crate::servo::test_rng::Rng;
     impl Rng {
-        fn next(&mut self) -> u64 {
-            // xorshift64*
-            self.0 ^= self.0 >> 12;
-            self.0 ^= self.0 << 25;
-            self.0 ^= self.0 >> 27;
-            self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-        }
         fn below(&mut self, n: u64) -> u64 {
             self.next() % n
         }
