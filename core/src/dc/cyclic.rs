@@ -117,14 +117,20 @@ impl<const N: usize> Machine<N> {
     /// except after a re-count.
     #[inline]
     fn rr_step(&mut self) -> u16 {
-        let pos = if self.cyc.rr < self.count {
+        let pos = self.rr_start();
+        self.cyc.rr = rr_after(pos, self.count);
+        pos
+    }
+
+    /// The round robin's current position: the cursor, or (after a re-count left it beyond
+    /// the slaves) the cursor modulo the count; 0 without slaves.
+    #[inline]
+    pub(crate) fn rr_start(&self) -> u16 {
+        if self.cyc.rr < self.count {
             self.cyc.rr
         } else {
             self.cyc.rr.checked_rem(self.count).unwrap_or(0)
-        };
-        let next = pos.wrapping_add(1);
-        self.cyc.rr = if next >= self.count { 0 } else { next };
-        pos
+        }
     }
 
     /// The round robin's next slave with a system time, as (position, station); `scanned`
@@ -371,6 +377,17 @@ impl<const N: usize> Machine<N> {
                 },
             );
         }
+    }
+}
+
+/// The round-robin position after `pos` among `count` slaves.
+#[inline]
+pub(crate) fn rr_after(pos: u16, count: u16) -> u16 {
+    let next = pos.wrapping_add(1);
+    if next >= count {
+        0
+    } else {
+        next
     }
 }
 

@@ -8,13 +8,13 @@
 //!
 //! Oracle tests compare each path with the general one (`cyclic.rs` tests).
 
-use crate::dc::cyclic::diff_reply;
+use crate::dc::cyclic::{diff_reply, rr_after};
 use crate::dc::machine::{index_after, Machine};
 use crate::dc::request::{Op, Payload, Pending, Tag};
 use crate::wire::register::reg;
 use crate::wire::{
-    matches_pattern, put_small, Command, FrameBuilder, HeaderPattern, DATAGRAM_HEADER_LEN,
-    DATAGRAM_OVERHEAD, ECAT_HEADER_LEN,
+    matches_pattern, put_small, Command, FrameBuilder, DATAGRAM_HEADER_LEN, DATAGRAM_OVERHEAD,
+    ECAT_HEADER_LEN,
 };
 
 /// Size of one round-robin FPRD 0x092C datagram.
@@ -54,13 +54,9 @@ impl<const N: usize> Machine<N> {
         // after the last read once `budget` were found, or where it started when fewer than
         // `budget` exist (the scan went all the way round).
         let count = self.count;
+        let start = self.rr_start();
         let Some((fixed_slots, rr_slots)) = self.inflight.entries.split_at_mut_checked(3) else {
             return false;
-        };
-        let start = if self.cyc.rr < count {
-            self.cyc.rr
-        } else {
-            self.cyc.rr.checked_rem(count).unwrap_or(0)
         };
         let (list, j) = self.monitor.get(&self.slaves, count, start);
         let budget = usize::from(self.cfg.monitor.slaves_per_cycle);
@@ -270,11 +266,11 @@ impl<const N: usize> Machine<N> {
         let Some((d0, d1, d2, rr)) = split() else {
             return Some(false);
         };
-        let last_fixed_more = if k > 0 { MORE_BIT } else { 0 };
-        if !header_is(d0, p0.pattern(), MORE_BIT)
-            || !header_is(d1, p1.pattern(), MORE_BIT)
-            || !header_is(d2, p2.pattern(), last_fixed_more)
-        {
+        let is = |d: &[u8], p: &Pending, more: bool| {
+            d.first_chunk::<8>()
+                .is_some_and(|h| p.pattern().matches(h, more))
+        };
+        if !is(d0, p0, true) || !is(d1, p1, true) || !is(d2, p2, k > 0) {
             return Some(false);
         }
         if !fprds_match(rr, fprds) {
@@ -335,29 +331,16 @@ impl<const N: usize> Machine<N> {
             let Some(p) = self.inflight.get(i).copied() else {
                 break;
             };
-            let Some((data, wkc, tail)) = rest
-                .get(DATAGRAM_HEADER_LEN..)
-                .and_then(|r| r.split_at_checked(usize::from(p.len)))
-                .and_then(|(data, r)| r.split_first_chunk::<2>().map(|(w, t)| (data, w, t)))
-            else {
+            let size = usize::from(p.len).wrapping_add(DATAGRAM_OVERHEAD);
+            let Some((d, tail)) = rest.split_at_checked(size) else {
                 break;
             };
             rest = tail;
-            self.on_cyclic_reply(now, p, u16::from_le_bytes(*wkc), data);
+            let (data, wkc) = data_wkc(d);
+            self.on_cyclic_reply(now, p, wkc, data);
         }
         self.inflight.took_all(n);
         true
-    }
-}
-
-/// The round-robin position after `pos` among `count` (as `rr_step`).
-#[inline]
-fn rr_after(pos: u16, count: u16) -> u16 {
-    let next = pos.wrapping_add(1);
-    if next >= count {
-        0
-    } else {
-        next
     }
 }
 
@@ -386,19 +369,6 @@ fn fprds_match(rr: &[u8], fprds: &[Option<Pending>]) -> bool {
         ok &= key & FIXED == FPRD && matches!(p.tag, Tag::CycDiff(_)) && got == key | more;
     }
     ok && rest.is_empty()
-}
-
-/// Whether a datagram's first 8 header bytes are `p`'s with M as `more` (C and the reserved
-/// bits clear), i.e. [`matches_pattern`]'s test for one datagram.
-#[inline]
-fn header_is(d: &[u8], p: HeaderPattern, more: u64) -> bool {
-    let Some(h) = d.first_chunk::<8>() else {
-        return false;
-    };
-    let len_word = u64::from(p.len) << 48 | more;
-    let mask = p.mask | 0xFFFF << 48;
-    usize::from(p.len) <= crate::wire::MAX_DATAGRAM_DATA
-        && (u64::from_le_bytes(*h) ^ (p.want & 0xFFFF_FFFF_FFFF | len_word)) & mask == 0
 }
 
 /// A datagram's data (between the header and the WKC) and its working counter.

@@ -296,20 +296,8 @@ impl<'a> FrameBuilder<'a> {
             _ => zero_small(body),
         }
         zero_small(wkc);
-        // Only now that the new datagram is written does the previous one get its M bit
-        // (bit 15 of its little-endian length word, i.e. the high byte's top bit).
-        if let Some(prev) = self.last {
-            let at = prev.wrapping_add(dfield::LEN_FLAGS.end.wrapping_sub(1));
-            if at < start {
-                if let Some(b) = self.buf.get_mut(at) {
-                    *b |= 0x80;
-                }
-            }
-        }
-        self.last = Some(start);
-        self.end = end;
-        self.count = self.count.wrapping_add(1);
-        self.write_header_len();
+        // Only now that the new datagram is written does the previous one get its M bit.
+        self.commit(start, end, start, 1);
         Ok(DatagramSlot {
             offset: start,
             len,
@@ -340,6 +328,15 @@ impl<'a> FrameBuilder<'a> {
         if end > self.buf.len() {
             return None;
         }
+        self.commit(start, end, start.wrapping_add(last_at), n);
+        self.buf.get_mut(start..end)
+    }
+
+    /// Takes `n` datagrams written at `start..end` (the last one at `last`) into the frame: the
+    /// previous last datagram gets its M bit (bit 15 of its little-endian length word, i.e. the
+    /// high byte's top bit), then the end, count, chain and EtherCAT header length follow.
+    #[inline]
+    fn commit(&mut self, start: usize, end: usize, last: usize, n: usize) {
         if let Some(prev) = self.last {
             let at = prev.wrapping_add(dfield::LEN_FLAGS.end.wrapping_sub(1));
             if at < start {
@@ -348,11 +345,10 @@ impl<'a> FrameBuilder<'a> {
                 }
             }
         }
-        self.last = Some(start.wrapping_add(last_at));
+        self.last = Some(last);
         self.end = end;
         self.count = self.count.wrapping_add(n);
         self.write_header_len();
-        self.buf.get_mut(start..end)
     }
 
     #[inline]

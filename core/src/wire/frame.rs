@@ -376,6 +376,23 @@ pub(crate) struct HeaderPattern {
 /// Bits 48..63 of a [`HeaderPattern`]: the length word.
 const LEN_WORD: u64 = 0xFFFF << 48;
 
+impl HeaderPattern {
+    /// Whether a datagram's first 8 header bytes `head` match: the masked fields equal, the
+    /// length word exactly `len` with M as `more` (C and reserved bits clear), the length
+    /// within [`MAX_DATAGRAM_DATA`] and the command a known one.
+    #[inline]
+    pub(crate) fn matches(&self, head: &[u8; dfield::LEN_FLAGS.end], more: bool) -> bool {
+        let more = if more { dfield::MORE } else { 0 };
+        let word = u64::from(self.len | more) << 48;
+        let [cmd, ..] = *head;
+        (u64::from_le_bytes(*head) ^ (self.want & !LEN_WORD | word))
+            & (self.mask & !LEN_WORD | LEN_WORD)
+            == 0
+            && usize::from(self.len) <= MAX_DATAGRAM_DATA
+            && usize::from(cmd) < super::Command::ALL.len()
+    }
+}
+
 /// True iff `buf` (EtherCAT header + datagrams) holds exactly `n` ≥ 1 datagrams, datagram `i`
 /// matching `pattern(i)` ([`HeaderPattern`]), and [`EcatFrame::check_len`] accepts it: a
 /// DLPDU header, reserved bit clear, length ≤ 1498 inside `buf`, every datagram a known
@@ -410,28 +427,15 @@ pub(crate) fn matches_pattern(
         let Some(p) = pattern(i) else {
             return false;
         };
-        let len = usize::from(p.len);
-        let more = if i.wrapping_add(1) < n {
-            dfield::MORE
-        } else {
-            0
-        };
-        let word = u64::from(p.len | more) << 48;
-        let Some(head) = region
+        let head = region
             .get(at..)
-            .and_then(|r| r.first_chunk::<{ dfield::LEN_FLAGS.end }>())
-        else {
-            return false;
-        };
-        let got = u64::from_le_bytes(*head);
-        let [cmd, ..] = *head;
-        if (got ^ (p.want & !LEN_WORD | word)) & (p.mask & !LEN_WORD | LEN_WORD) != 0
-            || len > MAX_DATAGRAM_DATA
-            || usize::from(cmd) >= super::Command::ALL.len()
-        {
+            .and_then(|r| r.first_chunk::<{ dfield::LEN_FLAGS.end }>());
+        if !head.is_some_and(|h| p.matches(h, i.wrapping_add(1) < n)) {
             return false;
         }
-        at = at.wrapping_add(len).wrapping_add(dfield::MIN_LEN);
+        at = at
+            .wrapping_add(usize::from(p.len))
+            .wrapping_add(dfield::MIN_LEN);
     }
     at == region.len()
 }
