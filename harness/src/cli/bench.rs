@@ -129,7 +129,8 @@ impl BenchScenario {
     pub fn title(self) -> &'static str {
         match self {
             BenchScenario::Seed000Line6 => {
-                "seed 000 §4: 6 slaves in a line, 1 ms cycle, ±50 ppm (the `ecdc simulate` default)"
+                "seed 000 §4: 6 slaves in a line, hop delays calibrated to its Table 2, 1 ms cycle, \
+                 ±50 ppm (the `ecdc simulate` default)"
             }
             BenchScenario::Seed003Line2 => {
                 "seed 003 §2.1: master + 2 servo drives in a line, 1 ms cycle, ±50 ppm \
@@ -157,14 +158,14 @@ impl BenchScenario {
     /// The emulator scenario.
     pub fn scenario(self) -> anyhow::Result<Scenario> {
         let text = match self {
-            BenchScenario::Seed000Line6 => return Ok(Scenario::line(6)),
+            BenchScenario::Seed000Line6 => return Ok(Scenario::seed000_line()),
             BenchScenario::Seed003Line2 => include_str!("../../scenarios/bench_seed003.toml"),
             BenchScenario::Tree100Nondc => include_str!("../../scenarios/bench_tree100.toml"),
             BenchScenario::Line512 => include_str!("../../scenarios/bench_line512.toml"),
             BenchScenario::Seed000Line6Loss => {
                 return Ok(Scenario {
                     frame_loss_rate: Self::LOSS_RATE,
-                    ..Scenario::line(6)
+                    ..Scenario::seed000_line()
                 })
             }
             BenchScenario::Line6Dc32 => {

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::Context;
 
 use crate::emu::{Network, PpmSpec, Scenario, SlaveSpec};
-use crate::report::{self, Report, Setup};
+use crate::report::{self, table2, Report, Setup};
 use crate::schemes::ecdc::{self, Ecdc};
 use crate::schemes::measure::summarize;
 use crate::schemes::run::{run_scheme, Record, RunOpts};
@@ -29,7 +29,7 @@ pub enum Topology {
 }
 
 /// Arguments of `ecdc simulate`. Without `--scenario` the default is seed 000's setup: 6 slaves
-/// in a line, 1 ms cycle, ±50 ppm crystals.
+/// in a line with its Table 2 delays ([`Scenario::seed000_line`]), 1 ms cycle, ±50 ppm crystals.
 #[derive(Debug, Clone, clap::Args)]
 pub struct Args {
     /// Scenario file (TOML or JSON, the emulator's format); flags given explicitly override it.
@@ -126,7 +126,7 @@ fn slaves_for(topology: Topology, n: usize) -> Vec<SlaveSpec> {
 pub fn scenario(args: &Args) -> anyhow::Result<(Scenario, String)> {
     let mut sc = match &args.scenario {
         Some(p) => Scenario::load(p).map_err(|e| anyhow::anyhow!("{e}"))?,
-        None => Scenario::line(6),
+        None => Scenario::seed000_line(),
     };
     let mut topo = match &args.scenario {
         Some(p) => format!("from {}", p.display()),
@@ -249,8 +249,35 @@ pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
         sample_ns: opts.sample_ns,
         ecdc_drift_burst_frames: cfg.drift.burst_frames,
     };
-    let report = Report::new(setup, records.iter().map(summarize).collect());
+    let mut report = Report::new(setup, records.iter().map(summarize).collect());
+    table2_section(args, &sc, &mut report)?;
     Ok((report, records))
+}
+
+/// Whether the arguments describe seed 000's own line (the default scenario): no scenario file,
+/// no topology or slave count given. Crystals, loss and seed may differ.
+pub fn is_seed000_line(args: &Args) -> bool {
+    args.scenario.is_none() && args.slaves.is_none() && args.topology.is_none()
+}
+
+/// The Table 2 data of the report: the emulator's true delays always, the paper's numbers on
+/// seed 000's line.
+fn table2_section(args: &Args, sc: &Scenario, report: &mut Report) -> anyhow::Result<()> {
+    report.truth = Some(table2::truth(sc).map_err(|e| anyhow::anyhow!("{e}"))?);
+    report.paper = is_seed000_line(args).then(table2::Paper::seed000);
+    Ok(())
+}
+
+/// The Table 2 text section of a report and its records.
+pub fn table2_text(report: &Report, records: &[Record]) -> String {
+    let Some(truth) = &report.truth else {
+        return String::new();
+    };
+    let pairs: Vec<(&crate::schemes::measure::Summary, &Record)> = records
+        .iter()
+        .filter_map(|r| report.schemes.get(r.name).map(|s| (s, r)))
+        .collect();
+    table2::render(truth, report.paper.as_ref(), &pairs)
 }
 
 /// Runs `ecdc simulate`.
@@ -270,6 +297,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     std::fs::write(&json_path, report.to_json()?)
         .with_context(|| format!("writing {}", json_path.display()))?;
     print!("{}", report::table::render(&report));
+    print!("{}", table2_text(&report, &records));
     println!("\nwrote {} and {}", json_path.display(), svg_path.display());
     Ok(())
 }

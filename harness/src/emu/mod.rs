@@ -64,7 +64,10 @@ pub use esc::SyncEdge;
 pub use fault::{Fault, FaultSpec};
 pub use network::{ClockSample, Delivery, LossReason, Network, Returned, SlaveInfo, Stats};
 pub use registers::EscKind;
-pub use scenario::{PpmSpec, Scenario, SlaveDefaults, SlaveSpec, Timing};
+pub use scenario::{
+    PpmSpec, Scenario, SlaveDefaults, SlaveSpec, Timing, SEED000_TABLE2_DELAYS_NS, SEED000_T_F_NS,
+    SEED000_T_P_NS,
+};
 pub use sync_unit::SyncSignal;
 
 /// True (analyzer) time: nanoseconds since the start of the run.

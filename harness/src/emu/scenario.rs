@@ -21,6 +21,22 @@ use super::registers::EscKind;
 use super::EmuError;
 use serde::{Deserialize, Serialize};
 
+/// Seed 000 Table 2, row "传输补偿值" (delay compensation, 0x0928) for slaves 2–6, ns: what the
+/// paper's master wrote on its six-slave line (Chen et al. 2025, §4, Table 2).
+pub const SEED000_TABLE2_DELAYS_NS: [u32; 5] = [105, 206, 310, 410, 520];
+
+/// t_P of [`Scenario::seed000_line`], ns. Calibration, not a datasheet value: Table 2's
+/// least-squares slope of 103.4 ns per hop, minus the 1 m cable (5 ns, DS S1-88) and the mean
+/// PHY jitter of one cable traversal (4 ns, half of [`Timing::phy_jitter_ns`]), rounded down.
+pub const SEED000_T_P_NS: u64 = 94;
+
+/// t_F of [`Scenario::seed000_line`], ns. Model choice: t_Diff = t_P − t_F = 10 ns. The paper
+/// gives no t_F (only that t_Diff depends on the PHY medium); 10 ns is one DC tick and the size
+/// of the excess of Table 2's last slave over the trend of the others (7.5 ns), which the last
+/// case of eq. 23 as printed adds. Positive because the processing path (through the EPU) is
+/// the longer one.
+pub const SEED000_T_F_NS: u64 = 84;
+
 /// Global timing model. Defaults marked "model" have no source (docs/emulator.md §Constants).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -231,6 +247,19 @@ impl Scenario {
             }],
             ..Scenario::default()
         }
+    }
+
+    /// Seed 000's test line (§4: six slaves in a line), with hop delays calibrated to its
+    /// Table 2 delay row (105 / 206 / 310 / 410 / 520 ns for slaves 2–6, least-squares
+    /// 103.4 ns per hop through the origin): t_P = [`SEED000_T_P_NS`], t_F =
+    /// [`SEED000_T_F_NS`], 1 m cables. Everything else (crystals, jitter, wander) is the
+    /// emulator default. docs/background/seed000-line.md gives the derivation.
+    pub fn seed000_line() -> Self {
+        let mut sc = Scenario::line(6);
+        sc.defaults.t_p_ns = SEED000_T_P_NS;
+        sc.defaults.t_f_ns = SEED000_T_F_NS;
+        sc.defaults.cable_m = 1.0;
+        sc
     }
 
     /// Appends a slave spec (builder style).

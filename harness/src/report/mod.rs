@@ -3,6 +3,7 @@
 
 pub mod svg;
 pub mod table;
+pub mod table2;
 
 use std::collections::BTreeMap;
 
@@ -49,6 +50,12 @@ pub struct Report {
     /// ecdc ÷ seed000 for skew mean, p99, max and lock frames (< 1 = ecdc better).
     pub ratios: BTreeMap<&'static str, Option<f64>>,
     pub targets: Vec<Target>,
+    /// The emulator's true propagation delays (set by `ecdc simulate`, [`table2::truth`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<table2::Truth>,
+    /// Seed 000's own Table 2 numbers, on the default scenario only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub paper: Option<table2::Paper>,
 }
 
 /// The definitions written into every report.
@@ -181,6 +188,8 @@ impl Report {
             schemes,
             ratios,
             targets,
+            truth: None,
+            paper: None,
         }
     }
 
