@@ -47,7 +47,7 @@ pub struct Report {
     pub schemes: BTreeMap<String, Summary>,
     /// ecdc's per-slave table (seed 000 Table 2 rows), also under `schemes.ecdc.slaves`.
     pub table: Vec<SlaveRow>,
-    /// ecdc ÷ seed000 for skew mean, p99, max and lock frames (< 1 = ecdc better).
+    /// ecdc ÷ seed000 for skew mean, p99, max, lock frames and lock ms (< 1 = ecdc better).
     pub ratios: BTreeMap<&'static str, Option<f64>>,
     pub targets: Vec<Target>,
     /// The emulator's true propagation delays (set by `ecdc simulate`, [`table2::truth`]).
@@ -142,6 +142,10 @@ impl Report {
                     f(s.and_then(|x| x.lock_frames)),
                 ),
             ),
+            (
+                "lock_ms",
+                ratio(e.and_then(|x| x.lock_ms), s.and_then(|x| x.lock_ms)),
+            ),
         ]);
         let fmt = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.1}"));
         let mut targets = Vec::new();
@@ -165,6 +169,20 @@ impl Report {
                 met: e.lock_frames.is_some_and(|v| v <= 3000),
             });
             if let Some(s) = s {
+                // The time to lock, beside the frames: a scheme that sends fewer frames but
+                // waits longer has not locked faster.
+                let r = ratios["lock_ms"];
+                targets.push(Target {
+                    name: "ecdc lock ms vs seed000".into(),
+                    target: "ratio <= 0.5".into(),
+                    measured: format!(
+                        "{} ms vs {} ms, ratio {}",
+                        fmt(e.lock_ms),
+                        fmt(s.lock_ms),
+                        r.map_or("n/a".into(), |r| format!("{r:.3}"))
+                    ),
+                    met: r.is_some_and(|r| r <= 0.5),
+                });
                 let ok = match (e.skew_mean_ns, s.skew_mean_ns, e.skew_max_ns, s.skew_max_ns) {
                     (Some(a), Some(b), Some(c), Some(d)) => a <= b && c <= d,
                     _ => false,

@@ -115,7 +115,7 @@ pub fn render(r: &Report) -> String {
     let _ = writeln!(
         out,
         "{:<15} {:>12} {:>10} {:>14}",
-        "scheme", "lock frames", "lock ms", "static drift"
+        "scheme", "lock ms", "lock frames", "static drift"
     );
     for name in ["ecdc", "seed000", "uncompensated"] {
         if let Some(s) = r.schemes.get(name) {
@@ -123,8 +123,8 @@ pub fn render(r: &Report) -> String {
                 out,
                 "{:<15} {:>12} {:>10} {:>14}",
                 name,
-                opt(s.lock_frames),
                 optf(s.lock_ms, 1),
+                opt(s.lock_frames),
                 opt(s.static_drift_frames)
             );
         }
@@ -155,11 +155,12 @@ pub fn render(r: &Report) -> String {
     let ratio = |k: &str| optf(r.ratios.get(k).copied().flatten(), 3);
     let _ = writeln!(
         out,
-        "ecdc / seed000: skew mean {}, p99 {}, max {}, lock frames {}",
+        "ecdc / seed000: skew mean {}, p99 {}, max {}, lock frames {}, lock ms {}",
         ratio("skew_mean"),
         ratio("skew_p99"),
         ratio("skew_max"),
-        ratio("lock_frames")
+        ratio("lock_frames"),
+        ratio("lock_ms")
     );
     let _ = writeln!(out, "\ntargets");
     for t in &r.targets {
