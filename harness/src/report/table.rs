@@ -114,14 +114,14 @@ pub fn render(r: &Report) -> String {
     );
     let _ = writeln!(
         out,
-        "{:<15} {:>12} {:>10} {:>14}",
+        "{:<15} {:>10} {:>12} {:>14}",
         "scheme", "lock ms", "lock frames", "static drift"
     );
     for name in ["ecdc", "seed000", "uncompensated"] {
         if let Some(s) = r.schemes.get(name) {
             let _ = writeln!(
                 out,
-                "{:<15} {:>12} {:>10} {:>14}",
+                "{:<15} {:>10} {:>12} {:>14}",
                 name,
                 optf(s.lock_ms, 1),
                 opt(s.lock_frames),
