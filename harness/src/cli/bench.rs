@@ -36,6 +36,9 @@ pub enum BenchCmd {
     /// DC precision (lock, SYNC0 skew) of ecdc vs the seed 000, IgH-like, ethercrab-like and
     /// uncompensated schemes on six emulated networks.
     Dc(DcArgs),
+    /// Every scheme's precision on seed 000's line with one unsourced emulator constant moved
+    /// at a time (t_DIFF, ESC loop gains, 0x0934/0x0935 power-on depths, PHY jitter, crystals).
+    Sensitivity(super::sensitivity::SensitivityArgs),
 }
 
 /// The bench scenarios.
@@ -235,7 +238,7 @@ pub struct SchemeResult {
 }
 
 impl SchemeResult {
-    fn from_summary(s: &Summary, sync0_slaves: usize) -> Self {
+    pub(crate) fn from_summary(s: &Summary, sync0_slaves: usize) -> Self {
         SchemeResult {
             name: s.name.clone(),
             error: s.error.clone(),
@@ -354,6 +357,17 @@ fn build(
         SchemeName::Ethercrab => Box::new(Ethercrab::new(net, cycle)),
         SchemeName::Uncompensated => Box::new(Uncompensated::new(net, cycle)),
     })
+}
+
+/// Builds scheme `which` on a fresh network of `sc`, telling it what `bench dc` tells it
+/// (docs/bench.md).
+pub(crate) fn build_scheme(
+    which: SchemeName,
+    sc: &Scenario,
+    cycle: u32,
+) -> anyhow::Result<Box<dyn Scheme>> {
+    let t_diff = i64::try_from(sc.defaults.t_p_ns)? - i64::try_from(sc.defaults.t_f_ns)?;
+    build(which, sc, t_diff, cycle)
 }
 
 /// Runs one scenario with the given schemes; returns its results and plot series. Progress
@@ -650,5 +664,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        BenchCmd::Sensitivity(a) => super::sensitivity::run(a).map(|_| ()),
     }
 }

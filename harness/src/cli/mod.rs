@@ -7,4 +7,5 @@ pub mod link_args;
 pub mod rtt;
 pub mod run;
 pub mod scan;
+pub mod sensitivity;
 pub mod simulate;

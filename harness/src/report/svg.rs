@@ -473,3 +473,77 @@ fn series_line(
 ) {
     series(out, color, pts, y0, pw, row, &esc(label));
 }
+
+/// One axis of the `ecdc bench sensitivity` plot: categorical x values and, per scheme, the
+/// mean |skew| at each (`None` = no pairs).
+#[derive(Debug, Clone, Default)]
+pub struct SensitivityPanel {
+    /// Axis name (panel title).
+    pub title: String,
+    /// The axis values, left to right.
+    pub labels: Vec<String>,
+    /// (scheme, mean |skew| ns per label).
+    pub series: Vec<(String, Vec<Option<f64>>)>,
+}
+
+/// The `ecdc bench sensitivity` plot: one panel per axis, the mean |SYNC0 skew| of every scheme
+/// at each value of the axis (log scale 1 ns .. 1 µs, larger values drawn at the top). `command` is written into the file.
+pub fn render_sensitivity(title: &str, command: &str, panels: &[SensitivityPanel]) -> String {
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let h = TOP + panels.len() as f64 * (PANEL_H + GAP) + 50.0;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(out, "<desc>{}</desc>", esc(command));
+    let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="18" font-size="14" font-weight="bold">{}</text>"#,
+        esc(title)
+    );
+    let _ = writeln!(
+        out,
+        r##"<text x="{LEFT}" y="{}" font-size="11" fill="#666">{}</text>"##,
+        h - 12.0,
+        esc(command)
+    );
+    for (p, panel) in panels.iter().enumerate() {
+        let y0 = TOP + 30.0 + p as f64 * (PANEL_H + GAP);
+        let _ = writeln!(
+            out,
+            r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">mean |SYNC0 skew| vs {}</text>"#,
+            y0 - 10.0,
+            esc(&panel.title)
+        );
+        let _ = writeln!(
+            out,
+            r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+        );
+        let y = log_axis(&mut out, y0, pw, 3);
+        let n = panel.labels.len().max(1);
+        let x = |i: usize| LEFT + (i as f64 + 0.5) / n as f64 * pw;
+        for (i, l) in panel.labels.iter().enumerate() {
+            let _ = writeln!(
+                out,
+                r#"<text x="{:.1}" y="{}" font-size="11" text-anchor="middle">{}</text>"#,
+                x(i),
+                y0 + ph + 16.0,
+                esc(l)
+            );
+        }
+        for (k, (name, pts)) in panel.series.iter().enumerate() {
+            let mut line = String::new();
+            for (i, v) in pts.iter().enumerate() {
+                if let Some(v) = v {
+                    let _ = write!(line, "{:.1},{:.1} ", x(i), y(*v));
+                }
+            }
+            series_line(&mut out, bench_color(name, k), &line, y0, pw, k, name);
+        }
+    }
+    out.push_str("</svg>\n");
+    out
+}
