@@ -161,7 +161,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn seed_poles_and_jury() {
+    fn pole_placement_and_jury() {
         let (kp, ki) = gains_from_poles(0.5, 1.0 / 3.0);
         assert!((kp - 5.0 / 6.0).abs() < 1e-12 && (ki - 1.0 / 3.0).abs() < 1e-12);
         assert!((pi_pole_radius(kp, ki) - 0.5).abs() < 1e-9);

@@ -125,17 +125,6 @@ impl PiGains {
     pub const fn ki(self) -> i64 {
         self.ki
     }
-
-    /// The seed 004 design read as loop poles (e^−aT = 1/2, e^−bT = 1/3): Kp = 5/6, Ki = 1/3
-    /// (servo.md §6). Fast and noise-amplifying; offered for comparison with the paper.
-    pub fn seed004() -> Self {
-        // Poles 1/2 and 1/3 are in [0, 1), so the pole constructor always succeeds; the
-        // fallback is the same values written out (5/6 and 1/3 in Q32).
-        Self::from_poles(Pole(1 << 31), Pole(0x5555_5555)).unwrap_or(PiGains {
-            kp: 3_579_139_413,
-            ki: 1_431_655_765,
-        })
-    }
 }
 
 #[cfg(test)]
@@ -148,7 +137,8 @@ mod tests {
 
     #[test]
     fn poles_map_to_expected_gains() {
-        let g = PiGains::seed004();
+        // Poles 1/2 and 1/3: Kp = 1 − 1/6, Ki = (1/2)(2/3).
+        let g = PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0x5555_5555)).unwrap();
         assert!((f(g.kp()) - 5.0 / 6.0).abs() < 1e-9);
         assert!((f(g.ki()) - 1.0 / 3.0).abs() < 1e-9);
         let p = Pole::from_micro(990_000).unwrap();

@@ -191,7 +191,8 @@ mod tests {
 
     #[test]
     fn linear_region_matches_formula() {
-        let g = PiGains::seed004();
+        // Fast gains (poles 1/2 and 1/3, Kp = 5/6, Ki = 1/3): a test choice with Kp, Ki < 1.
+        let g = PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0x5555_5555)).unwrap();
         let lim = PiLimits::from_ns(1000, 500).unwrap();
         let s = pi_step(g, lim, 10 * ONE, 60);
         let v = g.kp() * 60 + 10 * ONE + g.ki() * 60;

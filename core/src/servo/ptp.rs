@@ -23,9 +23,10 @@ pub struct PtpConfig {
     /// Actuator limit, ppb (> 0); y_max = I_max = max_ppb · h₀ / 10^9 ns per interval.
     pub max_ppb: u32,
     /// Run the seed 004 two-pole filter on the offset before the servo. It adds two poles of lag
-    /// inside the loop: [DERIVED] with the seed's own fast gains (Kp 5/6, Ki 1/3) the loop rings
-    /// (error ÷10 per ~200 samples); with slower PI poles (≥ 0.5) it stays well damped but the
-    /// PI already averages, so `false` is the recommended setting.
+    /// inside the loop: [DERIVED] with fast PI poles (1/2 and 1/3, the filter's own pole values
+    /// reused as loop poles — the seed gives no loop gains) the loop rings (error ÷10 per ~200
+    /// samples); with slower PI poles (double pole 0.7 / 0.9) it stays well damped but the PI
+    /// already averages, so `false` is the recommended setting.
     pub offset_filter: bool,
     /// Counter actuator (crystal Hz, PLL multiplier) for seed eq. 15–18 output, if any.
     pub counter: Option<(u64, u32)>,
@@ -241,13 +242,16 @@ mod tests {
     }
 
     #[test]
-    fn seed_design_with_offset_filter() {
-        // Seed 004 as a whole: its poles for the loop and its two-pole filter on the offset.
-        // [DERIVED] The filter's lag leaves a lightly damped pole pair (error ÷10 per ~200
-        // samples), so this needs far more exchanges than the unfiltered loop above.
+    fn offset_filter_inside_the_loop() {
+        // The seed's filter on the offset (eq. 7–9). The seed gives no loop gains; its filter
+        // poles 1/2 and 1/3 reused as PI poles make a fast loop. [DERIVED] The filter's lag then
+        // leaves a lightly damped pole pair (error ÷10 per ~200 samples), so this needs far more
+        // exchanges than the unfiltered loop above.
+        let fast =
+            PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0x5555_5555)).unwrap();
         let mut c = cfg();
-        c.servo.acquire = PiGains::seed004();
-        c.servo.track = PiGains::seed004();
+        c.servo.acquire = fast;
+        c.servo.track = fast;
         c.offset_filter = true;
         // The lightly damped loop plus the filter's 1 ns output quantisation settles into a
         // small limit cycle (measured: about ±10 ns, ±60 ppb) instead of converging exactly.
