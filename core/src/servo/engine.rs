@@ -230,8 +230,15 @@ impl Servo {
     /// Seed the integrator with a known frequency (Q32 ns per interval, clamped to ±I_max), e.g.
     /// the last learned value across a restart (linuxptp's `fadj`).
     pub fn with_integrator(mut self, i_q32: i64) -> Self {
-        self.integrator = hold(self.cfg.limits, i_q32);
+        self.set_integrator(i_q32);
         self
+    }
+
+    /// Load a known frequency into the integrator (Q32 ns per interval, clamped to ±I_max), e.g.
+    /// a rate measured before the loop starts: the PI then starts at its equilibrium instead of
+    /// integrating the whole rate error through the phase.
+    pub fn set_integrator(&mut self, i_q32: i64) {
+        self.integrator = hold(self.cfg.limits, i_q32);
     }
 
     /// Configuration in use.
