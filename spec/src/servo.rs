@@ -11,7 +11,7 @@
 /// Q32 one.
 pub const ONE: i128 = 1 << 32;
 
-/// Closed-loop poles of the per-sample PI (servo.md §1.2): the roots of
+/// Closed-loop poles of the per-sample PI (REQ-SERVO-001): the roots of
 /// z² + (Kp + Ki − 2)·z + (1 − Kp). Returns the larger root modulus.
 pub fn pi_pole_radius(kp: f64, ki: f64) -> f64 {
     let b = kp + ki - 2.0;
@@ -130,7 +130,7 @@ pub fn rate_ratio_ppb(m0: i128, m_n: i128, s0: i128, s_n: i128) -> f64 {
     (dm / ds - 1.0) * 1e9
 }
 
-/// The master-follows-reference plant (servo.md §7 model): the phase error of the master's
+/// The master-follows-reference plant: the phase error of the master's
 /// wake-up against the reference, in exact ns·10^9 units so drift in ppb accumulates without
 /// rounding. θₖ₊₁ = θₖ + P·drift_ppb/10^9 − cₖ + (jitter handled by the caller).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

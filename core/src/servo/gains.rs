@@ -1,11 +1,11 @@
 //! PI gains in Q32 fixed point, derived from closed-loop pole positions and refused outside the
 //! stable region.
 //!
-//! Why poles: "what should kp/ki be?" is the most common servo question in the field
-//! (servo.md §1.9 item 6). A pole radius is one physically meaningful knob: the error decays as
+//! Why poles: a raw (kp, ki) pair says nothing a user can check against the application, and a
+//! pair that looks harmless can be unstable. A pole radius is one physically meaningful knob: the error decays as
 //! p^k, so p = 0.99 at 1 kHz is a ~100 ms time constant. For the per-sample PI of
 //! [`super::pi`] the closed-loop characteristic polynomial is z² + (Kp + Ki − 2)·z + (1 − Kp)
-//! (servo.md §1.2 [DERIVED]); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
+//! ([DERIVED] for the plant θₖ₊₁ = θₖ + δ − uₖ, REQ-SERVO-001); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
 //! Ki = (1 − p₁)(1 − p₂) (REQ-SERVO-001).
 //!
 //! Q-format: a gain g is stored as the integer round(g · 2^32) in an `i64` ([`ONE`] = 1.0).
@@ -20,7 +20,7 @@ pub const ONE: i64 = 1 << FRAC_BITS;
 
 /// Stability margin (REQ-SERVO-002): Kp ∈ [M, 2 − M] and 2·Kp + Ki ≤ 4 − M, M = 2^-10. Keeps
 /// both poles a visible distance inside the unit circle, which excludes linuxptp's marginal
-/// corner Kp = 1, Ki = 2 (a pole at z = −1, servo.md §1.2).
+/// corner Kp = 1, Ki = 2 (a pole at z = −1: z² + z + 0 = z(z + 1)).
 pub const MARGIN: i64 = ONE >> 10;
 
 /// A closed-loop pole on the real axis in [0, 1), as a Q32 fraction (`u32`, so p < 1 holds by
