@@ -1,5 +1,5 @@
 //! Master-follows-reference: the loop that keeps the master's cycle on the DC reference clock
-//! by correcting the master's next wake-up deadline (servo.md §3, §7; REQ-SERVO-100..105).
+//! by correcting the master's next wake-up deadline (REQ-SERVO-100..104).
 //!
 //! Model. The master keeps a nominal "app time" that advances exactly one period P per cycle
 //! (its idea of DC system time at the cycle's wake-up), and sends it with the cyclic frame whose
@@ -65,7 +65,7 @@ pub struct MasterConfig {
 }
 
 impl MasterConfig {
-    /// Defaults for period P (ecdc choices, servo.md §3.7, §7):
+    /// Defaults for period P (ecdc choices, REQ-SERVO-104):
     /// - acquire: double pole 0.9 (Kp 0.19, Ki 0.01), track: double pole 0.99 (noise-rejecting);
     /// - |correction| ≤ P/1000 per cycle (IgH's ±0.1 %), I_max = y_max;
     /// - no phase steps of the wake-up at all: steps are by whole periods of app time only
