@@ -258,7 +258,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
     /// Closed-loop convergence with measurement jitter: lock within 2000 cycles, steady-state
-    /// |θ| ≤ 1.6·J + 100 ns (servo.md §7 invariant 9 with ‖t‖₁ ≤ 1.6, plus the drift ramp).
+    /// |θ| ≤ 1.6·J + 100 ns (docs/background/servo-design.md §7.5 invariant 9 with ‖t‖₁ ≤ 1.6, plus the drift ramp).
     #[test]
     fn master_loop_converges_with_jitter(ppb in -100_000i128..=100_000, init in -2_000_000_000i128..2_000_000_000,
                                          jitter in 0i64..=5_000, seed in any::<u64>()) {
