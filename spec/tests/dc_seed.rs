@@ -149,7 +149,7 @@ fn seed003_two_slaves() {
     assert_eq!(seed003::eq2_return(420, 95), x2 / 2, "eq. 3: t_p1 = t_p2");
 }
 
-/// Datasheet example (esc-dc.md §5): A – B (junction, ports 0/1/2) – C – D on B's port 1, E on
+/// Datasheet example (docs/background/esc-registers.md §5): A – B (junction, ports 0/1/2) – C – D on B's port 1, E on
 /// B's port 2. t_AB, t_BC, t_CD and the general hop rule equal the model, and so does core.
 #[test]
 fn datasheet_tree_formulas() {
