@@ -1,6 +1,7 @@
 //! One module per `ecdc` subcommand; `src/bin/ecdc.rs` only parses arguments and dispatches.
 
 pub mod bench;
+pub mod check;
 pub mod decode;
 pub mod emulate;
 pub mod link_args;
@@ -8,3 +9,4 @@ pub mod rtt;
 pub mod run;
 pub mod scan;
 pub mod simulate;
+pub mod validate;
