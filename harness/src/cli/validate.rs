@@ -131,10 +131,10 @@ pub fn seconds(s: &str) -> Result<f64, String> {
     let v: f64 = s
         .trim()
         .parse()
-        .map_err(|_| format!("not a number of seconds; valid: > 0 and <= {MAX_S}"))?;
+        .map_err(|_| format!("not a number of seconds; valid: > 0 and <= {MAX_S} s"))?;
     if !v.is_finite() || v <= 0.0 || v > MAX_S {
         return Err(format!(
-            "{v} s is out of range; valid: > 0 and <= {MAX_S} (omit the flag to run until Ctrl-C)"
+            "{v} s is out of range; valid: > 0 and <= {MAX_S} s (omit the flag to run until Ctrl-C)"
         ));
     }
     Ok(v)
