@@ -574,6 +574,13 @@ fn cases() -> Vec<Case> {
             format!("{two}[[faults]]\nat_ns = 2_000_000_000\nkind = \"power_off\"\nslave = 1\n"),
         ),
         iface_case(
+            "emulate reflect with a seed",
+            &[
+                "emulate", "-i", NO_IFACE, "--engine", "reflect", "--seed", "3",
+            ],
+            &["--seed", "no effect with --engine reflect"],
+        ),
+        iface_case(
             "emulate missing scenario",
             &["emulate", "-i", NO_IFACE, "--scenario", "{dir}/absent.toml"],
             &["--scenario", "absent.toml", "no such file"],

@@ -61,7 +61,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     validate::cpu("--cpu", args.rt.cpu)?;
     let scenario = match args.engine {
         Engine::Esc => Some(load_scenario(args)?),
-        Engine::Reflect => None,
+        Engine::Reflect => {
+            let esc_only = [
+                ("--scenario", args.scenario.is_some()),
+                ("--seed", args.seed.is_some()),
+                ("--loss-rate", args.loss_rate.is_some()),
+            ];
+            if let Some((flag, _)) = esc_only.iter().find(|(_, given)| *given) {
+                return Err(validate::usage(format!(
+                    "{flag} configures the ESC emulator and has no effect with --engine reflect"
+                )));
+            }
+            None
+        }
     };
     let stop = sys::install_stop_handler().context("installing the signal handler")?;
     let mut sock = args
