@@ -1,5 +1,6 @@
 //! Every bad input to the `ecdc` binary gets a clear error and the documented exit code
-//! (README "Exit codes": 1 runtime, 2 usage, 3 `--check` target missed), table-wise.
+//! (README "Exit codes": 1 runtime, 2 usage, 3 `--check` target missed), table-wise. All
+//! cases but one (a write that fails after the run, 1) are usage errors.
 //!
 //! Each case runs the built binary in a fresh temporary directory (also its working directory,
 //! so a default output path would land there too) holding only the case's input files, with
@@ -227,6 +228,22 @@ fn cases() -> Vec<Case> {
             "svg in a missing directory",
             &["--duration-ms", "10", "--svg", "{dir}/nowhere/x.svg"],
             &["--svg", "does not exist"],
+        ),
+        // a write that fails after the run is a runtime error (1), before any file is written
+        case(
+            "svg not writable",
+            &[
+                "simulate",
+                "--no-progress",
+                "--duration-ms",
+                "10",
+                "--out-dir",
+                "{dir}",
+                "--svg",
+                "/proc/ecdc.svg",
+            ],
+            1,
+            &["writing /proc/ecdc.svg"],
         ),
         // simulate: scenario files that are missing, unparsable or make no sense
         sim_case(
@@ -848,6 +865,11 @@ fn good_input_runs_and_writes() {
     assert_eq!(r.after, ["ecdc-simulate.json", "ecdc-simulate.svg"]);
     // Without --check a missed target is reported and the exit status stays 0.
     assert!(r.stdout.contains("[MISSED]"), "{}", r.stdout);
+    // Input that passes validation reaches the interface lookup, whose message the table
+    // above must never show: a missing interface is a runtime error (1).
+    let r = run_in(&dir, &expand(&["scan", "-i", NO_IFACE], &dir));
+    assert_eq!(r.code, Some(1), "{}", r.stderr);
+    assert!(r.stderr.contains(IFACE_TOUCHED), "{}", r.stderr);
     let r = run_in(&dir, &expand(&["decode", "0x00"], &dir));
     assert_eq!(
         r.code,

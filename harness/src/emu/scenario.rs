@@ -363,9 +363,10 @@ impl Scenario {
     }
 }
 
-/// Most slaves a scenario may hold: auto-increment (position) addressing counts slaves in the
-/// 16-bit ADP field, so one segment has at most 65 535 of them besides ADP 0 wrapping
-/// (IEC 61158-4-12 datagram header; docs/background/cli-inputs.md).
+/// Most slaves a scenario may hold. Auto-increment (position) addressing counts slaves in the
+/// 16-bit ADP field, so a segment has at most 65 536 positions (IEC 61158-4-12 datagram
+/// header; docs/background/cli-inputs.md); ecdc choice: one fewer, so that the slave count
+/// itself fits a u16.
 pub const MAX_SLAVES: usize = 65_535;
 
 /// Largest |crystal error| a scenario may give, ppm: at −10^6 ppm a clock stands still and
