@@ -81,9 +81,15 @@ pub struct DcArgs {
     /// Run only these schemes (repeatable) [default: all five].
     #[arg(long = "scheme", value_enum)]
     pub schemes: Vec<SchemeName>,
-    /// Override every scenario's simulated duration, ms.
-    #[arg(long)]
+    /// Override every scenario's simulated duration, ms (1..=3600000).
+    #[arg(long, allow_negative_numbers = true,
+          value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
     pub duration_ms: Option<u64>,
+    /// Exit with status 3 when ecdc misses a target in any scenario (it stops early, does not
+    /// lock before the last 10 % of the run, a DC slave never fires SYNC0, or the skew max
+    /// exceeds 100 ns; docs/bench.md). The files are written either way.
+    #[arg(long)]
+    pub check: bool,
 }
 
 impl Default for DcArgs {
@@ -93,6 +99,7 @@ impl Default for DcArgs {
             scenarios: Vec::new(),
             schemes: Vec::new(),
             duration_ms: None,
+            check: false,
         }
     }
 }
@@ -608,6 +615,7 @@ pub fn markdown_report(rep: &DcReport) -> String {
 
 /// Runs `ecdc bench dc` and writes its files; returns the report.
 pub fn run_dc(args: &DcArgs) -> anyhow::Result<DcReport> {
+    super::validate::bench_dc_args(args)?;
     let mut scenarios = if args.scenarios.is_empty() {
         BenchScenario::ALL.to_vec()
     } else {
@@ -653,6 +661,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         BenchCmd::Dc(a) => {
             let wall = Instant::now();
             let rep = run_dc(a)?;
+            let missed = if a.check {
+                super::check::bench(&rep)
+            } else {
+                Vec::new()
+            };
             let all: Vec<Vec<String>> = rep.scenarios.iter().flat_map(|r| rows(r, true)).collect();
             let mut headers = vec!["scenario"];
             headers.extend(HEADERS);
@@ -662,6 +675,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 a.out.display(),
                 wall.elapsed().as_secs_f64()
             );
+            if !missed.is_empty() {
+                return Err(super::validate::TargetsMissed(missed).into());
+            }
             Ok(())
         }
         BenchCmd::Sensitivity(a) => super::sensitivity::run(a).map(|_| ()),
