@@ -384,6 +384,37 @@ fn cases() -> Vec<Case> {
             2,
             &["--check", "--scheme ecdc"],
         ),
+        // bench sensitivity
+        case(
+            "sensitivity duration 0",
+            &[
+                "bench",
+                "sensitivity",
+                "--out",
+                "{dir}/s",
+                "--duration-ms",
+                "0",
+            ],
+            2,
+            &["--duration-ms", "valid: 1..=3600000"],
+        ),
+        with_file(
+            case(
+                "sensitivity out is a file",
+                &[
+                    "bench",
+                    "sensitivity",
+                    "--out",
+                    "{dir}/plain",
+                    "--duration-ms",
+                    "10",
+                ],
+                2,
+                &["--out", "plain", "not a directory"],
+            ),
+            "plain",
+            "x",
+        ),
         // decode: files that are not (whole) captures, bad hex
         with_file(
             case(

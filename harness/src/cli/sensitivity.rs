@@ -36,8 +36,10 @@ pub struct SensitivityArgs {
     /// Output directory (created if missing).
     #[arg(long, default_value = "benches/results")]
     pub out: PathBuf,
-    /// Simulated duration of every run, ms [default: 10 000, seed 000's Fig. 10 length].
-    #[arg(long)]
+    /// Simulated duration of every run, ms (1..=3600000) [default: 10 000, seed 000's Fig. 10
+    /// length].
+    #[arg(long, allow_negative_numbers = true,
+          value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
     pub duration_ms: Option<u64>,
 }
 
@@ -394,6 +396,7 @@ fn panels(rep: &SensitivityReport) -> Vec<SensitivityPanel> {
 
 /// Runs `ecdc bench sensitivity` and writes its files.
 pub fn run(args: &SensitivityArgs) -> anyhow::Result<SensitivityReport> {
+    super::validate::creatable_dir("--out", &args.out)?;
     let wall = Instant::now();
     let rep = run_grid(args)?;
     std::fs::create_dir_all(&args.out)
