@@ -39,7 +39,7 @@ use ecdc_core::wire::{Address, Command};
 
 use super::bringup::{assign_addresses, count_slaves, station};
 use super::link::{le_u32, le_u64, Link};
-use super::{Scheme, Written};
+use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 use crate::sim::DEFAULT_MASTER_EPOCH_NS;
 
@@ -497,6 +497,11 @@ impl Scheme for Igh {
 
     fn frames_lost(&self) -> u64 {
         self.link.lost
+    }
+
+    fn given(&self) -> Given {
+        // Delays without t_DIFF: the method has no per-ESC processing/forwarding split.
+        Given::new()
     }
 }
 
