@@ -1,6 +1,7 @@
-//! `ecdc simulate` end to end on short runs: the report has every promised key for all three
-//! schemes, ecdc locks, the seed 000 scheme does exactly its 15 000-frame burst and shows the
-//! eq. 23 erratum, and the uncompensated error grows. Behaviour only, never speed.
+//! `ecdc simulate` end to end on short runs: the report has every promised key for all four
+//! schemes (with what each was given), ecdc locks, both seed 000 schemes do exactly their
+//! 15 000-frame burst, only the printed one shows the eq. 23 erratum, and the uncompensated
+//! error grows. Behaviour only, never speed.
 
 use ecdc_harness::cli::simulate::{simulate, Args, Topology};
 use ecdc_harness::schemes::run::Record;
@@ -17,13 +18,14 @@ fn record<'a>(recs: &'a [Record], name: &str) -> &'a Record {
 }
 
 #[test]
-fn default_scenario_short_run_reports_three_schemes() {
+fn default_scenario_short_run_reports_four_schemes() {
     let (report, recs) = simulate(&short(800)).expect("simulate");
     let json: serde_json::Value = serde_json::from_str(&report.to_json().unwrap()).unwrap();
     let schemes = json["schemes"].as_object().expect("schemes object");
-    assert_eq!(schemes.len(), 3);
-    for name in ["ecdc", "seed000", "uncompensated"] {
+    assert_eq!(schemes.len(), 4);
+    for name in ["ecdc", "seed000", "seed000-printed", "uncompensated"] {
         let s = &schemes[name];
+        assert!(s["given"].is_object(), "{name}.given: {}", s["given"]);
         for key in [
             "lock_frames",
             "lock_ms",
@@ -46,6 +48,16 @@ fn default_scenario_short_run_reports_three_schemes() {
         }
     }
     assert_eq!(json["table"].as_array().unwrap().len(), 6);
+    // Who was told t_DIFF: the seed 000 schemes (the paper assumes it known), not the
+    // uncompensated one (it needs no delay).
+    for name in ["seed000", "seed000-printed"] {
+        assert_eq!(
+            schemes[name]["given"],
+            serde_json::json!({"t_diff_ns": 80}),
+            "{name}"
+        );
+    }
+    assert_eq!(schemes["uncompensated"]["given"], serde_json::json!({}));
     assert!(json["ratios"]["skew_mean"].as_f64().is_some());
 
     // ecdc locks (true time) and its skew is in the tens of ns at most.
@@ -53,22 +65,31 @@ fn default_scenario_short_run_reports_three_schemes() {
     assert!(e.lock_frames.is_some(), "ecdc did not lock");
     assert!(e.skew_max_ns.unwrap() < 200, "{e:?}");
 
-    // The seed 000 scheme: exactly the fixed burst, and the cyclic FRMWs after it.
+    // Both seed 000 schemes: exactly the fixed burst, and the cyclic frames after it.
     let s = &report.schemes["seed000"];
-    assert_eq!(s.static_drift_frames, Some(15_000));
-    assert!(s.dist_frames > 15_000);
+    let p = &report.schemes["seed000-printed"];
+    for x in [s, p] {
+        assert_eq!(x.static_drift_frames, Some(15_000), "{}", x.name);
+        assert!(x.dist_frames > 15_000, "{}", x.name);
+    }
     // Eq. 23 as printed puts i·t_DIFF instead of (n − 2)·t_DIFF into the last slave's delay:
-    // t_DIFF (80 ns) more than ecdc's measured delay, up to the latch jitter.
-    let d_seed = s.slaves[5].delay_ns.unwrap() as i64;
+    // t_DIFF (80 ns) more than ecdc's measured delay, up to the latch jitter; the derived
+    // form agrees with ecdc on every slave.
+    let d_printed = p.slaves[5].delay_ns.unwrap() as i64;
     let d_ecdc = e.slaves[5].delay_ns.unwrap() as i64;
     assert!(
-        (d_seed - d_ecdc - 80).abs() <= 30,
-        "seed000 {d_seed} vs ecdc {d_ecdc}"
+        (d_printed - d_ecdc - 80).abs() <= 30,
+        "seed000-printed {d_printed} vs ecdc {d_ecdc}"
     );
-    for i in 1..5 {
+    for i in 1..6 {
         let a = s.slaves[i].delay_ns.unwrap() as i64;
         let b = e.slaves[i].delay_ns.unwrap() as i64;
-        assert!((a - b).abs() <= 30, "slave {}: {a} vs {b}", i + 1);
+        assert!((a - b).abs() <= 30, "seed000 slave {}: {a} vs {b}", i + 1);
+    }
+    for i in 1..5 {
+        let a = p.slaves[i].delay_ns.unwrap() as i64;
+        let b = s.slaves[i].delay_ns.unwrap() as i64;
+        assert_eq!(a, b, "printed = derived below the last slave {}", i + 1);
     }
 
     // No compensation: no reference-time frames, no 0x0928, and the error grows.
@@ -112,7 +133,7 @@ fn tree_topology_ecdc_runs_and_line_only_schemes_say_why() {
     let e = &report.schemes["ecdc"];
     assert!(e.error.is_none(), "{:?}", e.error);
     assert!(e.lock_frames.is_some());
-    for name in ["seed000", "uncompensated"] {
+    for name in ["seed000", "seed000-printed", "uncompensated"] {
         let err = report.schemes[name].error.as_deref().unwrap_or("");
         assert!(err.contains("not a line"), "{name}: {err:?}");
     }
@@ -143,12 +164,16 @@ fn frame_loss_does_not_stop_the_comparison_schemes() {
     };
     let (report, _) = simulate(&args).expect("simulate");
     assert_eq!(report.setup.ecdc_drift_burst_frames, 20);
-    for name in ["ecdc", "seed000", "uncompensated"] {
+    for name in ["ecdc", "seed000", "seed000-printed", "uncompensated"] {
         let s = &report.schemes[name];
         assert!(s.error.is_none(), "{name}: {:?}", s.error);
         assert!(s.skew_samples > 0, "{name}");
     }
     // The burst is 15 000 frames sent, lost or not (seed 000 sends a fixed count).
     assert_eq!(report.schemes["seed000"].static_drift_frames, Some(15_000));
+    assert_eq!(
+        report.schemes["seed000-printed"].static_drift_frames,
+        Some(15_000)
+    );
     assert!(report.schemes["ecdc"].lock_frames.is_some());
 }

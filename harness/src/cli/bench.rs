@@ -13,7 +13,7 @@ use anyhow::Context;
 
 use crate::emu::{EscKind, Network, Scenario, SlaveSpec};
 use crate::report::svg::{render_bench, BenchSeries};
-use crate::report::table::markdown;
+use crate::report::table::{given_text, markdown};
 use crate::schemes::ecdc::{self, Ecdc, EcdcN};
 use crate::schemes::ethercrab::Ethercrab;
 use crate::schemes::igh::Igh;
@@ -33,8 +33,8 @@ pub struct Args {
 /// The benchmarks.
 #[derive(Debug, Clone, clap::Subcommand)]
 pub enum BenchCmd {
-    /// DC precision (lock, SYNC0 skew) of ecdc vs the seed 000, IgH-like, ethercrab-like and
-    /// uncompensated schemes on six emulated networks.
+    /// DC precision (lock, SYNC0 skew) of ecdc vs the seed 000 (derived and as printed),
+    /// IgH-like, ethercrab-like and uncompensated schemes on six emulated networks.
     Dc(DcArgs),
     /// Every scheme's precision on seed 000's line with one unsourced emulator constant moved
     /// at a time (t_DIFF, ESC loop gains, 0x0934/0x0935 power-on depths, PHY jitter, crystals).
@@ -63,7 +63,10 @@ pub enum BenchScenario {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
 pub enum SchemeName {
     Ecdc,
+    /// Seed 000 with eq. 23 as its eq. 22 implies, and its §3.1/§3.2 flow.
     Seed000,
+    /// Seed 000 with eq. 23 as printed, minimal flow (labelled extra row).
+    Seed000Printed,
     Igh,
     Ethercrab,
     Uncompensated,
@@ -78,7 +81,7 @@ pub struct DcArgs {
     /// Run only these scenarios (repeatable) [default: all six].
     #[arg(long = "scenario", value_enum)]
     pub scenarios: Vec<BenchScenario>,
-    /// Run only these schemes (repeatable) [default: all five].
+    /// Run only these schemes (repeatable) [default: all six].
     #[arg(long = "scheme", value_enum)]
     pub schemes: Vec<SchemeName>,
     /// Override every scenario's simulated duration, ms (1..=3600000).
@@ -207,9 +210,10 @@ impl BenchScenario {
 
 impl SchemeName {
     /// All schemes, in report order.
-    pub const ALL: [SchemeName; 5] = [
+    pub const ALL: [SchemeName; 6] = [
         SchemeName::Ecdc,
         SchemeName::Seed000,
+        SchemeName::Seed000Printed,
         SchemeName::Igh,
         SchemeName::Ethercrab,
         SchemeName::Uncompensated,
@@ -220,6 +224,8 @@ impl SchemeName {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SchemeResult {
     pub name: String,
+    /// What the scheme was told beyond what it measured (`{}` = nothing), e.g. `t_diff_ns`.
+    pub given: crate::schemes::Given,
     /// Why the scheme stopped (e.g. "not a line"), if it did.
     pub error: Option<String>,
     pub lock_frames: Option<u64>,
@@ -248,6 +254,7 @@ impl SchemeResult {
     pub(crate) fn from_summary(s: &Summary, sync0_slaves: usize) -> Self {
         SchemeResult {
             name: s.name.clone(),
+            given: s.given.clone(),
             error: s.error.clone(),
             lock_frames: s.lock_frames,
             lock_ms: s.lock_ms,
@@ -278,7 +285,7 @@ pub struct ScenarioResult {
     pub cycle_ns: u32,
     pub duration_ns: u64,
     pub seed: u64,
-    /// Nominal t_P − t_F given to ecdc and the seed 000 scheme, ns.
+    /// Nominal t_P − t_F of the scenario, ns (who was given it: each scheme's `given`).
     pub t_diff_ns: i64,
     /// Smallest and largest crystal error drawn, ppm.
     pub crystal_ppm_min: f64,
@@ -336,6 +343,7 @@ fn scheme_label(s: SchemeName) -> &'static str {
     match s {
         SchemeName::Ecdc => "ecdc",
         SchemeName::Seed000 => "seed000",
+        SchemeName::Seed000Printed => "seed000-printed",
         SchemeName::Igh => "igh",
         SchemeName::Ethercrab => "ethercrab",
         SchemeName::Uncompensated => "uncompensated",
@@ -360,6 +368,7 @@ fn build(
             }
         }
         SchemeName::Seed000 => Box::new(Seed000::new(net, t_diff, cycle)),
+        SchemeName::Seed000Printed => Box::new(Seed000::printed(net, t_diff, cycle)),
         SchemeName::Igh => Box::new(Igh::new(net, cycle)),
         SchemeName::Ethercrab => Box::new(Ethercrab::new(net, cycle)),
         SchemeName::Uncompensated => Box::new(Uncompensated::new(net, cycle)),
@@ -510,6 +519,7 @@ fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
                 opt(s.skew_max_ns),
                 s.skew_pairs.to_string(),
                 format!("{}/{}", s.sync0_slaves, r.dc_slaves),
+                given_text(&s.given),
             ]);
             if let Some(e) = &s.error {
                 let short: String = e.chars().take(90).collect();
@@ -520,7 +530,7 @@ fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
         .collect()
 }
 
-const HEADERS: [&str; 9] = [
+const HEADERS: [&str; 10] = [
     "scheme",
     "lock frames",
     "lock ms",
@@ -530,6 +540,7 @@ const HEADERS: [&str; 9] = [
     "max |.| ns",
     "pairs",
     "SYNC0 slaves",
+    "given",
 ];
 
 /// The Markdown report.
@@ -549,8 +560,9 @@ pub fn markdown_report(rep: &DcReport) -> String {
          window. `lock frames` counts the frames that carry the reference time (static drift + \
          cyclic) sent until lock; `pairs` the (slave, pulse) skew samples; `SYNC0 slaves` the \
          slaves that fired SYNC0 in the window out of those with a DC system time (fewer = some \
-         slaves never started SYNC0, their skew is not in the statistics); `*` = lock reached only \
-         in the last 10 % of the run.\n\n## All scenarios\n\n",
+         slaves never started SYNC0, their skew is not in the statistics); `given` what the \
+         scheme was told beyond what it measures on the wire (`{}` = nothing; `t_diff_ns` = the \
+         scenario's nominal t_P − t_F); `*` = lock reached only in the last 10 % of the run.\n\n## All scenarios\n\n",
     );
     let mut headers = vec!["scenario"];
     headers.extend(HEADERS);

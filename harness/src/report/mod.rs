@@ -19,7 +19,8 @@ pub struct Setup {
     pub crystal_ppm: Vec<f64>,
     pub frame_loss_rate: f64,
     pub seed: u64,
-    /// t_DIFF = nominal t_P − t_F given to ecdc and to the seed 000 scheme, ns.
+    /// t_DIFF = nominal t_P − t_F of the scenario, ns. Which scheme was given it: each
+    /// scheme's `given`.
     pub t_diff_ns: i64,
     /// Lock-detection sampling period, ns.
     pub sample_ns: u64,
@@ -42,7 +43,8 @@ pub struct Report {
     pub setup: Setup,
     /// Definitions of every reported quantity (same text as docs/simulate.md).
     pub definitions: BTreeMap<&'static str, &'static str>,
-    /// `ecdc`, `seed000`, `uncompensated`.
+    /// `ecdc`, `seed000`, `seed000-printed`, `uncompensated`; each with `given` (what the
+    /// scheme was told beyond what it measured).
     pub schemes: BTreeMap<String, Summary>,
     /// ecdc's per-slave table (seed 000 Table 2 rows), also under `schemes.ecdc.slaves`.
     pub table: Vec<SlaveRow>,

@@ -205,11 +205,7 @@ fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
         );
     }
     for (j, r) in shown.iter().enumerate() {
-        let color = if r.name == "ecdc" {
-            "#1f77b4"
-        } else {
-            "#d62728"
-        };
+        let color = bench_color(r.name, j);
         let mut pts = String::new();
         for &(t, _, m) in r.track.iter().take_while(|p| (p.0 as f64) <= t_end) {
             if let Some(m) = m {
@@ -257,8 +253,14 @@ pub fn render(records: &[&Record]) -> String {
         let clip = r.name != "uncompensated";
         let title = match r.name {
             "ecdc" => "ecdc (cf. seed 000 Fig. 10)".to_string(),
-            "seed000" => "seed 000 scheme: eq. 23 as printed, eq. 24, 15 000-frame burst (Fig. 10)"
-                .to_string(),
+            "seed000" => {
+                "seed 000 scheme: eq. 23 as eq. 22 implies, eq. 24, 15 000-frame burst, §3.1 gate"
+                    .to_string()
+            }
+            "seed000-printed" => {
+                "seed 000 scheme with eq. 23 as printed (last slave's delay t_DIFF too large)"
+                    .to_string()
+            }
             "uncompensated" => "no compensation: offsets only (cf. seed 000 Fig. 9)".to_string(),
             other => other.to_string(),
         };
@@ -287,6 +289,7 @@ fn bench_color(name: &str, k: usize) -> &'static str {
     match name {
         "ecdc" => "#1f77b4",
         "seed000" => "#d62728",
+        "seed000-printed" => "#9467bd",
         "igh" => "#2ca02c",
         "ethercrab" => "#ff7f0e",
         "uncompensated" => "#7f7f7f",
