@@ -26,7 +26,7 @@ use anyhow::Context;
 use super::bench::{build_scheme, BenchScenario, SchemeName, SchemeResult};
 use crate::emu::{PpmSpec, Scenario};
 use crate::report::svg::{render_sensitivity, SensitivityPanel};
-use crate::report::table::markdown;
+use crate::report::table::{given_text, markdown};
 use crate::schemes::measure::summarize;
 use crate::schemes::run::{run_scheme, RunOpts};
 
@@ -172,11 +172,12 @@ pub struct SensitivityReport {
 }
 
 /// The compared schemes: every scheme of `bench dc` but the uncompensated baseline, which is not
-/// a contender.
+/// a contender, and `seed000-printed`, the misprint's labelled extra row (`seed000` is the
+/// paper's intended method).
 fn schemes() -> Vec<SchemeName> {
     SchemeName::ALL
         .into_iter()
-        .filter(|s| *s != SchemeName::Uncompensated)
+        .filter(|s| !matches!(s, SchemeName::Uncompensated | SchemeName::Seed000Printed))
         .collect()
 }
 
@@ -344,6 +345,22 @@ pub fn markdown_report(rep: &SensitivityReport) -> String {
     let (headers, rows) = rows(rep);
     let h: Vec<&str> = headers.iter().map(String::as_str).collect();
     out.push_str(&markdown(&h, 2, &rows));
+    let given: Vec<String> = rep
+        .cells
+        .iter()
+        .find(|c| c.is_base)
+        .map(|c| {
+            c.schemes
+                .iter()
+                .map(|s| format!("{} {}", s.name, given_text(&s.given)))
+                .collect()
+        })
+        .unwrap_or_default();
+    out.push_str(&format!(
+        "\nWhat each scheme is told beyond what it measures on the wire (base cell; on the \
+         t_DIFF axis a scheme told t_DIFF is told the cell's value): {}.\n",
+        given.join("; ")
+    ));
     let bad: Vec<String> = rep
         .cells
         .iter()
@@ -463,6 +480,7 @@ mod tests {
             lock_ms: None,
             static_drift_frames: None,
             dist_frames: 0,
+            given: Default::default(),
             skew_mean_ns: mean,
             skew_p99_ns: None,
             skew_max_ns: None,
