@@ -310,7 +310,7 @@ mod tests {
         assert_eq!(g.judge(&cfg, i64::MIN), GateVerdict::Reject);
     }
 
-    /// The former implementation, kept as the oracle: median of a sorted copy of the window,
+    /// The oracle for the incremental window: median of a sorted copy of the window,
     /// then the median of the sorted absolute deviations.
     fn median_by_sorting(v: &mut [i64; GATE_WINDOW], n: usize) -> i64 {
         let s = &mut v[..n];
@@ -384,7 +384,7 @@ mod tests {
     }
 
     #[test]
-    fn incremental_window_equals_former_sorting_gate() {
+    fn incremental_window_equals_sorting_gate() {
         let cfgs = [
             GateConfig::with_floor(0),
             GateConfig::with_floor(10_000),

@@ -250,7 +250,7 @@ impl MasterServo {
         Some((theta, correction, raw.unsigned_abs() >= p.unsigned_abs()))
     }
 
-    /// [`MasterServo::measure`] computed in i128 throughout (the former code; the fallback when
+    /// [`MasterServo::measure`] computed in i128 throughout (the fallback when
     /// an i64 intermediate could overflow, and the oracle of the equality test).
     fn measure_wide(&self, app: u64, reference: u64) -> (i64, i64, bool) {
         let d = self.difference(app, reference);

@@ -220,8 +220,8 @@ mod tests {
         assert!(s.integrator < 50 * ONE);
     }
 
-    /// The plain-i64 body `pi_step` had before its add/compare/clamp part became the
-    /// Word-generic [`pi_update`]; kept as the oracle that the refactoring changed no result.
+    /// `pi_step` written as a plain-i64 body: the oracle that the Word-generic [`pi_update`]
+    /// (which SMT runs on bit-vectors) does the add/compare/clamp part with the same result.
     fn pi_step_i64(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
         let i = clamp_mag(i, lim.i_max);
         let th = clamp_mag(theta, THETA_MAX);

@@ -316,7 +316,7 @@ mod tests {
         assert!(parse_hex("  ").is_err());
     }
 
-    /// The base frame of wire-and-runtime.md §2.3, by hand, and a corrupted copy.
+    /// The base frame of docs/background/wire-format.md §2.3, by hand, and a corrupted copy.
     #[test]
     fn renders_base_frame_and_error() {
         let hex_frame = "ffffffffffff 101010101010 88a4 2210 \

@@ -1,5 +1,5 @@
 //! `ecdc rtt --iface IF`: round-trip benchmark, back to back and inside a fixed cycle, with
-//! the same probe frame as the C probe in wire-and-runtime.md §5 (BRD 0x0130 len 2 + FRMW
+//! the same probe frame as the C probe in docs/background/linux-runtime.md §6 (BRD 0x0130 len 2 + FRMW
 //! 0x1001:0x0910 len 8, 60 bytes), so the numbers compare directly.
 //!
 //! The peer must answer EtherCAT frames: real slaves, or `ecdc emulate --engine reflect`
