@@ -1175,6 +1175,16 @@ enum ecdc_machine_state ecdc_state(const struct ecdc_machine *m);
 bool ecdc_is_locked(const struct ecdc_machine *m);
 
 /**
+ * Whether a transmitted frame's datagrams are still awaited (until all came back, the
+ * deadline passed, or a reset/start). A host waits on its socket while this is true and may
+ * sleep until `ecdc_poll_timeout` otherwise. False for an invalid handle.
+ *
+ * # Safety
+ * As [`ecdc_start`].
+ */
+bool ecdc_is_awaiting_reply(const struct ecdc_machine *m);
+
+/**
  * Last BRD 0x092C upper bound of |Δt| over all slaves (ns): true and `*out` set, or false if
  * none was read in this cyclic run.
  *

@@ -915,6 +915,18 @@ pub unsafe extern "C" fn ecdc_is_locked(m: *const ecdc_machine) -> bool {
     unsafe { with_ref(m, |_| false, |a| a.is_locked()) }
 }
 
+/// Whether a transmitted frame's datagrams are still awaited (until all came back, the
+/// deadline passed, or a reset/start). A host waits on its socket while this is true and may
+/// sleep until `ecdc_poll_timeout` otherwise. False for an invalid handle.
+///
+/// # Safety
+/// As [`ecdc_start`].
+#[no_mangle]
+pub unsafe extern "C" fn ecdc_is_awaiting_reply(m: *const ecdc_machine) -> bool {
+    // SAFETY: forwarded contract.
+    unsafe { with_ref(m, |_| false, |a| a.is_awaiting_reply()) }
+}
+
 /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns): true and `*out` set, or false if
 /// none was read in this cyclic run.
 ///

@@ -108,6 +108,7 @@ pub(crate) trait Api {
     fn state(&self) -> State;
     fn stats(&self) -> Stats;
     fn is_locked(&self) -> bool;
+    fn is_awaiting_reply(&self) -> bool;
     fn diff_bound_ns(&self) -> Option<u32>;
     fn reference_time(&self) -> Option<u64>;
     fn slave_count(&self) -> usize;
@@ -141,6 +142,9 @@ impl<const N: usize> Api for Machine<N> {
     }
     fn is_locked(&self) -> bool {
         Machine::is_locked(self)
+    }
+    fn is_awaiting_reply(&self) -> bool {
+        Machine::is_awaiting_reply(self)
     }
     fn diff_bound_ns(&self) -> Option<u32> {
         Machine::diff_bound_ns(self)
