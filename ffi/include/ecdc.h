@@ -808,7 +808,7 @@ typedef struct ecdc_event {
   /**
    * One-line English description, NUL-terminated (truncated if longer).
    */
-  uint8_t text[ECDC_EVENT_TEXT_LEN];
+  char text[ECDC_EVENT_TEXT_LEN];
 } ecdc_event;
 
 /**

@@ -676,7 +676,7 @@ pub struct ecdc_event {
     /// The event's data.
     pub u: ecdc_event_data,
     /// One-line English description, NUL-terminated (truncated if longer).
-    pub text: [u8; ECDC_EVENT_TEXT_LEN],
+    pub text: [core::ffi::c_char; ECDC_EVENT_TEXT_LEN],
 }
 
 impl ecdc_event {
@@ -689,15 +689,16 @@ impl ecdc_event {
         }
     }
 
-    /// The description as a `&str` (up to the first NUL).
-    pub fn text_str(&self) -> &str {
-        let end = self
+    /// The description up to the first NUL (invalid UTF-8 replaced).
+    pub fn text_string(&self) -> String {
+        // `c_char` is `i8` or `u8` by target: reinterpret each as the byte it holds.
+        let bytes: Vec<u8> = self
             .text
             .iter()
-            .position(|b| *b == 0)
-            .unwrap_or(self.text.len());
-        let bytes = self.text.get(..end).unwrap_or_default();
-        core::str::from_utf8(bytes).unwrap_or_default()
+            .take_while(|c| **c != 0)
+            .map(|c| u8::from_ne_bytes(c.to_ne_bytes()))
+            .collect();
+        String::from_utf8_lossy(&bytes).into_owned()
     }
 }
 
@@ -814,8 +815,9 @@ pub fn fault_to_c(e: &Error) -> ecdc_fault {
 pub fn event_to_c(e: &Event) -> ecdc_event {
     use ecdc_event_kind as K;
     let mut out = ecdc_event::none();
+    let mut text = [0u8; ECDC_EVENT_TEXT_LEN];
     let mut w = TextBuf {
-        buf: &mut out.text,
+        buf: &mut text,
         len: 0,
     };
     // Writing into TextBuf never fails (it truncates), so the fmt results carry nothing.
@@ -901,6 +903,10 @@ pub fn event_to_c(e: &Event) -> ecdc_event {
             K::ECDC_EVENT_OTHER
         }
     };
+    for (dst, src) in out.text.iter_mut().zip(text) {
+        // `c_char` is `i8` or `u8` by target: the same byte either way.
+        *dst = core::ffi::c_char::from_ne_bytes([src]);
+    }
     out
 }
 

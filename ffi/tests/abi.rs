@@ -288,7 +288,7 @@ fn poll_transmit_writes_the_count_frame_and_reports_a_small_buffer() {
             ev.u.error.kind,
             ecdc_fault_kind::ECDC_FAULT_BUFFER_TOO_SMALL
         );
-        assert_eq!(ev.text_str(), "error: transmit buffer too small");
+        assert_eq!(ev.text_string(), "error: transmit buffer too small");
         let n = ecdc_poll_transmit(m, 1_000, buf.as_mut_ptr(), buf.len());
         assert!(n >= 60, "{n}");
         let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
@@ -438,7 +438,7 @@ fn events_map_to_tagged_structs() {
         unsafe { e.u.slaves_found },
         ecdc_ev_slaves_found { count: 7, dc: 5 }
     );
-    assert_eq!(e.text_str(), "7 slaves found, 5 with a DC system time");
+    assert_eq!(e.text_string(), "7 slaves found, 5 with a DC system time");
     let e = event_to_c(&Event::Locked {
         frames: 1234,
         bound_ns: 88,
@@ -493,7 +493,7 @@ fn events_map_to_tagged_structs() {
     for (ev, kind) in cases {
         let e = event_to_c(&ev);
         assert_eq!(e.kind, kind, "{ev:?}");
-        assert!(!e.text_str().is_empty());
+        assert!(!e.text_string().is_empty());
     }
     // Faults: flattened fields and the core's own description.
     let e = event_to_c(&Event::Error(Error::Wkc {
@@ -511,9 +511,9 @@ fn events_map_to_tagged_structs() {
         (4, 0x1002, 0x092C, 1, 0)
     );
     assert!(
-        e.text_str().starts_with("error: FPRD station 0x1002"),
+        e.text_string().starts_with("error: FPRD station 0x1002"),
         "{}",
-        e.text_str()
+        e.text_string()
     );
     let f = fault_to_c(&Error::Timeout {
         state: State::LatchTrigger,
@@ -553,8 +553,8 @@ fn event_text_is_truncated_at_a_character_boundary() {
     }));
     assert_eq!(e.text[ECDC_EVENT_TEXT_LEN - 1], 0);
     // This text is longer than the buffer: it is cut to exactly the room before the NUL.
-    assert_eq!(e.text_str().len(), ECDC_EVENT_TEXT_LEN - 1);
+    assert_eq!(e.text_string().len(), ECDC_EVENT_TEXT_LEN - 1);
     assert!(e
-        .text_str()
+        .text_string()
         .starts_with("error: static drift compensation not converged"));
 }

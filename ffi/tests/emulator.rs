@@ -160,7 +160,7 @@ fn four_slave_line_locks_through_the_c_abi_and_rides_in_host_frames() {
             );
             let mut ev = ecdc_event::none();
             while ecdc_poll_event(m, &mut ev) {
-                assert_ne!(ev.kind, K::ECDC_EVENT_ERROR, "{}", ev.text_str());
+                assert_ne!(ev.kind, K::ECDC_EVENT_ERROR, "{}", ev.text_string());
             }
         }
     }
