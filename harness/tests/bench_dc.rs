@@ -20,16 +20,28 @@ fn two_slave_scenario_behaviour() {
     let (r, series) =
         run_scenario(BenchScenario::Seed003Line2, &SchemeName::ALL, Some(2_000)).unwrap();
     assert_eq!(r.slaves, 2);
-    assert_eq!(r.schemes.len(), 5);
+    assert_eq!(r.schemes.len(), 6);
     for s in &r.schemes {
         assert!(s.error.is_none(), "{}: {:?}", s.name, s.error);
+    }
+    // What each was told: t_DIFF for the seed 000 schemes only among the reproductions.
+    for name in ["seed000", "seed000-printed"] {
+        let g = &scheme(&r, name).given;
+        assert_eq!(g.get("t_diff_ns"), Some(&r.t_diff_ns), "{name}");
+    }
+    for name in ["igh", "ethercrab", "uncompensated"] {
+        assert!(scheme(&r, name).given.is_empty(), "{name}");
     }
     let e = scheme(&r, "ecdc");
     assert!(e.lock_frames.is_some(), "{e:?}");
     assert_eq!(e.sync0_slaves, 2, "{e:?}");
     assert!(e.skew_max_ns.unwrap() < 100, "{e:?}");
-    // The fixed bursts are exactly their documented length, ungated.
+    // The fixed bursts are exactly their documented length (seed 000's gate comes after).
     assert_eq!(scheme(&r, "seed000").static_drift_frames, Some(15_000));
+    assert_eq!(
+        scheme(&r, "seed000-printed").static_drift_frames,
+        Some(15_000)
+    );
     assert_eq!(scheme(&r, "ethercrab").static_drift_frames, Some(10_000));
     // IgH has no burst: its 10 µs gate ends the static phase after a few cyclic frames.
     let igh = scheme(&r, "igh").static_drift_frames.unwrap();
@@ -121,8 +133,18 @@ fn command_writes_table_json_and_svg() {
         .collect();
     assert_eq!(
         names,
-        ["ecdc", "seed000", "igh", "ethercrab", "uncompensated"]
+        [
+            "ecdc",
+            "seed000",
+            "seed000-printed",
+            "igh",
+            "ethercrab",
+            "uncompensated"
+        ]
     );
+    for s in schemes {
+        assert!(s["given"].is_object(), "{}", s["name"]);
+    }
 
     let md = std::fs::read_to_string(dir.join("dc.md")).unwrap();
     assert!(md.contains(&cmd), "{md}");
@@ -134,7 +156,7 @@ fn command_writes_table_json_and_svg() {
         .take_while(|l| l.starts_with('|'))
         .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
         .collect();
-    assert_eq!(table.len(), 2 + 5, "{md}");
+    assert_eq!(table.len(), 2 + 6, "{md}");
     let seps = table[1][0].split('|').count();
     assert_eq!(seps, table[0].len(), "{md}");
     assert!(
@@ -156,7 +178,14 @@ fn command_writes_table_json_and_svg() {
         !svg.contains("<!--"),
         "an XML comment cannot hold the command's `--`"
     );
-    for name in ["ecdc", "seed000", "igh", "ethercrab", "uncompensated"] {
+    for name in [
+        "ecdc",
+        "seed000",
+        "seed000-printed",
+        "igh",
+        "ethercrab",
+        "uncompensated",
+    ] {
         assert!(svg.contains(&format!(">{name}</text>")), "legend {name}");
     }
     let _ = std::fs::remove_dir_all(&dir);
@@ -174,7 +203,7 @@ fn every_scheme_survives_frame_loss() {
     )
     .unwrap();
     assert_eq!(r.frame_loss_rate, Some(0.01));
-    assert_eq!(r.schemes.len(), 5);
+    assert_eq!(r.schemes.len(), 6);
     for s in &r.schemes {
         assert!(s.error.is_none(), "{}: {:?}", s.name, s.error);
         assert_eq!(s.sync0_slaves, 6, "{s:?}");
@@ -182,7 +211,7 @@ fn every_scheme_survives_frame_loss() {
         // Ran to the end of the run (no blocking step stuck past it).
         assert_eq!(s.window_end_ns, 2_000_000_000, "{s:?}");
     }
-    for name in ["ecdc", "seed000", "igh", "ethercrab"] {
+    for name in ["ecdc", "seed000", "seed000-printed", "igh", "ethercrab"] {
         let s = scheme(&r, name);
         assert!(s.frames_lost.unwrap() > 0, "{s:?}");
         // Still distributing the reference time up to the end: at least one frame per cycle
@@ -194,6 +223,10 @@ fn every_scheme_survives_frame_loss() {
     }
     // Lost burst frames still count: the bursts keep their documented length.
     assert_eq!(scheme(&r, "seed000").static_drift_frames, Some(15_000));
+    assert_eq!(
+        scheme(&r, "seed000-printed").static_drift_frames,
+        Some(15_000)
+    );
     assert_eq!(scheme(&r, "ethercrab").static_drift_frames, Some(10_000));
     let e = scheme(&r, "ecdc");
     assert!(e.lock_frames.is_some(), "{e:?}");
@@ -201,8 +234,8 @@ fn every_scheme_survives_frame_loss() {
 }
 
 /// The 32-bit scenario: its full 10 s cross a wrap of the reference's 32-bit system time inside
-/// the steady-state window; ecdc and the IgH-like master (wrap-safe per masters.md) keep every
-/// slave on SYNC0 across it; the ethercrab-like master starts none (docs/bench.md "32-bit DC
+/// the steady-state window; ecdc and the IgH-like master (wrap-safe comparisons, as in the
+/// Lambert patches) keep every slave on SYNC0 across it; the ethercrab-like master starts none (docs/bench.md "32-bit DC
 /// slaves": the 32-bit slaves are `RefOnly`, the 64-bit ones get a start time computed from
 /// the 32-bit reference's time, far in their past).
 #[test]

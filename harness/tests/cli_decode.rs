@@ -16,7 +16,7 @@ fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-/// The base frame of wire-and-runtime.md §2.3, as hex written by hand.
+/// The base frame of docs/background/wire-format.md §2.3, as hex written by hand.
 const BASE: &str = "ffffffffffff 101010101010 88a4 2210 \
     07 01 0000 0000 0280 0000 0000 0000 \
     0e 02 0110 1009 0800 0000 0102030405060708 0300 \

@@ -44,6 +44,8 @@ fn scenario_file_to_json_and_svg() {
         "clock error mean",
         "lock frames",
         "seed000",
+        "seed000-printed",
+        "given",
         "uncompensated",
         "targets",
     ] {
@@ -59,8 +61,8 @@ fn scenario_file_to_json_and_svg() {
     assert!(svg.trim_end().ends_with("</svg>"));
     assert_eq!(
         svg.matches("<polyline").count(),
-        3 * 3 + 2,
-        "3 panels x 3 non-reference slaves + lock curves of ecdc and seed000"
+        4 * 3 + 3,
+        "4 panels x 3 non-reference slaves + lock curves of ecdc and both seed000 schemes"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

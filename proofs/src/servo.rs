@@ -339,12 +339,12 @@ use crate::kani_shim as kani;
 fn any_gains(sel: u8) -> PiGains {
     use ecdc_core::servo::gains::{Pole, MARGIN, ONE};
     let g = match sel % 4 {
-        0 => Ok(PiGains::seed004()),
-        1 => PiGains::double_pole(Pole::from_q32(0xFD70_A3D7)), // 0.99
-        2 => PiGains::from_q32(2 * ONE - MARGIN, 1),            // Kp corner
-        _ => PiGains::from_q32(MARGIN, 4 * ONE - 3 * MARGIN),   // Ki corner
+        0 => PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0x5555_5555)), // 1/2, 1/3
+        1 => PiGains::double_pole(Pole::from_q32(0xFD70_A3D7)),                         // 0.99
+        2 => PiGains::from_q32(2 * ONE - MARGIN, 1),                                    // Kp corner
+        _ => PiGains::from_q32(MARGIN, 4 * ONE - 3 * MARGIN),                           // Ki corner
     };
-    g.unwrap_or(PiGains::seed004())
+    g.expect("every gain set above is admissible")
 }
 
 /// Kani P5: one-step inductive bound of the PI kernel.

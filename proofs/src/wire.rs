@@ -347,6 +347,33 @@ pub fn esc_features_word(w: u16) {
     assert_eq!(f.dc_time_width(), if w & (1 << 3) != 0 { 8 } else { 4 });
 }
 
+/// The `registers` fuzz target's body (also replayed on stable by
+/// proofs/tests/exhaustive_fuzz_inputs.rs): [`register_bytes_any`] on the input and on every
+/// suffix starting within its first 40 bytes (short and misaligned reads from one input), then
+/// the word-level bodies on the leading words and, when 12 bytes are there, the 0x092C decoder
+/// against an arbitrary 64-bit value.
+pub fn registers_target(data: &[u8]) {
+    register_bytes_any(data);
+    for start in 1..data.len().min(40) {
+        if let Some(rest) = data.get(start..) {
+            register_bytes_any(rest);
+        }
+    }
+    let w = |at: usize| -> Option<u16> {
+        Some(u16::from_le_bytes(data.get(at..at + 2)?.try_into().ok()?))
+    };
+    if let (Some(a), Some(b)) = (w(0), w(2)) {
+        esc_features_word(a);
+        dl_status_word(b);
+        let raw = u32::from(a) | (u32::from(b) << 16);
+        let ns = data
+            .get(4..12)
+            .and_then(|s| s.try_into().ok())
+            .map_or(i64::from(raw), i64::from_le_bytes);
+        system_time_difference(raw, ns);
+    }
+}
+
 /// REQ-WIRE-071..074 on ANY byte string read back from a slave: the register parsers never
 /// panic, fail with `Truncated` exactly when the bytes are shorter than the register, and
 /// otherwise decode the little-endian value of the leading bytes (0x0008, 0x0110, 0x092C agree

@@ -1,5 +1,5 @@
-//! The ESC datasheet's delay formulas for trees (Beckhoff Section I §9.1.3, summarised in the
-//! reference notes esc-dc.md §5), plain `i128`, plus the general per-hop rule they instantiate.
+//! The ESC datasheet's delay formulas for trees (Beckhoff Section I §9.1.3, summarised in
+//! docs/background/esc-registers.md §5), plain `i128`, plus the general per-hop rule they instantiate.
 //!
 //! Frame path inside an ESC: ports are visited in the processing order 0 → 3 → 1 → 2 → 0; a
 //! closed port is skipped (internal loopback). The EtherCAT Processing Unit (EPU) sits between

@@ -3,7 +3,7 @@
 //! Simulation by definition. A tree of ESCs, each with its own processing delay `t_P`,
 //! forwarding delay `t_F`, a symmetric cable to its upstream neighbour, a free-running local
 //! clock (`local = true time + phase`, 64- or 32-bit) and a DC capability. One latch frame is
-//! walked through the tree exactly as the ESC datasheet describes (Section I Table 9, esc-dc.md
+//! walked through the tree exactly as the ESC datasheet describes (Section I Table 9, docs/background/esc-registers.md
 //! §5): it enters an ESC at its entry port, visits the ports in the order 0 → 3 → 1 → 2 → 0
 //! starting after the entry port, skips closed ports, goes out of and comes back into each open
 //! port, and leaves through the entry port. The hop from a port's receiver to the next open

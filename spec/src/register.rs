@@ -1,5 +1,5 @@
-//! The ESC register contract the DC maths relies on (Beckhoff Section II Tab. 95–118, reference
-//! notes esc-dc.md §1–§3), as plain functions over `i128` with an explicit modulus.
+//! The ESC register contract the DC maths relies on (Beckhoff Section II Tab. 95–118; see
+//! docs/background/esc-registers.md §1–§3), as plain functions over `i128` with an explicit modulus.
 //!
 //! A DC ESC is either 64-bit or 32-bit (ESC Features 0x0008 bit 3). A 32-bit ESC keeps only the
 //! low 32 bits of system time, offset and start time (REQ-CONV-003).

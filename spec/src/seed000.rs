@@ -14,7 +14,8 @@
 //! - eq. 23, case `i = n`, prints `(t_1B − t_1A) + i·t_DIFF`. Eq. 22 (the case it generalises,
 //!   n = 4) and the derivation from eq. 5 and 17–19 give `(t_1B − t_1A) + (n − 2)·t_DIFF`: the last
 //!   hop (eq. 5) carries no `t_DIFF`. [`eq23_t_ref_x2`] implements the derived form;
-//!   [`eq23_printed_last_x2`] keeps the printed one so a test shows the discrepancy.
+//!   [`eq23_printed_last_x2`] and [`eq23_printed_x2`] keep the printed one so a test shows the
+//!   discrepancy.
 //! - eq. 24 prints `t_OFF = t_LOCAL − t_SYS,REF`, but eq. 25 (`Δt = t_LOCAL + t_OFF − t_DELAY −
 //!   t_SYS,REF`) is zero for a synchronised slave only with `t_OFF = t_SYS,REF − t_LOCAL`, which is
 //!   also the datasheet's definition of 0x0920 (REQ-CONV-004). [`eq24_offset_printed`] is the
@@ -70,6 +71,23 @@ pub fn eq23_t_ref_x2(rtt: &[i128], n: usize, i: usize, t_diff: i128) -> Option<i
 /// that it disagrees with eq. 22 and with the network model whenever `t_DIFF ≠ 0`.
 pub fn eq23_printed_last_x2(rtt1: i128, n: usize, t_diff: i128) -> i128 {
     rtt1 + n as i128 * t_diff
+}
+
+/// Eq. 23 with all three cases exactly as printed, doubled: [`eq23_t_ref_x2`] for `i < n`,
+/// [`eq23_printed_last_x2`] for `i = n` (n > 1). Same arguments and `None` cases as
+/// [`eq23_t_ref_x2`].
+pub fn eq23_printed_x2(rtt: &[i128], n: usize, i: usize, t_diff: i128) -> Option<i128> {
+    if i == n && n > 1 && rtt.len() >= n {
+        Some(eq23_printed_last_x2(*rtt.first()?, n, t_diff))
+    } else {
+        eq23_t_ref_x2(rtt, n, i, t_diff)
+    }
+}
+
+/// Eq. 22 exactly as printed, doubled: the last slave of a four-slave line,
+/// `t_REF,4 = ((t_1B − t_1A) + 2·t_DIFF) / 2`. The case eq. 23 generalises for `i = n`.
+pub fn eq22_t_ref4_x2(rtt1: i128, t_diff: i128) -> i128 {
+    rtt1 + 2 * t_diff
 }
 
 /// Eq. 17–19 (the definition eq. 23 simplifies): `t_REF,i = Σ_{k<i} t_k,k+1`, each hop from

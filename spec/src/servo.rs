@@ -11,7 +11,7 @@
 /// Q32 one.
 pub const ONE: i128 = 1 << 32;
 
-/// Closed-loop poles of the per-sample PI (servo.md §1.2): the roots of
+/// Closed-loop poles of the per-sample PI (REQ-SERVO-001): the roots of
 /// z² + (Kp + Ki − 2)·z + (1 − Kp). Returns the larger root modulus.
 pub fn pi_pole_radius(kp: f64, ki: f64) -> f64 {
     let b = kp + ki - 2.0;
@@ -90,11 +90,20 @@ pub fn seed_filter_direct(xs: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Seed 004 eq. 16–18 literally: N = ⌊Δ/T_slave⌋ crystal counts, N' = ⌊−N·Npll⌋ fine counts.
-/// `t_slave_ps` is the crystal period in ps (the paper's T_slave).
+/// Seed 004 eq. 15–18, the seed's counter compensation per sync period: N' = ⌊−Δ·Npll/T_slave⌋
+/// fine (PLL-multiplied) counts for a drift of Δ ns, with `t_slave_ps` the crystal period in ps
+/// (the paper's T_slave).
+///
+/// Reading: eq. 16 defines N = ⌊Δ/T_slave⌋ (whole crystal counts) and eq. 18 prints
+/// N' = floor(−N·Npll). Taken with eq. 16's floored N, the outer floor acts on an integer and does
+/// nothing, the result is a multiple of Npll (the PLL would add no resolution, contradicting the
+/// sentence after eq. 18, which says the multiplication is there to make the compensation finer)
+/// and any −T_slave ≤ Δ < 0 yields +Npll counts, a whole crystal count of over-correction. The
+/// reading that fits the text is that eq. 18 floors once, at the fine resolution: N is Δ/T_slave
+/// before rounding, so N' = ⌊−(Δ/T_slave)·Npll⌋. That is what is implemented; with Npll = 1 it is
+/// eq. 16–17 with the floor applied to −Δ/T_slave.
 pub fn seed_counter_compensation(delta_ns: i128, t_slave_ps: i128, npll: i128) -> i128 {
-    let n = (delta_ns * 1000).div_euclid(t_slave_ps);
-    -n * npll
+    (-delta_ns * 1000 * npll).div_euclid(t_slave_ps)
 }
 
 /// REQ-SERVO-041: the exact cumulative correction after periods with drifts `deltas` (ns), in
@@ -121,7 +130,7 @@ pub fn rate_ratio_ppb(m0: i128, m_n: i128, s0: i128, s_n: i128) -> f64 {
     (dm / ds - 1.0) * 1e9
 }
 
-/// The master-follows-reference plant (servo.md §7 model): the phase error of the master's
+/// The master-follows-reference plant: the phase error of the master's
 /// wake-up against the reference, in exact ns·10^9 units so drift in ppb accumulates without
 /// rounding. θₖ₊₁ = θₖ + P·drift_ppb/10^9 − cₖ + (jitter handled by the caller).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -152,7 +161,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn seed_poles_and_jury() {
+    fn pole_placement_and_jury() {
         let (kp, ki) = gains_from_poles(0.5, 1.0 / 3.0);
         assert!((kp - 5.0 / 6.0).abs() < 1e-12 && (ki - 1.0 / 3.0).abs() < 1e-12);
         assert!((pi_pole_radius(kp, ki) - 0.5).abs() < 1e-9);
@@ -168,9 +177,16 @@ mod tests {
     }
 
     #[test]
-    fn seed_counter_misses_sub_count_drift() {
-        // 25 MHz crystal (40 000 ps), ×4: 25 ns/period of drift is below one crystal count.
-        assert_eq!(seed_counter_compensation(25, 40_000, 4), 0);
+    fn seed_counter_floors_once_at_the_fine_resolution() {
+        // 25 MHz crystal (40 000 ps), ×4 (10 ns fine counts). 25 ns of drift is 2.5 fine counts:
+        // the seed corrects ⌊−2.5⌋ = −3, one crystal-count floor (⌊25/40⌋ = 0) would give 0.
+        assert_eq!(seed_counter_compensation(25, 40_000, 4), -3);
+        // A slave 1 ns slow: ⌊0.1⌋ = 0 fine counts, not the +4 (one crystal count) of flooring Δ
+        // to crystal counts first.
+        assert_eq!(seed_counter_compensation(-1, 40_000, 4), 0);
+        // The PLL matters: without it (Npll = 1) the same 25 ns is corrected by a whole count.
+        assert_eq!(seed_counter_compensation(25, 40_000, 1), -1);
+        assert_eq!(seed_counter_compensation(-40, 40_000, 4), 4);
         assert_eq!(exact_counter_total(&[25; 1000], 100_000_000), -2500);
     }
 }

@@ -108,6 +108,54 @@ fn seed000_eq23_last_case_erratum() {
     assert_eq!(seed000::eq23_printed_last_x2(1000, 4, 7), 1000 + 4 * 7);
 }
 
+/// REQ-DC-090 (a): the derived last case of eq. 23 follows from eq. 22 and eq. 17–19 alone,
+/// without the network model. Eq. 17–19 define `t_REF,n` as the sum of the hops; every hop but
+/// the last is eq. 13/15 and carries `+t_DIFF`, the last is eq. 5 and carries none, and the
+/// `t_iB − t_iA` of the inner slaves cancel in the sum. So `2·t_REF,n = (t_1B − t_1A) + k·t_DIFF`
+/// with `k` = the number of eq. 13 hops = `n − 2`; eq. 22 is that with n = 4 (`k = 2`). The
+/// printed `k = i = n` matches eq. 22 for no n (`n = n − 2` never holds), and the case
+/// `1 < i < n` keeps the `(i − 1)` eq. 13 hops it has.
+#[test]
+fn seed000_eq23_derived_from_eq22() {
+    let mut rng = SplitMix::new(22);
+    for _ in 0..500 {
+        let n = usize::try_from(rng.range(2, 64)).unwrap();
+        let d = rng.range(-200, 400);
+        // Arbitrary rtt values (no model): the identities are algebraic.
+        let rtt: Vec<i128> = (0..n).map(|_| rng.range(0, 1_000_000)).collect();
+        // k from the sum of hops, solved for the coefficient of t_DIFF.
+        let sum = seed000::eq17_19_sum_of_hops_x2(&rtt, n, n, d).unwrap();
+        let no_diff = seed000::eq17_19_sum_of_hops_x2(&rtt, n, n, 0).unwrap();
+        assert_eq!(no_diff, rtt[0], "inner rtts cancel, n={n}");
+        if d != 0 {
+            assert_eq!((sum - no_diff) / d, n as i128 - 2, "k = n − 2, n={n}");
+            assert_ne!(seed000::eq23_printed_x2(&rtt, n, n, d).unwrap(), sum);
+        }
+        assert_eq!(seed000::eq23_t_ref_x2(&rtt, n, n, d).unwrap(), sum);
+        // The other cases are the same printed and derived, and equal the sum of hops.
+        for i in 1..n {
+            let derived = seed000::eq23_t_ref_x2(&rtt, n, i, d).unwrap();
+            assert_eq!(seed000::eq23_printed_x2(&rtt, n, i, d).unwrap(), derived);
+            assert_eq!(
+                derived,
+                seed000::eq17_19_sum_of_hops_x2(&rtt, n, i, d).unwrap()
+            );
+        }
+    }
+    // n = 4: the derived form is eq. 22 literally, the printed one is not.
+    for (r1, d) in [(1000, 7), (0, 80), (52_345, -3)] {
+        let rtt = [r1, 11, 22, 33];
+        assert_eq!(
+            seed000::eq23_t_ref_x2(&rtt, 4, 4, d).unwrap(),
+            seed000::eq22_t_ref4_x2(r1, d)
+        );
+        assert_eq!(
+            seed000::eq23_printed_x2(&rtt, 4, 4, d).unwrap() - seed000::eq22_t_ref4_x2(r1, d),
+            2 * d
+        );
+    }
+}
+
 /// REQ-DC-090 (b), REQ-DC-025: the printed eq. 24 sign leaves a drift of 2·(local − ref) in
 /// eq. 25; the datasheet sign (used by ecdc) gives zero. Seed 003 eq. 5/6 agree with the latter.
 #[test]
@@ -149,7 +197,7 @@ fn seed003_two_slaves() {
     assert_eq!(seed003::eq2_return(420, 95), x2 / 2, "eq. 3: t_p1 = t_p2");
 }
 
-/// Datasheet example (esc-dc.md §5): A – B (junction, ports 0/1/2) – C – D on B's port 1, E on
+/// Datasheet example (docs/background/esc-registers.md §5): A – B (junction, ports 0/1/2) – C – D on B's port 1, E on
 /// B's port 2. t_AB, t_BC, t_CD and the general hop rule equal the model, and so does core.
 #[test]
 fn datasheet_tree_formulas() {

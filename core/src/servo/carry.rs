@@ -1,10 +1,10 @@
 //! Error-feedback quantiser: turns a Q32 command into whole units while carrying the fractional
 //! remainder, so the long-run sum of the integers equals the sum of the commands to within one
-//! unit (servo.md §7 rule 9; REQ-SERVO-040).
+//! unit (REQ-SERVO-040).
 //!
 //! q_k = ⌊x_k + r_k⌋, r_{k+1} = x_k + r_k − q_k ∈ [0, 1). Summing gives
 //! Σq = Σx + r_0 − r_n, so |Σq − Σx| < 1 for every input sequence: flooring each period on its
-//! own (seed 004 eq. 16–18 as written) instead biases the rate by up to 1 LSB per period.
+//! own (seed 004 eq. 18) instead biases the rate by up to 1 LSB per period, always the same way.
 
 use super::gains::FRAC_BITS;
 

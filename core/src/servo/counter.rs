@@ -2,9 +2,11 @@
 //!
 //! The slave clock is a counter of crystal pulses, multiplied by a PLL (Npll) for finer
 //! correction. Over one sync period the slave drifts Δ ns from the master (Δ > 0: slave fast,
-//! REQ-CONV-007). The seed corrects N' = ⌊−N·Npll⌋ counts per period with N = ⌊Δ/T_slave⌋
-//! (eq. 16–18). Flooring twice per period throws away up to one crystal count (Npll fine
-//! counts) every period, i.e. a systematic rate bias. Here the exact correction
+//! REQ-CONV-007). The seed corrects N' = ⌊−Δ·Npll/T_slave⌋ fine counts per period (eq. 16–18
+//! read as one floor at the fine resolution; the reading is argued at
+//! `ecdc_spec::servo::seed_counter_compensation`). Flooring each period on its own drops up to
+//! one fine count every period, always in the same direction: a rate bias of up to T_slave/Npll
+//! per period that accumulates without bound in phase. Here the exact correction
 //! x = −Δ·f_slave·Npll / 10^9 fine counts is computed in Q32 and quantised by [`Carry`], so the
 //! long-run correction rate is exact and the phase error stays under one fine count
 //! (REQ-SERVO-041).
@@ -90,10 +92,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn exact_rate_where_double_floor_drifts() {
+    fn exact_rate_where_a_per_period_floor_drifts() {
         // 25 MHz crystal, PLL ×4 = 100 MHz fine counts (10 ns). Slave 25 ns fast per period:
-        // the exact correction is −2.5 fine counts per period. The seed's double floor gives
-        // N = ⌊25/40⌋ = 0 crystal counts, N' = 0: it never corrects this drift at all.
+        // the exact correction is −2.5 fine counts per period. Flooring each period gives −3,
+        // 5 ns too much every period; the carry alternates −2 and −3.
         let mut c = CounterCompensator::new(25_000_000, 4).unwrap();
         let mut sum = 0i64;
         for k in 1..=10_000i64 {

@@ -1,11 +1,11 @@
 //! The generic servo engine: mode machine, time sanity, step policy, blanking, holdover, outlier
-//! gate, lock detector and gain switch around the PI kernel (servo.md §7).
+//! gate, lock detector and gain switch around the PI kernel (REQ-SERVO-050..090).
 //!
 //! One engine serves every loop; adapters turn their measurement into an error θ (ns,
 //! REQ-CONV-007: measured − target, positive = the controlled clock is ahead) and turn the
 //! engine's command back into their actuator's units ([`super::master`], [`super::ptp`]).
 //! [`Servo::update`] is a pure function of (state, input, config): no clock reads, no
-//! allocation, no floating point, so a log replays bit-exactly (servo.md §7 invariant 11).
+//! allocation, no floating point, so a log replays bit-exactly (REQ-SERVO-090).
 //!
 //! ```text
 //!            first sample                 |θ| < gear_ns for gear_count samples
@@ -60,7 +60,7 @@ pub struct ServoConfig {
     /// Missing or invalid samples tolerated in holdover before re-acquiring (keeping I).
     pub holdover_max: u32,
     /// Raise [`Output::fault`] after this many consecutive saturated samples during which |θ|
-    /// did not shrink (0 = never): the actuator is not acting (servo.md §1.9 item 3, §7 rule 7).
+    /// did not shrink (0 = never): the actuator is not acting (REQ-SERVO-086).
     pub fault_after: u32,
 }
 
@@ -81,7 +81,7 @@ pub enum ConfigError {
     Parameter,
 }
 
-/// Servo mode. "Stable" in servo.md is Tracking with `locked == true`.
+/// Servo mode. A settled loop is Tracking with `locked == true`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
     /// No sample yet.
@@ -230,8 +230,15 @@ impl Servo {
     /// Seed the integrator with a known frequency (Q32 ns per interval, clamped to ±I_max), e.g.
     /// the last learned value across a restart (linuxptp's `fadj`).
     pub fn with_integrator(mut self, i_q32: i64) -> Self {
-        self.integrator = hold(self.cfg.limits, i_q32);
+        self.set_integrator(i_q32);
         self
+    }
+
+    /// Load a known frequency into the integrator (Q32 ns per interval, clamped to ±I_max), e.g.
+    /// a rate measured before the loop starts: the PI then starts at its equilibrium instead of
+    /// integrating the whole rate error through the phase.
+    pub fn set_integrator(&mut self, i_q32: i64) {
+        self.integrator = hold(self.cfg.limits, i_q32);
     }
 
     /// Configuration in use.
@@ -259,7 +266,7 @@ impl Servo {
         &self.counters
     }
 
-    /// Back to `Init`, keeping the learned frequency (servo.md §7: a restart must not forget it).
+    /// Back to `Init`, keeping the learned frequency (a restart does not change the crystal's rate).
     pub fn reset(&mut self) {
         let i = self.integrator;
         let counters = self.counters;
@@ -350,7 +357,7 @@ impl Servo {
             Input::Sample { local_ns, theta_ns } => (local_ns, theta_ns),
         };
         let theta = theta.clamp(-(1 << 62), 1 << 62);
-        // Time sanity (servo.md §7 rule 1, invariant 7).
+        // Time sanity (REQ-SERVO-070).
         if let Some(prev) = self.last_t {
             let h = wrapping_diff::<u64>(t, prev);
             let h0 = i64::from(self.cfg.interval_ns);
@@ -378,7 +385,7 @@ impl Servo {
             return self.held(Verdict::Blanked, theta);
         }
         let mag = theta.unsigned_abs();
-        // Step policy (servo.md §7 rule 6).
+        // Step policy (REQ-SERVO-080).
         if self.first {
             self.first = false;
             if self.cfg.first_step_ns > 0 && mag > self.cfg.first_step_ns {
@@ -452,7 +459,7 @@ impl Servo {
             }
             let timed_out = self.cfg.acquire_max > 0 && self.acquired >= self.cfg.acquire_max;
             if self.gear_run >= self.cfg.gear_count || timed_out {
-                // Bumpless apart from ΔKp·θ: I carries over (servo.md §7 rule 5).
+                // Bumpless apart from ΔKp·θ: I carries over (REQ-SERVO-085).
                 self.mode = Mode::Tracking;
                 self.resume = Mode::Tracking;
                 self.gate.clear();

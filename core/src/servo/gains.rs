@@ -1,11 +1,11 @@
 //! PI gains in Q32 fixed point, derived from closed-loop pole positions and refused outside the
 //! stable region.
 //!
-//! Why poles: "what should kp/ki be?" is the most common servo question in the field
-//! (servo.md §1.9 item 6). A pole radius is one physically meaningful knob: the error decays as
+//! Why poles: a raw (kp, ki) pair says nothing a user can check against the application, and a
+//! pair that looks harmless can be unstable. A pole radius is one physically meaningful knob: the error decays as
 //! p^k, so p = 0.99 at 1 kHz is a ~100 ms time constant. For the per-sample PI of
 //! [`super::pi`] the closed-loop characteristic polynomial is z² + (Kp + Ki − 2)·z + (1 − Kp)
-//! (servo.md §1.2 [DERIVED]); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
+//! ([DERIVED] for the plant θₖ₊₁ = θₖ + δ − uₖ, REQ-SERVO-001); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
 //! Ki = (1 − p₁)(1 − p₂) (REQ-SERVO-001).
 //!
 //! Q-format: a gain g is stored as the integer round(g · 2^32) in an `i64` ([`ONE`] = 1.0).
@@ -20,7 +20,7 @@ pub const ONE: i64 = 1 << FRAC_BITS;
 
 /// Stability margin (REQ-SERVO-002): Kp ∈ [M, 2 − M] and 2·Kp + Ki ≤ 4 − M, M = 2^-10. Keeps
 /// both poles a visible distance inside the unit circle, which excludes linuxptp's marginal
-/// corner Kp = 1, Ki = 2 (a pole at z = −1, servo.md §1.2).
+/// corner Kp = 1, Ki = 2 (a pole at z = −1: z² + z + 0 = z(z + 1)).
 pub const MARGIN: i64 = ONE >> 10;
 
 /// A closed-loop pole on the real axis in [0, 1), as a Q32 fraction (`u32`, so p < 1 holds by
@@ -125,17 +125,6 @@ impl PiGains {
     pub const fn ki(self) -> i64 {
         self.ki
     }
-
-    /// The seed 004 design read as loop poles (e^−aT = 1/2, e^−bT = 1/3): Kp = 5/6, Ki = 1/3
-    /// (servo.md §6). Fast and noise-amplifying; offered for comparison with the paper.
-    pub fn seed004() -> Self {
-        // Poles 1/2 and 1/3 are in [0, 1), so the pole constructor always succeeds; the
-        // fallback is the same values written out (5/6 and 1/3 in Q32).
-        Self::from_poles(Pole(1 << 31), Pole(0x5555_5555)).unwrap_or(PiGains {
-            kp: 3_579_139_413,
-            ki: 1_431_655_765,
-        })
-    }
 }
 
 #[cfg(test)]
@@ -148,7 +137,8 @@ mod tests {
 
     #[test]
     fn poles_map_to_expected_gains() {
-        let g = PiGains::seed004();
+        // Poles 1/2 and 1/3: Kp = 1 − 1/6, Ki = (1/2)(2/3).
+        let g = PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0x5555_5555)).unwrap();
         assert!((f(g.kp()) - 5.0 / 6.0).abs() < 1e-9);
         assert!((f(g.ki()) - 1.0 / 3.0).abs() < 1e-9);
         let p = Pole::from_micro(990_000).unwrap();

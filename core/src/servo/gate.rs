@@ -1,7 +1,7 @@
-//! Median/MAD outlier gate over the last [`GATE_WINDOW`] accepted errors (servo.md §7 rule 3).
+//! Median/MAD outlier gate over the last [`GATE_WINDOW`] accepted errors (REQ-SERVO-050).
 //!
 //! Why: OS wake-up and NIC timestamp noise is heavy-tailed (a few samples 10–100× the typical
-//! jitter, wire-and-runtime.md §4.4); a PI integrates every one of them. The median and the
+//! jitter); a PI integrates every one of them. The median and the
 //! median absolute deviation are unaffected by a minority of outliers, so the gate rejects a
 //! sample whose distance from the window median exceeds max(κ·1.4826·MAD, floor). A run of
 //! `confirm` rejections on the same side is a real change, not noise: the caller then re-acquires
@@ -24,7 +24,7 @@ pub struct GateConfig {
 }
 
 impl GateConfig {
-    /// κ = 5, floor as given, 8 samples before arming, confirm after 3 (servo.md §7 defaults).
+    /// κ = 5, floor as given, 8 samples before arming, confirm after 3 (ecdc choices).
     pub const fn with_floor(floor_ns: u32) -> Self {
         GateConfig {
             kappa_q8: 1898,
@@ -310,7 +310,7 @@ mod tests {
         assert_eq!(g.judge(&cfg, i64::MIN), GateVerdict::Reject);
     }
 
-    /// The former implementation, kept as the oracle: median of a sorted copy of the window,
+    /// The oracle for the incremental window: median of a sorted copy of the window,
     /// then the median of the sorted absolute deviations.
     fn median_by_sorting(v: &mut [i64; GATE_WINDOW], n: usize) -> i64 {
         let s = &mut v[..n];
@@ -384,7 +384,7 @@ mod tests {
     }
 
     #[test]
-    fn incremental_window_equals_former_sorting_gate() {
+    fn incremental_window_equals_sorting_gate() {
         let cfgs = [
             GateConfig::with_floor(0),
             GateConfig::with_floor(10_000),

@@ -4,7 +4,7 @@
 //! only differences are used, through the wrap-safe [`crate::num::wrapping_diff`], so they are
 //! correct whenever the true differences are below 2^63 ns.
 //!
-//! Two-way exchange (servo.md §4.1): t1 = Sync egress at the master (Tm1), t2 = its ingress at
+//! Two-way exchange (IEEE 1588 delay request-response): t1 = Sync egress at the master (Tm1), t2 = its ingress at
 //! the slave (Ts1), t3 = Delay_Req egress at the slave, t4 = its ingress at the master.
 //! - mean path delay = ((t2 − t1) + (t4 − t3)) / 2 (eq. 2, symmetric path assumed);
 //! - offset = t2 − t1 − delay (eq. 1), positive = slave ahead (REQ-CONV-007).
@@ -100,8 +100,9 @@ pub fn compound_ppb(a: i64, b: i64) -> i64 {
 }
 
 /// Rate-ratio estimator over `n` sync periods (seed eq. 6: the numerator and denominator are
-/// master and slave elapsed time over n adjustment periods). Longer baselines shrink the
-/// timestamp-quantisation error as 1/n (servo.md §4.4).
+/// master and slave elapsed time over n adjustment periods). A timestamp error of e ns at
+/// either end of the baseline moves the ratio by about e/(n·h₀), so longer baselines shrink it
+/// as 1/n. The PTP servo runs it before its offset loop ([`super::ptp`], REQ-SERVO-124).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RateEstimator {
     periods: u32,

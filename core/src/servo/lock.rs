@@ -1,4 +1,4 @@
-//! Lock detector with hysteresis (servo.md §7 rule 8, invariant 10; REQ-SERVO-060).
+//! Lock detector with hysteresis (REQ-SERVO-060).
 //!
 //! `locked` rises only after `count` consecutive samples with |θ| < `low`, and falls only on a
 //! sample with |θ| > `high` (or an explicit [`LockDetector::unlock`], e.g. after a step or a

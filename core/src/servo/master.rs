@@ -1,5 +1,5 @@
 //! Master-follows-reference: the loop that keeps the master's cycle on the DC reference clock
-//! by correcting the master's next wake-up deadline (servo.md §3, §7; REQ-SERVO-100..105).
+//! by correcting the master's next wake-up deadline (REQ-SERVO-100..104).
 //!
 //! Model. The master keeps a nominal "app time" that advances exactly one period P per cycle
 //! (its idea of DC system time at the cycle's wake-up), and sends it with the cyclic frame whose
@@ -65,7 +65,7 @@ pub struct MasterConfig {
 }
 
 impl MasterConfig {
-    /// Defaults for period P (ecdc choices, servo.md §3.7, §7):
+    /// Defaults for period P (ecdc choices, REQ-SERVO-104):
     /// - acquire: double pole 0.9 (Kp 0.19, Ki 0.01), track: double pole 0.99 (noise-rejecting);
     /// - |correction| ≤ P/1000 per cycle (IgH's ±0.1 %), I_max = y_max;
     /// - no phase steps of the wake-up at all: steps are by whole periods of app time only
@@ -250,7 +250,7 @@ impl MasterServo {
         Some((theta, correction, raw.unsigned_abs() >= p.unsigned_abs()))
     }
 
-    /// [`MasterServo::measure`] computed in i128 throughout (the former code; the fallback when
+    /// [`MasterServo::measure`] computed in i128 throughout (the fallback when
     /// an i64 intermediate could overflow, and the oracle of the equality test).
     fn measure_wide(&self, app: u64, reference: u64) -> (i64, i64, bool) {
         let d = self.difference(app, reference);

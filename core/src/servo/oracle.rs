@@ -251,7 +251,7 @@ pub mod engine {
             &self.counters
         }
 
-        /// Back to `Init`, keeping the learned frequency (servo.md §7: a restart must not forget it).
+        /// Back to `Init`, keeping the learned frequency (a restart does not change the crystal's rate).
         pub fn reset(&mut self) {
             let i = self.integrator;
             let counters = self.counters;
@@ -334,7 +334,7 @@ pub mod engine {
                 Input::Sample { local_ns, theta_ns } => (local_ns, theta_ns),
             };
             let theta = theta.clamp(-(1 << 62), 1 << 62);
-            // Time sanity (servo.md §7 rule 1, invariant 7).
+            // Time sanity (REQ-SERVO-070).
             if let Some(prev) = self.last_t {
                 let h = wrapping_diff::<u64>(t, prev);
                 let h0 = i64::from(self.cfg.interval_ns);
@@ -362,7 +362,7 @@ pub mod engine {
                 return self.held(Verdict::Blanked, theta);
             }
             let mag = theta.unsigned_abs();
-            // Step policy (servo.md §7 rule 6).
+            // Step policy (REQ-SERVO-080).
             if self.first {
                 self.first = false;
                 if self.cfg.first_step_ns > 0 && mag > self.cfg.first_step_ns {
@@ -436,7 +436,7 @@ pub mod engine {
                 }
                 let timed_out = self.cfg.acquire_max > 0 && self.acquired >= self.cfg.acquire_max;
                 if self.gear_run >= self.cfg.gear_count || timed_out {
-                    // Bumpless apart from ΔKp·θ: I carries over (servo.md §7 rule 5).
+                    // Bumpless apart from ΔKp·θ: I carries over (REQ-SERVO-085).
                     self.mode = Mode::Tracking;
                     self.resume = Mode::Tracking;
                     self.gate.clear();
@@ -568,7 +568,7 @@ pub mod master {
             }
         }
 
-        /// [`MasterServo::measure`] computed in i128 throughout (the former code; the fallback when
+        /// [`MasterServo::measure`] computed in i128 throughout (the fallback when
         /// an i64 intermediate could overflow, and the oracle of the equality test).
         fn measure_wide(&self, app: u64, reference: u64) -> (i64, i64, bool) {
             let d = self.difference(app, reference);

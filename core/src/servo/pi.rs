@@ -6,7 +6,7 @@
 //! (ns · 2^32): positive y slows the controlled clock / delays the next wake-up by y ns.
 //! Adapters convert y into a deadline correction ([`super::master`]) or ppb ([`super::ptp`]).
 //!
-//! Position form (servo.md §7 rule 5):
+//! Position form (REQ-SERVO-010):
 //!   v = Kp·θ + I + Ki·θ,   y = clamp(v, ±y_max),
 //!   I' = clamp(I + Ki·θ, ±I_max) if |v| ≤ y_max or Ki·θ pulls v back toward the range,
 //!   I' = I otherwise (conditional integration: no windup while saturated).
@@ -49,7 +49,7 @@ pub struct PiLimits {
 pub enum LimitError {
     /// y_max must be in (0, LIMIT_MAX_NS·2^32].
     OutputLimit,
-    /// I_max must be in (0, y_max] (servo.md §7 invariant 2: then saturation ends at the first
+    /// I_max must be in (0, y_max] (REQ-SERVO-011: then saturation ends at the first
     /// sample whose P term opposes it).
     IntegratorLimit,
 }
@@ -178,7 +178,7 @@ pub fn pi_step(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
 }
 
 /// Hold: the command used when a sample is missing, blanked or rejected — the integrator alone
-/// (the learned frequency), no P term, no integration (servo.md §7 rule 1).
+/// (the learned frequency), no P term, no integration (REQ-SERVO-071).
 #[inline]
 pub fn hold(lim: PiLimits, i: i64) -> i64 {
     clamp_mag(i, lim.i_max)
@@ -191,7 +191,8 @@ mod tests {
 
     #[test]
     fn linear_region_matches_formula() {
-        let g = PiGains::seed004();
+        // Fast gains (poles 1/2 and 1/3, Kp = 5/6, Ki = 1/3): a test choice with Kp, Ki < 1.
+        let g = PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0x5555_5555)).unwrap();
         let lim = PiLimits::from_ns(1000, 500).unwrap();
         let s = pi_step(g, lim, 10 * ONE, 60);
         let v = g.kp() * 60 + 10 * ONE + g.ki() * 60;
@@ -219,8 +220,8 @@ mod tests {
         assert!(s.integrator < 50 * ONE);
     }
 
-    /// The plain-i64 body `pi_step` had before its add/compare/clamp part became the
-    /// Word-generic [`pi_update`]; kept as the oracle that the refactoring changed no result.
+    /// `pi_step` written as a plain-i64 body: the oracle that the Word-generic [`pi_update`]
+    /// (which SMT runs on bit-vectors) does the add/compare/clamp part with the same result.
     fn pi_step_i64(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
         let i = clamp_mag(i, lim.i_max);
         let th = clamp_mag(theta, THETA_MAX);

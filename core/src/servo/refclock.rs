@@ -3,12 +3,12 @@
 //!
 //! An ECAT write covering 0x0910 is a sample for the ESC's own time-control loop: the ESC
 //! compares the written value, at end of frame, with its local copy latched when the frame's
-//! start passed it (esc-dc.md §3 item 2, §4). So the value must be the master's time *at the
+//! start passed it (REQ-ESC-006, REQ-ESC-050). So the value must be the master's time *at the
 //! moment the frame passes the reference*: the master's time at send plus `lead_ns` (NIC TX
 //! latency + wire and forwarding delay up to the reference). IgH's `sync_reference_clock_to`
 //! writes 4 bytes; a 64-bit reference may take 8.
 //!
-//! The ESC loop slews at most ~760 ppm (esc-dc.md §4.2), so a jump in the master's time would
+//! The ESC loop slews at most ≈ 763 ppm at the default bandwidth (REQ-ESC-056), so a jump in the master's time would
 //! pull the whole network for minutes. Each written value is therefore checked against the
 //! previous one advanced by the elapsed cycles; a deviation beyond `max_jump_ns` is refused with
 //! a typed error, and nothing is written until the caller re-anchors with [`RefFollower::resync`]

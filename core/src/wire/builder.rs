@@ -528,7 +528,7 @@ mod tests {
     use crate::wire::{EcatFrame, MAX_FRAME_LEN};
 
     /// REQ-WIRE-040/041/060: the builder reproduces the hand-written base frame of
-    /// wire-and-runtime.md §2.3 byte for byte (into a 0xa5-filled buffer).
+    /// docs/background/wire-format.md §2.3 byte for byte (into a 0xa5-filled buffer).
     #[test]
     fn builds_base_frame() {
         let mut buf = [0xa5u8; 100];

@@ -1,5 +1,5 @@
 //! The 15 EtherCAT commands, their addressing kind and working-counter rules
-//! (ESC datasheet Section I Tables 5 and 7; wire-and-runtime.md §1.4).
+//! (ESC datasheet Section I Tables 5 and 7; docs/background/wire-format.md §1.4).
 
 use super::{Error, Result};
 use core::fmt;

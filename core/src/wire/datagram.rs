@@ -464,7 +464,7 @@ mod tests {
     use std::vec;
 
     /// FRMW idx 2, ADP 0x1001, ADO 0x0910, len 8, M=0, IRQ 0, data 1..8, WKC 3.
-    /// Written by hand from the layout table (wire-and-runtime.md §1.2).
+    /// Written by hand from the layout table (docs/background/wire-format.md §1.2).
     static FRMW: [u8; 20] = [
         0x0e, // cmd FRMW
         0x02, // idx

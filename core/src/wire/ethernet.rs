@@ -240,7 +240,7 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    /// BRD idx 1 ADO 0x0130 len 2, from a hand-written layout (wire-and-runtime.md §2.3 base
+    /// BRD idx 1 ADO 0x0130 len 2, from a hand-written layout (docs/background/wire-format.md §2.3 base
     /// frame, first datagram only), padded to 60.
     fn frame(tagged: bool) -> Vec<u8> {
         let mut f = vec![0xff, 0xff, 0xff, 0xff, 0xff, 0xff]; // dst

@@ -753,7 +753,7 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    /// The base frame of wire-and-runtime.md §2.3 (EtherCAT part), written by hand:
+    /// The base frame of docs/background/wire-format.md §2.3 (EtherCAT part), written by hand:
     /// header len 34 type 1; BRD idx 1 ADP 0 ADO 0 len 2 M=1; FRMW idx 2 ADP 0x1001 ADO 0x0910
     /// len 8 M=0; 10 bytes of padding.
     fn base() -> Vec<u8> {

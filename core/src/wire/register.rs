@@ -1,6 +1,6 @@
 //! ESC registers the DC code touches: addresses, widths, and typed codecs (REQ-WIRE-070..075).
 //!
-//! Sources: esc-dc.md §2 (ESC datasheet Section II tables, Infineon XMC SVD, IgH).
+//! Sources: docs/background/esc-registers.md §2 (ESC datasheet Section II tables, Infineon XMC SVD, IgH).
 //! [`reg`] holds plain `u16` addresses; [`typed`] pairs each DC register with its value type,
 //! so reading the 64-bit System Time as a `u32` does not compile.
 

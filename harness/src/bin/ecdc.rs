@@ -40,11 +40,12 @@ fn main() -> std::process::ExitCode {
         Command::Rtt(args) => cli::rtt::run(args),
         Command::Bench(args) => cli::bench::run(args),
     };
+    // 0 ok, 1 runtime error, 2 usage error (as clap's), 3 `--check` target missed: README.
     match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+        Ok(()) => std::process::ExitCode::from(cli::validate::EXIT_OK),
         Err(e) => {
             eprintln!("error: {e:#}");
-            std::process::ExitCode::FAILURE
+            std::process::ExitCode::from(cli::validate::exit_code(&e))
         }
     }
 }

@@ -46,6 +46,15 @@ impl TimeResolution {
 pub enum PcapError {
     /// Underlying I/O error.
     Io(io::Error),
+    /// The input is empty (0 bytes).
+    Empty,
+    /// The input ends inside the 24-byte global header.
+    ShortHeader {
+        /// Bytes present.
+        len: usize,
+        /// Whether the bytes present start with a pcap magic number.
+        pcap_magic: bool,
+    },
     /// The file does not start with a pcap magic number.
     BadMagic(u32),
     /// The file is pcapng, which this reader does not handle (convert with
@@ -73,12 +82,35 @@ impl fmt::Display for PcapError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             PcapError::Io(e) => write!(f, "pcap I/O: {e}"),
-            PcapError::BadMagic(m) => write!(f, "not a pcap file (magic {m:#010x})"),
+            PcapError::Empty => f.write_str(
+                "empty file: not a pcap capture (a classic pcap starts with a 24-byte header)",
+            ),
+            PcapError::ShortHeader {
+                len,
+                pcap_magic: true,
+            } => write!(
+                f,
+                "truncated pcap capture: {len} bytes, the global header alone is 24"
+            ),
+            PcapError::ShortHeader { len, .. } => write!(
+                f,
+                "not a pcap capture: {len} bytes, shorter than the 24-byte pcap header"
+            ),
+            PcapError::BadMagic(m) => write!(
+                f,
+                "not a pcap capture (magic {m:#010x}; a classic pcap starts with {MAGIC_MICROS:#010x} \
+                 or {MAGIC_NANOS:#010x} in either byte order)"
+            ),
             PcapError::Pcapng => f.write_str(
                 "pcapng is not supported; convert with `editcap -F pcap in.pcapng out.pcap`",
             ),
             PcapError::UnsupportedLinktype(l) => {
-                write!(f, "pcap link type {l} is not Ethernet (1)")
+                write!(
+                    f,
+                    "pcap link type {l} is not Ethernet (1): only Ethernet captures are read; \
+                     capture on the Ethernet interface itself (`tcpdump -i any` writes link \
+                     type 113, Linux cooked capture)"
+                )
             }
             PcapError::BadRecord { index, incl_len } => {
                 write!(
@@ -87,7 +119,11 @@ impl fmt::Display for PcapError {
                 )
             }
             PcapError::TruncatedRecord { index } => {
-                write!(f, "pcap record {index}: file ends inside the record")
+                write!(
+                    f,
+                    "pcap record {index}: file ends inside the record (the capture was cut \
+                     short after {index} complete record(s))"
+                )
             }
             PcapError::FrameTooLong(n) => write!(f, "frame of {n} bytes exceeds snaplen"),
         }
@@ -207,7 +243,24 @@ impl<R: Read> PcapReader<R> {
     /// Reads and checks the global header.
     pub fn new(mut input: R) -> Result<Self, PcapError> {
         let mut h = [0u8; 24];
-        input.read_exact(&mut h)?;
+        let mut got = 0;
+        while got < h.len() {
+            match input.read(&mut h[got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(PcapError::Io(e)),
+            }
+        }
+        if got == 0 {
+            return Err(PcapError::Empty);
+        }
+        if got < 4 {
+            return Err(PcapError::ShortHeader {
+                len: got,
+                pcap_magic: false,
+            });
+        }
         let magic_le = u32::from_le_bytes([h[0], h[1], h[2], h[3]]);
         let (big_endian, resolution) = match magic_le {
             MAGIC_MICROS => (false, TimeResolution::Micro),
@@ -217,6 +270,12 @@ impl<R: Read> PcapReader<R> {
             PCAPNG_MAGIC => return Err(PcapError::Pcapng),
             m => return Err(PcapError::BadMagic(m)),
         };
+        if got < h.len() {
+            return Err(PcapError::ShortHeader {
+                len: got,
+                pcap_magic: true,
+            });
+        }
         let r = PcapReader {
             input,
             big_endian,
@@ -371,6 +430,39 @@ mod tests {
             assert_eq!(recs[0].data, [1, 2, 3]);
             assert_eq!(recs[1].data, [0u8; 0]);
         }
+    }
+
+    #[test]
+    fn short_inputs_say_what_they_are() {
+        assert!(matches!(PcapReader::new(&[][..]), Err(PcapError::Empty)));
+        assert!(matches!(
+            PcapReader::new(&b"ab"[..]),
+            Err(PcapError::ShortHeader {
+                len: 2,
+                pcap_magic: false
+            })
+        ));
+        let text = b"myhost\n";
+        match PcapReader::new(&text[..]) {
+            Err(e @ PcapError::BadMagic(_)) => {
+                assert!(
+                    e.to_string()
+                        .contains("not a pcap capture (magic 0x6f68796d"),
+                    "{e}"
+                )
+            }
+            other => panic!("{other:?}"),
+        }
+        let cut = MAGIC_MICROS.to_le_bytes();
+        let e = PcapReader::new(&cut[..]).unwrap_err();
+        assert!(matches!(
+            e,
+            PcapError::ShortHeader {
+                len: 4,
+                pcap_magic: true
+            }
+        ));
+        assert!(e.to_string().contains("truncated pcap capture"), "{e}");
     }
 
     #[test]

@@ -13,7 +13,7 @@ use anyhow::Context;
 
 use crate::emu::{EscKind, Network, Scenario, SlaveSpec};
 use crate::report::svg::{render_bench, BenchSeries};
-use crate::report::table::markdown;
+use crate::report::table::{given_text, markdown};
 use crate::schemes::ecdc::{self, Ecdc, EcdcN};
 use crate::schemes::ethercrab::Ethercrab;
 use crate::schemes::igh::Igh;
@@ -33,9 +33,12 @@ pub struct Args {
 /// The benchmarks.
 #[derive(Debug, Clone, clap::Subcommand)]
 pub enum BenchCmd {
-    /// DC precision (lock, SYNC0 skew) of ecdc vs the seed 000, IgH-like, ethercrab-like and
-    /// uncompensated schemes on six emulated networks.
+    /// DC precision (lock, SYNC0 skew) of ecdc vs the seed 000 (derived and as printed),
+    /// IgH-like, ethercrab-like and uncompensated schemes on six emulated networks.
     Dc(DcArgs),
+    /// Every scheme's precision on seed 000's line with one unsourced emulator constant moved
+    /// at a time (t_DIFF, ESC loop gains, 0x0934/0x0935 power-on depths, PHY jitter, crystals).
+    Sensitivity(super::sensitivity::SensitivityArgs),
 }
 
 /// The bench scenarios.
@@ -60,7 +63,10 @@ pub enum BenchScenario {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
 pub enum SchemeName {
     Ecdc,
+    /// Seed 000 with eq. 23 as its eq. 22 implies, and its §3.1/§3.2 flow.
     Seed000,
+    /// Seed 000 with eq. 23 as printed, minimal flow (labelled extra row).
+    Seed000Printed,
     Igh,
     Ethercrab,
     Uncompensated,
@@ -75,12 +81,18 @@ pub struct DcArgs {
     /// Run only these scenarios (repeatable) [default: all six].
     #[arg(long = "scenario", value_enum)]
     pub scenarios: Vec<BenchScenario>,
-    /// Run only these schemes (repeatable) [default: all five].
+    /// Run only these schemes (repeatable) [default: all six].
     #[arg(long = "scheme", value_enum)]
     pub schemes: Vec<SchemeName>,
-    /// Override every scenario's simulated duration, ms.
-    #[arg(long)]
+    /// Override every scenario's simulated duration, ms (1..=3600000).
+    #[arg(long, allow_negative_numbers = true,
+          value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
     pub duration_ms: Option<u64>,
+    /// Exit with status 3 when ecdc misses a target in any scenario (it stops early, does not
+    /// lock before the last 10 % of the run, a DC slave never fires SYNC0, or the skew max
+    /// exceeds 100 ns; docs/bench.md). The files are written either way.
+    #[arg(long)]
+    pub check: bool,
 }
 
 impl Default for DcArgs {
@@ -90,6 +102,7 @@ impl Default for DcArgs {
             scenarios: Vec::new(),
             schemes: Vec::new(),
             duration_ms: None,
+            check: false,
         }
     }
 }
@@ -129,8 +142,9 @@ impl BenchScenario {
     pub fn title(self) -> &'static str {
         match self {
             BenchScenario::Seed000Line6 => {
-                "seed 000 §4: 6 slaves in a line, hop delays calibrated to its Table 2, 1 ms cycle, \
-                 ±50 ppm (the `ecdc simulate` default)"
+                "seed 000 §4: 6 slaves in a line, 1 ms cycle, ±50 ppm, the emulator's default delays \
+                 (`ecdc simulate`'s default has the same seed and crystals with seed 000's \
+                 Table 2 delays)"
             }
             BenchScenario::Seed003Line2 => {
                 "seed 003 §2.1: master + 2 servo drives in a line, 1 ms cycle, ±50 ppm \
@@ -158,14 +172,14 @@ impl BenchScenario {
     /// The emulator scenario.
     pub fn scenario(self) -> anyhow::Result<Scenario> {
         let text = match self {
-            BenchScenario::Seed000Line6 => return Ok(Scenario::seed000_line()),
+            BenchScenario::Seed000Line6 => return Ok(Scenario::line(6)),
             BenchScenario::Seed003Line2 => include_str!("../../scenarios/bench_seed003.toml"),
             BenchScenario::Tree100Nondc => include_str!("../../scenarios/bench_tree100.toml"),
             BenchScenario::Line512 => include_str!("../../scenarios/bench_line512.toml"),
             BenchScenario::Seed000Line6Loss => {
                 return Ok(Scenario {
                     frame_loss_rate: Self::LOSS_RATE,
-                    ..Scenario::seed000_line()
+                    ..Scenario::line(6)
                 })
             }
             BenchScenario::Line6Dc32 => {
@@ -198,9 +212,10 @@ impl BenchScenario {
 
 impl SchemeName {
     /// All schemes, in report order.
-    pub const ALL: [SchemeName; 5] = [
+    pub const ALL: [SchemeName; 6] = [
         SchemeName::Ecdc,
         SchemeName::Seed000,
+        SchemeName::Seed000Printed,
         SchemeName::Igh,
         SchemeName::Ethercrab,
         SchemeName::Uncompensated,
@@ -211,6 +226,8 @@ impl SchemeName {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct SchemeResult {
     pub name: String,
+    /// What the scheme was told beyond what it measured (`{}` = nothing), e.g. `t_diff_ns`.
+    pub given: crate::schemes::Given,
     /// Why the scheme stopped (e.g. "not a line"), if it did.
     pub error: Option<String>,
     pub lock_frames: Option<u64>,
@@ -236,9 +253,10 @@ pub struct SchemeResult {
 }
 
 impl SchemeResult {
-    fn from_summary(s: &Summary, sync0_slaves: usize) -> Self {
+    pub(crate) fn from_summary(s: &Summary, sync0_slaves: usize) -> Self {
         SchemeResult {
             name: s.name.clone(),
+            given: s.given.clone(),
             error: s.error.clone(),
             lock_frames: s.lock_frames,
             lock_ms: s.lock_ms,
@@ -269,7 +287,7 @@ pub struct ScenarioResult {
     pub cycle_ns: u32,
     pub duration_ns: u64,
     pub seed: u64,
-    /// Nominal t_P − t_F given to ecdc and the seed 000 scheme, ns.
+    /// Nominal t_P − t_F of the scenario, ns (who was given it: each scheme's `given`).
     pub t_diff_ns: i64,
     /// Smallest and largest crystal error drawn, ppm.
     pub crystal_ppm_min: f64,
@@ -327,6 +345,7 @@ fn scheme_label(s: SchemeName) -> &'static str {
     match s {
         SchemeName::Ecdc => "ecdc",
         SchemeName::Seed000 => "seed000",
+        SchemeName::Seed000Printed => "seed000-printed",
         SchemeName::Igh => "igh",
         SchemeName::Ethercrab => "ethercrab",
         SchemeName::Uncompensated => "uncompensated",
@@ -351,10 +370,22 @@ fn build(
             }
         }
         SchemeName::Seed000 => Box::new(Seed000::new(net, t_diff, cycle)),
+        SchemeName::Seed000Printed => Box::new(Seed000::printed(net, t_diff, cycle)),
         SchemeName::Igh => Box::new(Igh::new(net, cycle)),
         SchemeName::Ethercrab => Box::new(Ethercrab::new(net, cycle)),
         SchemeName::Uncompensated => Box::new(Uncompensated::new(net, cycle)),
     })
+}
+
+/// Builds scheme `which` on a fresh network of `sc`, telling it what `bench dc` tells it
+/// (docs/bench.md).
+pub(crate) fn build_scheme(
+    which: SchemeName,
+    sc: &Scenario,
+    cycle: u32,
+) -> anyhow::Result<Box<dyn Scheme>> {
+    let t_diff = i64::try_from(sc.defaults.t_p_ns)? - i64::try_from(sc.defaults.t_f_ns)?;
+    build(which, sc, t_diff, cycle)
 }
 
 /// Runs one scenario with the given schemes; returns its results and plot series. Progress
@@ -490,6 +521,7 @@ fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
                 opt(s.skew_max_ns),
                 s.skew_pairs.to_string(),
                 format!("{}/{}", s.sync0_slaves, r.dc_slaves),
+                given_text(&s.given),
             ]);
             if let Some(e) = &s.error {
                 let short: String = e.chars().take(90).collect();
@@ -500,7 +532,7 @@ fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
         .collect()
 }
 
-const HEADERS: [&str; 9] = [
+const HEADERS: [&str; 10] = [
     "scheme",
     "lock frames",
     "lock ms",
@@ -510,6 +542,7 @@ const HEADERS: [&str; 9] = [
     "max |.| ns",
     "pairs",
     "SYNC0 slaves",
+    "given",
 ];
 
 /// The Markdown report.
@@ -529,8 +562,9 @@ pub fn markdown_report(rep: &DcReport) -> String {
          window. `lock frames` counts the frames that carry the reference time (static drift + \
          cyclic) sent until lock; `pairs` the (slave, pulse) skew samples; `SYNC0 slaves` the \
          slaves that fired SYNC0 in the window out of those with a DC system time (fewer = some \
-         slaves never started SYNC0, their skew is not in the statistics); `*` = lock reached only \
-         in the last 10 % of the run.\n\n## All scenarios\n\n",
+         slaves never started SYNC0, their skew is not in the statistics); `given` what the \
+         scheme was told beyond what it measures on the wire (`{}` = nothing; `t_diff_ns` = the \
+         scenario's nominal t_P − t_F); `*` = lock reached only in the last 10 % of the run.\n\n## All scenarios\n\n",
     );
     let mut headers = vec!["scenario"];
     headers.extend(HEADERS);
@@ -595,6 +629,7 @@ pub fn markdown_report(rep: &DcReport) -> String {
 
 /// Runs `ecdc bench dc` and writes its files; returns the report.
 pub fn run_dc(args: &DcArgs) -> anyhow::Result<DcReport> {
+    super::validate::bench_dc_args(args)?;
     let mut scenarios = if args.scenarios.is_empty() {
         BenchScenario::ALL.to_vec()
     } else {
@@ -640,6 +675,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         BenchCmd::Dc(a) => {
             let wall = Instant::now();
             let rep = run_dc(a)?;
+            let missed = if a.check {
+                super::check::bench(&rep)
+            } else {
+                Vec::new()
+            };
             let all: Vec<Vec<String>> = rep.scenarios.iter().flat_map(|r| rows(r, true)).collect();
             let mut headers = vec!["scenario"];
             headers.extend(HEADERS);
@@ -649,7 +689,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 a.out.display(),
                 wall.elapsed().as_secs_f64()
             );
+            if !missed.is_empty() {
+                return Err(super::validate::TargetsMissed(missed).into());
+            }
             Ok(())
         }
+        BenchCmd::Sensitivity(a) => super::sensitivity::run(a).map(|_| ()),
     }
 }

@@ -5,10 +5,12 @@
 //! UDP port 0x88A4. Datagrams before the first error are still shown, so a broken frame can be
 //! diagnosed. Frames that are not EtherCAT at all (ARP, IP traffic in a mixed capture) are
 //! listed as skipped. The command fails (exit status 1) if any EtherCAT frame is invalid or if
-//! no EtherCAT frame was found.
+//! no EtherCAT frame was found; an input that is neither a readable pcap capture nor hex is a
+//! usage error (exit status 2) whose message says which.
 
+use super::validate::usage;
 use crate::capture::{pcap, udp};
-use anyhow::{bail, Context};
+use anyhow::bail;
 use ecdc_core::wire::{Command, Datagram, EcatFrame, EthernetFrame, ETHERTYPE_ETHERCAT};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -60,15 +62,44 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 /// Frames to decode: (timestamp ns if known, bytes).
 fn load(args: &Args) -> anyhow::Result<Vec<(Option<u64>, Vec<u8>)>> {
     let path = Path::new(&args.input);
-    if path.is_file() {
-        let recs = pcap::read_file(path).with_context(|| format!("reading {}", args.input))?;
+    if path.is_dir() {
+        return Err(usage(format!(
+            "{}: is a directory; give a pcap file or a hex string",
+            args.input
+        )));
+    }
+    // Anything that exists and is not a directory is read as a capture (a FIFO, /dev/stdin).
+    if path.exists() {
+        let recs = match pcap::read_file(path) {
+            Ok(r) => r,
+            Err(pcap::PcapError::Io(e)) => {
+                return Err(anyhow::Error::new(e).context(format!("reading {}", args.input)))
+            }
+            Err(e) => return Err(usage(format!("{}: {e}", args.input))),
+        };
+        if recs.is_empty() {
+            return Err(usage(format!(
+                "{}: the pcap capture holds no frames (header only)",
+                args.input
+            )));
+        }
         return Ok(recs.into_iter().map(|r| (Some(r.ts_ns), r.data)).collect());
     }
-    let bytes = parse_hex(&args.input).with_context(|| {
-        format!(
-            "{:?} is neither an existing file nor a hex string",
+    let looks_like_path = args.input.contains('/')
+        || [".pcap", ".pcapng", ".cap"]
+            .iter()
+            .any(|x| args.input.to_ascii_lowercase().ends_with(x));
+    if looks_like_path {
+        return Err(usage(format!(
+            "{}: no such file (give an existing pcap file or a hex string)",
             args.input
-        )
+        )));
+    }
+    let bytes = parse_hex(&args.input).map_err(|e| {
+        usage(format!(
+            "{:?} is neither an existing file nor a hex string: {e}",
+            args.input
+        ))
     })?;
     Ok(vec![(None, bytes)])
 }
@@ -285,7 +316,7 @@ mod tests {
         assert!(parse_hex("  ").is_err());
     }
 
-    /// The base frame of wire-and-runtime.md §2.3, by hand, and a corrupted copy.
+    /// The base frame of docs/background/wire-format.md §2.3, by hand, and a corrupted copy.
     #[test]
     fn renders_base_frame_and_error() {
         let hex_frame = "ffffffffffff 101010101010 88a4 2210 \

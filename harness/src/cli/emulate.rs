@@ -5,6 +5,8 @@
 use anyhow::Context;
 
 use super::link_args::{LinkArgs, RtArgs};
+use super::validate;
+use crate::emu::scenario::MAX_SLAVES;
 use crate::emu::{Delivery, Network, Scenario};
 use crate::runtime::clock;
 use crate::runtime::serve::{self, Reflector, Responder, ServeSummary};
@@ -29,20 +31,21 @@ pub struct Args {
     /// Slave model.
     #[arg(long, value_enum, default_value_t = Engine::Esc)]
     pub engine: Engine,
-    /// Number of default slaves in a line (ignored with --scenario).
-    #[arg(long, default_value_t = 3)]
+    /// Number of default slaves in a line, 1..=65535 (not with --scenario).
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true,
+          value_parser = validate::usize_in(1, MAX_SLAVES), conflicts_with = "scenario")]
     pub slaves: usize,
     /// Scenario file (TOML or JSON, see docs/emulator.md): topology, delays, crystals, faults.
     #[arg(long)]
     pub scenario: Option<std::path::PathBuf>,
-    /// Override the scenario's random seed.
-    #[arg(long)]
+    /// Override the scenario's random seed (0..=2^64-1).
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::u64_in(0, u64::MAX))]
     pub seed: Option<u64>,
-    /// Override the scenario's frame loss probability (0..1).
-    #[arg(long)]
+    /// Override the scenario's frame loss probability (0..=1).
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::f64_in(0.0, 1.0))]
     pub loss_rate: Option<f64>,
-    /// Stop after this many seconds (default: until Ctrl-C / SIGTERM).
-    #[arg(long)]
+    /// Stop after this many seconds, > 0 (default: until Ctrl-C / SIGTERM).
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
     /// Print a line per second with frame counters.
     #[arg(long)]
@@ -54,6 +57,24 @@ pub struct Args {
 
 /// Runs `ecdc emulate`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    // Every input is checked before the interface is touched.
+    validate::cpu("--cpu", args.rt.cpu)?;
+    let scenario = match args.engine {
+        Engine::Esc => Some(load_scenario(args)?),
+        Engine::Reflect => {
+            let esc_only = [
+                ("--scenario", args.scenario.is_some()),
+                ("--seed", args.seed.is_some()),
+                ("--loss-rate", args.loss_rate.is_some()),
+            ];
+            if let Some((flag, _)) = esc_only.iter().find(|(_, given)| *given) {
+                return Err(validate::usage(format!(
+                    "{flag} configures the ESC emulator and has no effect with --engine reflect"
+                )));
+            }
+            None
+        }
+    };
     let stop = sys::install_stop_handler().context("installing the signal handler")?;
     let mut sock = args
         .link
@@ -84,9 +105,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             serve::serve(&mut sock, &mut Reflector, stop, until, spin, print)?
         }
         Engine::Esc => {
-            let scenario = load_scenario(args)?;
+            let scenario =
+                scenario.ok_or_else(|| anyhow::anyhow!("no scenario for the esc engine"))?;
             let net =
-                Network::new(&scenario).map_err(|e| anyhow::anyhow!("emulator scenario: {e:?}"))?;
+                Network::new(&scenario).map_err(|e| anyhow::anyhow!("emulator scenario: {e}"))?;
             let n = net.slave_count();
             let mut esc = EscResponder {
                 net,
@@ -128,22 +150,27 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 }
 
 fn load_scenario(args: &Args) -> anyhow::Result<Scenario> {
+    if args.scenario.is_none() && !(1..=MAX_SLAVES).contains(&args.slaves) {
+        return Err(validate::usage(format!(
+            "--slaves {}: valid: 1..={MAX_SLAVES}",
+            args.slaves
+        )));
+    }
     let mut sc = match &args.scenario {
-        Some(path) => {
-            Scenario::load(path).map_err(|e| anyhow::anyhow!("{}: {e:?}", path.display()))?
-        }
-        None => {
-            anyhow::ensure!(args.slaves >= 1, "--slaves must be at least 1");
-            Scenario::line(args.slaves)
-        }
+        Some(path) => validate::load_scenario("--scenario", path)?,
+        None => Scenario::line(args.slaves),
     };
     if let Some(seed) = args.seed {
         sc.seed = seed;
     }
     if let Some(p) = args.loss_rate {
-        anyhow::ensure!((0.0..=1.0).contains(&p), "--loss-rate must be within 0..1");
+        if !(0.0..=1.0).contains(&p) {
+            return Err(validate::usage(format!("--loss-rate {p}: valid: 0..=1")));
+        }
         sc.frame_loss_rate = p;
     }
+    let run_ns = args.duration.map(|s| (s * 1e9) as u64);
+    validate::scenario(&sc, args.scenario.as_deref(), run_ns)?;
     Ok(sc)
 }
 

@@ -9,7 +9,7 @@ use crate::runtime::socket::{RawSocket, SocketOptions, WaitMode};
 #[derive(Debug, Clone, clap::Args)]
 pub struct LinkArgs {
     /// Network interface connected to the first slave's port 0 (e.g. eth1, or a veth end).
-    #[arg(long, short = 'i')]
+    #[arg(long, short = 'i', value_parser = super::validate::iface_name)]
     pub iface: String,
     /// Bypass the qdisc on transmit (PACKET_QDISC_BYPASS). Faster path, but tcpdump/tshark on
     /// this interface no longer sees our TX frames: capture on the peer or use --pcap.
@@ -56,10 +56,11 @@ pub struct RtArgs {
     #[arg(long)]
     pub rt: bool,
     /// SCHED_FIFO priority for --rt (leave headroom above for IRQ threads).
-    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(1..=99))]
+    #[arg(long, default_value_t = 80, allow_negative_numbers = true,
+          value_parser = clap::value_parser!(i32).range(1..=99))]
     pub priority: i32,
-    /// CPU to pin to with --rt (default: the last CPU).
-    #[arg(long)]
+    /// CPU to pin to with --rt (default: the last CPU); must be online.
+    #[arg(long, allow_negative_numbers = true, value_parser = super::validate::usize_in(0, libc::CPU_SETSIZE as usize - 1))]
     pub cpu: Option<usize>,
 }
 

@@ -1,5 +1,5 @@
 //! `ecdc rtt --iface IF`: round-trip benchmark, back to back and inside a fixed cycle, with
-//! the same probe frame as the C probe in wire-and-runtime.md §5 (BRD 0x0130 len 2 + FRMW
+//! the same probe frame as the C probe in docs/background/linux-runtime.md §6 (BRD 0x0130 len 2 + FRMW
 //! 0x1001:0x0910 len 8, 60 bytes), so the numbers compare directly.
 //!
 //! The peer must answer EtherCAT frames: real slaves, or `ecdc emulate --engine reflect`
@@ -11,6 +11,7 @@ use anyhow::Context;
 use ecdc_core::wire::{Address, Command, FrameBuilder};
 
 use super::link_args::{LinkArgs, RtArgs};
+use super::validate::{self, CYCLE_US};
 use crate::runtime::clock;
 use crate::runtime::cyclic::{self, CycleConfig, CycleReport, CycleTask, LoopSummary};
 use crate::runtime::errors::RuntimeError;
@@ -25,19 +26,23 @@ pub struct Args {
     pub link: LinkArgs,
     #[command(flatten)]
     pub rt: RtArgs,
-    /// Back-to-back round trips (0 to skip).
-    #[arg(long, default_value_t = 10_000)]
+    /// Back-to-back round trips, 0..=100000000 (0 to skip).
+    #[arg(long, default_value_t = 10_000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(0, MAX_PROBES))]
     pub count: u64,
-    /// Cycles of the in-cycle measurement (0 to skip).
-    #[arg(long, default_value_t = 5_000)]
+    /// Cycles of the in-cycle measurement, 0..=100000000 (0 to skip).
+    #[arg(long, default_value_t = 5_000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(0, MAX_PROBES))]
     pub cycles: u64,
-    /// Cycle time of the in-cycle measurement, us.
-    #[arg(long, default_value_t = 1000)]
+    /// Cycle time of the in-cycle measurement, us, 100..=100000.
+    #[arg(long, default_value_t = 1000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(CYCLE_US.0, CYCLE_US.1))]
     pub cycle_us: u64,
-    /// Reply timeout for back-to-back frames, us.
-    #[arg(long, default_value_t = 100_000)]
+    /// Reply timeout for back-to-back frames, us, 1..=10000000.
+    #[arg(long, default_value_t = 100_000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(1, MAX_TIMEOUT_US))]
     pub timeout_us: u64,
-    /// Source MAC of the probe frames (first octet must have bits 0x01 and 0x02 clear); e.g.
+    /// Source MAC of the probe frames (bit 0x02 of the first octet must be clear); e.g.
     /// to play a second master and check that `ecdc run` refuses to share the segment.
     #[arg(long, value_parser = parse_mac, default_value = "10:10:10:10:10:10")]
     pub source_mac: [u8; 6],
@@ -123,8 +128,21 @@ struct Report {
     cycle_us: u64,
 }
 
+/// Most probes of either phase. ecdc choice: 10^8 frames is over a day at 1 kHz; more is a
+/// typo, not a measurement.
+const MAX_PROBES: u64 = 100_000_000;
+
+/// Longest reply timeout, us (10 s). ecdc choice: a peer that needs longer is not there.
+const MAX_TIMEOUT_US: u64 = 10_000_000;
+
 /// Runs `ecdc rtt`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    if args.count == 0 && args.cycles == 0 {
+        return Err(validate::usage(
+            "--count 0 and --cycles 0: nothing to measure; give at least one of them > 0",
+        ));
+    }
+    validate::cpu("--cpu", args.rt.cpu)?;
     let stop = sys::install_stop_handler().context("installing the Ctrl-C handler")?;
     let sock = args.link.open(60, true).map_err(anyhow::Error::new)?;
     let info = sock.info().clone();
@@ -148,7 +166,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let cyclic = if args.cycles > 0 {
         transport.reset_counters();
-        let mut cfg = CycleConfig::new(args.cycle_us.max(1) * 1000);
+        let mut cfg = CycleConfig::new(args.cycle_us * 1000);
         cfg.max_cycles = Some(args.cycles);
         let summary = cyclic::run(
             &mut transport,

@@ -12,6 +12,7 @@ use ecdc_core::wire::MASTER_MAC;
 
 use super::link_args::{LinkArgs, RtArgs};
 use super::scan::{print_slaves, report_slaves, ScannedSlave, MAX_SLAVES};
+use super::validate::{self, CYCLE_US};
 use crate::runtime::bringup::{self, Limits, Outcome, Progress, Until};
 use crate::runtime::capture_link::CaptureLink;
 use crate::runtime::clock::{self, DcClock};
@@ -28,11 +29,12 @@ pub struct Args {
     pub link: LinkArgs,
     #[command(flatten)]
     pub rt: RtArgs,
-    /// Cycle time, us (also the SYNC0 cycle).
-    #[arg(long, default_value_t = 1000)]
+    /// Cycle time, us (also the SYNC0 cycle), 100..=100000.
+    #[arg(long, default_value_t = 1000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(CYCLE_US.0, CYCLE_US.1))]
     pub cycle_us: u64,
-    /// Seconds of cyclic operation, then stop with a summary (default: until Ctrl-C).
-    #[arg(long)]
+    /// Seconds of cyclic operation, > 0, then stop with a summary (default: until Ctrl-C).
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
     /// Record every frame sent and received into this pcap file (Wireshark-readable).
     #[arg(long)]
@@ -47,15 +49,19 @@ pub struct Args {
     #[arg(long)]
     pub no_sync: bool,
     /// Servo target for (app time - reference time), ns: the reference should see the frame
-    /// this long after the master's nominal cycle time (negative = before).
-    #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+    /// this long after the master's nominal cycle time (negative = before); within ± one cycle.
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true,
+          value_parser = validate::i64_in(-MAX_TARGET_NS, MAX_TARGET_NS))]
     pub target_ns: i64,
-    /// Consecutive lost cycles before the DC machine re-initialises (raise it on a machine
-    /// without real-time scheduling, where the peer can stall for milliseconds).
-    #[arg(long, default_value_t = 5)]
+    /// Consecutive lost cycles before the DC machine re-initialises, 1..=65535 (raise it on a
+    /// machine without real-time scheduling, where the peer can stall for milliseconds).
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true,
+          value_parser = validate::u16_in(1, u16::MAX))]
     pub max_lost_cycles: u16,
-    /// Sleep until this long before each deadline, then spin (us; 0 = pure sleep).
-    #[arg(long, default_value_t = 0)]
+    /// Sleep until this long before each deadline, then spin (us; 0 = pure sleep; less than
+    /// the cycle).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true,
+          value_parser = validate::u64_in(0, CYCLE_US.1 - 1))]
     pub spin_us: u64,
 }
 
@@ -183,12 +189,44 @@ fn describe(e: &Event) -> String {
     }
 }
 
+/// Largest |--target-ns|: the servo accepts a target within one period (`MasterConfig`), and
+/// the longest period is 100 ms.
+const MAX_TARGET_NS: i64 = 100_000_000;
+
+/// The checks of the flags that depend on each other or on the machine, before the interface
+/// is opened.
+fn check_args(args: &Args) -> anyhow::Result<()> {
+    if !(CYCLE_US.0..=CYCLE_US.1).contains(&args.cycle_us) {
+        return Err(validate::usage(format!(
+            "--cycle-us {}: valid: {}..={}",
+            args.cycle_us, CYCLE_US.0, CYCLE_US.1
+        )));
+    }
+    let cycle_ns = i64::try_from(args.cycle_us.saturating_mul(1000)).unwrap_or(i64::MAX);
+    if args.target_ns.unsigned_abs() > cycle_ns.unsigned_abs() {
+        return Err(validate::usage(format!(
+            "--target-ns {}: must be within ± one cycle (--cycle-us {} = {cycle_ns} ns)",
+            args.target_ns, args.cycle_us
+        )));
+    }
+    if args.spin_us >= args.cycle_us {
+        return Err(validate::usage(format!(
+            "--spin-us {}: must be less than the cycle (--cycle-us {}); 0 = pure sleep",
+            args.spin_us, args.cycle_us
+        )));
+    }
+    if args.max_lost_cycles == 0 {
+        return Err(validate::usage("--max-lost-cycles 0: valid: 1..=65535"));
+    }
+    if let Some(p) = &args.pcap {
+        validate::out_file("--pcap", p)?;
+    }
+    validate::cpu("--cpu", args.rt.cpu)
+}
+
 /// Runs `ecdc run`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        (100..=100_000).contains(&args.cycle_us),
-        "--cycle-us must be within 100..=100000"
-    );
+    check_args(args)?;
     let cycle_ns = args.cycle_us * 1000;
     let stop = sys::install_stop_handler().context("installing the Ctrl-C handler")?;
     let sock: RawSocket = args
@@ -205,7 +243,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
 
     let mut cfg = Config::default();
     cfg.monitor.cycle_ns = cycle_ns;
-    cfg.monitor.max_lost_cycles = args.max_lost_cycles.max(1);
+    cfg.monitor.max_lost_cycles = args.max_lost_cycles;
     cfg.sync = if args.no_sync {
         None
     } else {

@@ -1,5 +1,5 @@
-//! `ecdc simulate`: runs ecdc, the seed 000 scheme and no compensation on three copies of the
-//! same emulated network (one [`Scenario`], same seed) and reports lock, SYNC0 skew and the
+//! `ecdc simulate`: runs ecdc, the seed 000 scheme (derived and as printed) and no compensation
+//! on copies of the same emulated network (one [`Scenario`], same seed) and reports lock, SYNC0 skew and the
 //! seed 000 Table 2 quantities (text on stdout, JSON and SVG files). Definitions:
 //! docs/simulate.md and [`crate::schemes::measure`].
 
@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
+use super::validate::{self, CYCLE_NS, MAX_DURATION_MS, MAX_PPM};
 use crate::emu::{Network, PpmSpec, Scenario, SlaveSpec};
 use crate::report::{self, table2, Report, Setup};
 use crate::schemes::ecdc::{self, Ecdc};
@@ -35,26 +36,29 @@ pub struct Args {
     /// Scenario file (TOML or JSON, the emulator's format); flags given explicitly override it.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
-    /// Number of slaves [default: 6].
-    #[arg(long)]
+    /// Number of slaves, 2..=256 [default: 6] (SYNC0 skew is measured against the reference,
+    /// so it needs a second slave).
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::simulate_slaves_flag)]
     pub slaves: Option<usize>,
     /// Topology [default: line].
     #[arg(long, value_enum)]
     pub topology: Option<Topology>,
-    /// SYNC0 / cyclic period, ns.
-    #[arg(long, default_value_t = 1_000_000)]
+    /// SYNC0 / cyclic period, ns (100000..=100000000).
+    #[arg(long, default_value_t = 1_000_000, allow_negative_numbers = true,
+          value_parser = validate::u32_in(CYCLE_NS.0, CYCLE_NS.1))]
     pub cycle_ns: u32,
-    /// Simulated duration, ms.
-    #[arg(long, default_value_t = 10_000)]
+    /// Simulated duration, ms (1..=3600000; at least one cycle).
+    #[arg(long, default_value_t = 10_000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(1, MAX_DURATION_MS))]
     pub duration_ms: u64,
-    /// Crystal errors uniform in ±PPM [default: 50].
-    #[arg(long)]
+    /// Crystal errors uniform in ±PPM, 0..=10000 [default: 50].
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::f64_in(0.0, MAX_PPM))]
     pub ppm: Option<f64>,
-    /// Frame loss probability [default: 0].
-    #[arg(long)]
+    /// Frame loss probability, 0..=1 [default: 0].
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::f64_in(0.0, 1.0))]
     pub loss: Option<f64>,
-    /// Emulator seed [default: 0].
-    #[arg(long)]
+    /// Emulator seed, 0..=2^64-1 [default: 0].
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::u64_in(0, u64::MAX))]
     pub seed: Option<u64>,
     /// Directory for the default output files.
     #[arg(long, default_value = ".")]
@@ -68,9 +72,14 @@ pub struct Args {
     /// Never show the progress bar.
     #[arg(long)]
     pub no_progress: bool,
-    /// ecdc only: FRMW frames per static drift burst [default: the machine's default, 100].
-    #[arg(long)]
+    /// ecdc only: FRMW frames per static drift burst, 1..=65535 [default: the machine's
+    /// default, 20].
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::u16_in(1, u16::MAX))]
     pub drift_burst_frames: Option<u16>,
+    /// Exit with status 3 when a stated target (the `targets` block) is missed; the report
+    /// and files are written either way. Without it a missed target still exits 0.
+    #[arg(long)]
+    pub check: bool,
 }
 
 impl Default for Args {
@@ -89,6 +98,7 @@ impl Default for Args {
             json: None,
             no_progress: true,
             drift_burst_frames: None,
+            check: false,
         }
     }
 }
@@ -125,7 +135,7 @@ fn slaves_for(topology: Topology, n: usize) -> Vec<SlaveSpec> {
 /// The scenario the arguments describe.
 pub fn scenario(args: &Args) -> anyhow::Result<(Scenario, String)> {
     let mut sc = match &args.scenario {
-        Some(p) => Scenario::load(p).map_err(|e| anyhow::anyhow!("{e}"))?,
+        Some(p) => validate::load_scenario("--scenario", p)?,
         None => Scenario::seed000_line(),
     };
     let mut topo = match &args.scenario {
@@ -147,7 +157,10 @@ pub fn scenario(args: &Args) -> anyhow::Result<(Scenario, String)> {
     if let Some(s) = args.seed {
         sc.seed = s;
     }
-    sc.resolve().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let run_ns = args.duration_ms.saturating_mul(1_000_000);
+    validate::scenario(&sc, args.scenario.as_deref(), Some(run_ns))?;
+    let resolved = sc.resolve().map_err(|e| anyhow::anyhow!("{e}"))?;
+    validate::simulate_slaves(&resolved, args.scenario.as_deref())?;
     Ok((sc, topo))
 }
 
@@ -201,8 +214,25 @@ impl Progress {
     }
 }
 
-/// Runs the three schemes and builds the report (no files written). `progress` shows the bar.
+/// The schemes `simulate` runs next to ecdc, each on its own copy of the network: seed 000 as
+/// its eq. 22 implies eq. 23 (`seed000`), seed 000 with eq. 23 as printed (`seed000-printed`,
+/// a labelled extra row), and no compensation. The seed 000 schemes are given `t_diff_ns`
+/// because the paper assumes it known (each scheme reports it in `given`).
+fn comparison_schemes(
+    net: &dyn Fn() -> anyhow::Result<Network>,
+    t_diff: i64,
+    cycle: u32,
+) -> anyhow::Result<Vec<Box<dyn Scheme>>> {
+    Ok(vec![
+        Box::new(Seed000::new(net()?, t_diff, cycle)),
+        Box::new(Seed000::printed(net()?, t_diff, cycle)),
+        Box::new(Uncompensated::new(net()?, cycle)),
+    ])
+}
+
+/// Runs the schemes and builds the report (no files written). `progress` shows the bar.
 pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
+    validate::simulate_args(args)?;
     let (sc, topology) = scenario(args)?;
     let t_diff = i64::try_from(sc.defaults.t_p_ns)? - i64::try_from(sc.defaults.t_f_ns)?;
     let duration_ns = args.duration_ms.saturating_mul(1_000_000);
@@ -222,11 +252,8 @@ pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
     if let Some(b) = args.drift_burst_frames {
         cfg.drift.burst_frames = b;
     }
-    let mut schemes: Vec<Box<dyn Scheme>> = vec![
-        Box::new(Ecdc::new(net()?, cfg)?),
-        Box::new(Seed000::new(net()?, t_diff, cycle)),
-        Box::new(Uncompensated::new(net()?, cycle)),
-    ];
+    let mut schemes: Vec<Box<dyn Scheme>> = vec![Box::new(Ecdc::new(net()?, cfg)?)];
+    schemes.extend(comparison_schemes(&net, t_diff, cycle)?);
     let mut bar = Progress::new(duration_ns * schemes.len() as u64, !args.no_progress);
     let mut records = Vec::new();
     for (k, s) in schemes.iter_mut().enumerate() {
@@ -282,7 +309,6 @@ pub fn table2_text(report: &Report, records: &[Record]) -> String {
 
 /// Runs `ecdc simulate`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let (report, records) = simulate(args)?;
     let svg_path = args
         .svg
         .clone()
@@ -291,6 +317,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         .json
         .clone()
         .unwrap_or_else(|| args.out_dir.join("ecdc-simulate.json"));
+    if args.svg.is_none() || args.json.is_none() {
+        validate::out_dir("--out-dir", &args.out_dir)?;
+    }
+    validate::out_file("--svg", &svg_path)?;
+    validate::out_file("--json", &json_path)?;
+    let (report, records) = simulate(args)?;
     let refs: Vec<&Record> = records.iter().collect();
     std::fs::write(&svg_path, report::svg::render(&refs))
         .with_context(|| format!("writing {}", svg_path.display()))?;
@@ -299,5 +331,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     print!("{}", report::table::render(&report));
     print!("{}", table2_text(&report, &records));
     println!("\nwrote {} and {}", json_path.display(), svg_path.display());
+    if args.check {
+        let missed: Vec<String> = report
+            .targets
+            .iter()
+            .filter(|t| !t.met)
+            .map(|t| format!("{}: {} (measured {})", t.name, t.target, t.measured))
+            .collect();
+        if !missed.is_empty() {
+            return Err(validate::TargetsMissed(missed).into());
+        }
+    }
     Ok(())
 }

@@ -34,13 +34,25 @@ pub struct LoopGains {
     pub kp: f64,
     /// Integral gain: D LSB per ns of filtered Δt, per sample.
     pub ki: f64,
+    /// Power-on value of 0x0934 (system time difference filter depth). Default
+    /// [`DIFF_FILTER_DEPTH_RESET`]; a model input because that reset value is unverified
+    /// (`ecdc bench sensitivity` varies it).
+    pub diff_filter_reset: u8,
+    /// Power-on value of 0x0935 (speed counter filter depth). Default
+    /// [`SPEED_FILTER_DEPTH_RESET`], unverified like 0x0934's.
+    pub speed_filter_reset: u8,
 }
 
 impl Default for LoopGains {
     fn default() -> Self {
         // Chosen so that at S = 0x1000 and one sample per ms the phase settles in ≈ 100
         // samples with ≈ 0.7 damping, and 15 000 back-to-back samples still converge.
-        LoopGains { kp: 1.5, ki: 0.008 }
+        LoopGains {
+            kp: 1.5,
+            ki: 0.008,
+            diff_filter_reset: DIFF_FILTER_DEPTH_RESET,
+            speed_filter_reset: SPEED_FILTER_DEPTH_RESET,
+        }
     }
 }
 
@@ -152,8 +164,8 @@ impl ControlLoop {
             s: SPEED_COUNTER_START_RESET,
             kp: (gains.kp * f64::from(1u32 << GAIN_FRAC)) as i64,
             ki: (gains.ki * f64::from(1u32 << GAIN_FRAC)) as i64,
-            diff: MeanFilter::new(DIFF_FILTER_DEPTH_RESET),
-            speed: MeanFilter::new(SPEED_FILTER_DEPTH_RESET),
+            diff: MeanFilter::new(gains.diff_filter_reset),
+            speed: MeanFilter::new(gains.speed_filter_reset),
             integ: 0,
             d: 0,
             diff_mean: 0,

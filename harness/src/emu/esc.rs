@@ -112,13 +112,20 @@ pub struct Esc {
 }
 
 fn fresh_regs(cfg: &EscConfig) -> RegisterFile {
-    RegisterFile::new(
+    let mut regs = RegisterFile::new(
         cfg.kind,
         cfg.ram_bytes,
         cfg.ports,
         cfg.esc_type,
         cfg.pulse_len,
-    )
+    );
+    if cfg.kind.has_system_time() {
+        // The filters' power-on depths are a scenario input (LoopGains), the loop starts
+        // with the same depths (ControlLoop::new).
+        regs.set_u8(addr::DIFF_FILTER_DEPTH, cfg.gains.diff_filter_reset);
+        regs.set_u8(addr::SPEED_FILTER_DEPTH, cfg.gains.speed_filter_reset);
+    }
+    regs
 }
 
 impl Esc {

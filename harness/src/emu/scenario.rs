@@ -391,3 +391,212 @@ impl Scenario {
         Ok(out)
     }
 }
+
+/// Most slaves a scenario may hold. Auto-increment (position) addressing counts slaves in the
+/// 16-bit ADP field, so a segment has at most 65 536 positions (IEC 61158-4-12 datagram
+/// header; docs/background/cli-inputs.md); ecdc choice: one fewer, so that the slave count
+/// itself fits a u16.
+pub const MAX_SLAVES: usize = 65_535;
+
+/// Largest |crystal error| a scenario may give, ppm: at −10^6 ppm a clock stands still and
+/// beyond it runs backwards, which no oscillator model here represents.
+pub const MAX_ABS_PPM: f64 = 1e6;
+
+impl Scenario {
+    /// Checks that the scenario makes sense before anything is built: at least one slave, at
+    /// most [`MAX_SLAVES`], parents that exist and come earlier, ports that the ESC has,
+    /// finite and in-range numbers, faults that name existing slaves and ports and that fall
+    /// inside the run (`run_ns`: the run length, `None` = open-ended), then everything
+    /// [`Scenario::resolve`] checks. The message names the slave or fault and the valid range.
+    pub fn validate(&self, run_ns: Option<u64>) -> Result<(), EmuError> {
+        let bad = |m: String| Err(EmuError::Scenario(m));
+        let d = &self.defaults;
+        // Expanded slave index -> port count, to check parents and fault ports.
+        let mut ports_of: Vec<u8> = Vec::new();
+        for (k, spec) in self.slaves.iter().enumerate() {
+            if spec.repeat == 0 {
+                return bad(format!(
+                    "slaves[{k}]: repeat = 0 adds no slave; remove the entry or use repeat >= 1"
+                ));
+            }
+            let first = ports_of.len();
+            if first.saturating_add(spec.repeat) > MAX_SLAVES {
+                return bad(format!(
+                    "more than {MAX_SLAVES} slaves (the 16-bit position address limit)"
+                ));
+            }
+            let ports = spec.ports.unwrap_or(d.ports);
+            if !(2..=4).contains(&ports) {
+                return bad(format!(
+                    "slave {first}: ports = {ports}; an ESC has 2..=4 ports"
+                ));
+            }
+            if first == 0 && (spec.parent.is_some() || spec.port.is_some()) {
+                return bad(
+                    "slave 0 is cabled to the master: it takes no parent or port".to_string(),
+                );
+            }
+            if let Some(p) = spec.parent {
+                if p >= first {
+                    return bad(format!(
+                        "slave {first}: parent {p} does not exist before it \
+                         (valid: 0..={})",
+                        first.saturating_sub(1)
+                    ));
+                }
+            }
+            if let Some(q) = spec.port {
+                let parent = spec.parent.unwrap_or(first.saturating_sub(1));
+                let pports = ports_of.get(parent).copied().unwrap_or(0);
+                if q == 0 || q >= pports {
+                    return bad(format!(
+                        "slave {first}: port {q} of slave {parent}, which has ports 0..={} \
+                         (0 leads to the master; valid: 1..={})",
+                        pports.saturating_sub(1),
+                        pports.saturating_sub(1)
+                    ));
+                }
+            }
+            for (what, v) in [("cable_m", spec.cable_m), ("ppm", spec.ppm)] {
+                if let Some(v) = v {
+                    check_number(&format!("slave {first}: {what}"), v, what == "ppm")?;
+                }
+            }
+            ports_of.extend(std::iter::repeat_n(ports, spec.repeat));
+        }
+        if ports_of.is_empty() {
+            return bad("no slaves: add at least one [[slaves]] entry".to_string());
+        }
+        check_number("defaults.cable_m", d.cable_m, false)?;
+        check_ppm_spec("defaults.ppm", &d.ppm)?;
+        let t = &self.timing;
+        for (what, v) in [
+            ("timing.cable_ns_per_m", t.cable_ns_per_m),
+            ("timing.master_cable_m", t.master_cable_m),
+            ("timing.wander_step_ppb", t.wander_step_ppb),
+            ("timing.wander_revert_pieces", t.wander_revert_pieces),
+        ] {
+            check_number(what, v, false)?;
+        }
+        if !(0.0..=1.0).contains(&self.frame_loss_rate) {
+            return bad(format!(
+                "frame_loss_rate = {}; a probability: 0..=1",
+                self.frame_loss_rate
+            ));
+        }
+        let n = ports_of.len();
+        for (k, f) in self.faults.iter().enumerate() {
+            let name = fault_name(&f.fault);
+            if let Some(end) = run_ns {
+                if f.at_ns > end {
+                    return bad(format!(
+                        "faults[{k}] ({name}) at_ns = {} is after the end of the run ({end} ns): \
+                         it would never happen",
+                        f.at_ns
+                    ));
+                }
+            }
+            let (slave, port) = fault_target(&f.fault);
+            if let Some(s) = slave {
+                let Some(&sp) = ports_of.get(s) else {
+                    return bad(format!(
+                        "faults[{k}] ({name}): slave {s} does not exist (valid: 0..={})",
+                        n.saturating_sub(1)
+                    ));
+                };
+                if let Some(q) = port {
+                    if q >= sp {
+                        return bad(format!(
+                            "faults[{k}] ({name}): slave {s} has ports 0..={}, not {q}",
+                            sp.saturating_sub(1)
+                        ));
+                    }
+                }
+            }
+            match f.fault {
+                Fault::FrameLossRate { rate } if !(0.0..=1.0).contains(&rate) => {
+                    return bad(format!(
+                        "faults[{k}] ({name}): rate = {rate}; a probability: 0..=1"
+                    ));
+                }
+                Fault::FrequencyStep { ppm, .. } => {
+                    check_number(&format!("faults[{k}] ({name}): ppm"), ppm, true)?;
+                }
+                Fault::CableLength { meters, .. } => {
+                    check_number(&format!("faults[{k}] ({name}): meters"), meters, false)?;
+                }
+                _ => {}
+            }
+        }
+        self.resolve().map(drop)
+    }
+}
+
+/// A finite number, ≥ 0 (lengths, rates) or within ±[`MAX_ABS_PPM`] (`ppm`).
+fn check_number(what: &str, v: f64, ppm: bool) -> Result<(), EmuError> {
+    let ok = v.is_finite() && if ppm { v.abs() < MAX_ABS_PPM } else { v >= 0.0 };
+    if ok {
+        Ok(())
+    } else if ppm {
+        Err(EmuError::Scenario(format!(
+            "{what} = {v}; valid: finite, |ppm| < {MAX_ABS_PPM}"
+        )))
+    } else {
+        Err(EmuError::Scenario(format!(
+            "{what} = {v}; valid: finite and >= 0"
+        )))
+    }
+}
+
+fn check_ppm_spec(what: &str, p: &PpmSpec) -> Result<(), EmuError> {
+    match *p {
+        PpmSpec::Uniform { min, max } => {
+            check_number(&format!("{what}.uniform.min"), min, true)?;
+            check_number(&format!("{what}.uniform.max"), max, true)?;
+            if min > max {
+                return Err(EmuError::Scenario(format!(
+                    "{what}: uniform min {min} > max {max}"
+                )));
+            }
+        }
+        PpmSpec::Normal { mean, sd, limit } => {
+            check_number(&format!("{what}.normal.mean"), mean, true)?;
+            check_number(&format!("{what}.normal.sd"), sd, false)?;
+            check_number(&format!("{what}.normal.limit"), limit, false)?;
+            check_number(&format!("{what}.normal.limit"), limit, true)?;
+        }
+        PpmSpec::Fixed(v) => check_number(&format!("{what}.fixed"), v, true)?,
+    }
+    Ok(())
+}
+
+/// The scenario-file name of a fault kind (its `kind = "…"`).
+fn fault_name(f: &Fault) -> &'static str {
+    match f {
+        Fault::LinkBreak { .. } => "link_break",
+        Fault::LinkRestore { .. } => "link_restore",
+        Fault::PowerOff { .. } => "power_off",
+        Fault::PowerOn { .. } => "power_on",
+        Fault::PowerCycle { .. } => "power_cycle",
+        Fault::FrameLossRate { .. } => "frame_loss_rate",
+        Fault::FrequencyStep { .. } => "frequency_step",
+        Fault::CableLength { .. } => "cable_length",
+        Fault::PortTimeWrap { .. } => "port_time_wrap",
+    }
+}
+
+/// The slave and port a fault acts on, if any.
+fn fault_target(f: &Fault) -> (Option<usize>, Option<u8>) {
+    match *f {
+        Fault::LinkBreak { slave, port } | Fault::LinkRestore { slave, port } => {
+            (Some(slave), Some(port))
+        }
+        Fault::PowerOff { slave }
+        | Fault::PowerOn { slave }
+        | Fault::PowerCycle { slave, .. }
+        | Fault::FrequencyStep { slave, .. }
+        | Fault::CableLength { slave, .. } => (Some(slave), None),
+        Fault::PortTimeWrap { slave } => (slave, None),
+        Fault::FrameLossRate { .. } => (None, None),
+    }
+}

@@ -205,11 +205,7 @@ fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
         );
     }
     for (j, r) in shown.iter().enumerate() {
-        let color = if r.name == "ecdc" {
-            "#1f77b4"
-        } else {
-            "#d62728"
-        };
+        let color = bench_color(r.name, j);
         let mut pts = String::new();
         for &(t, _, m) in r.track.iter().take_while(|p| (p.0 as f64) <= t_end) {
             if let Some(m) = m {
@@ -257,8 +253,14 @@ pub fn render(records: &[&Record]) -> String {
         let clip = r.name != "uncompensated";
         let title = match r.name {
             "ecdc" => "ecdc (cf. seed 000 Fig. 10)".to_string(),
-            "seed000" => "seed 000 scheme: eq. 23 as printed, eq. 24, 15 000-frame burst (Fig. 10)"
-                .to_string(),
+            "seed000" => {
+                "seed 000 scheme: eq. 23 as eq. 22 implies, eq. 24, 15 000-frame burst, §3.1 gate"
+                    .to_string()
+            }
+            "seed000-printed" => {
+                "seed 000 scheme with eq. 23 as printed (last slave's delay t_DIFF too large)"
+                    .to_string()
+            }
             "uncompensated" => "no compensation: offsets only (cf. seed 000 Fig. 9)".to_string(),
             other => other.to_string(),
         };
@@ -287,6 +289,7 @@ fn bench_color(name: &str, k: usize) -> &'static str {
     match name {
         "ecdc" => "#1f77b4",
         "seed000" => "#d62728",
+        "seed000-printed" => "#9467bd",
         "igh" => "#2ca02c",
         "ethercrab" => "#ff7f0e",
         "uncompensated" => "#7f7f7f",
@@ -472,4 +475,78 @@ fn series_line(
     label: &str,
 ) {
     series(out, color, pts, y0, pw, row, &esc(label));
+}
+
+/// One axis of the `ecdc bench sensitivity` plot: categorical x values and, per scheme, the
+/// mean |skew| at each (`None` = no pairs).
+#[derive(Debug, Clone, Default)]
+pub struct SensitivityPanel {
+    /// Axis name (panel title).
+    pub title: String,
+    /// The axis values, left to right.
+    pub labels: Vec<String>,
+    /// (scheme, mean |skew| ns per label).
+    pub series: Vec<(String, Vec<Option<f64>>)>,
+}
+
+/// The `ecdc bench sensitivity` plot: one panel per axis, the mean |SYNC0 skew| of every scheme
+/// at each value of the axis (log scale 1 ns .. 1 µs, larger values drawn at the top). `command` is written into the file.
+pub fn render_sensitivity(title: &str, command: &str, panels: &[SensitivityPanel]) -> String {
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let h = TOP + panels.len() as f64 * (PANEL_H + GAP) + 50.0;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
+    );
+    let _ = writeln!(out, "<desc>{}</desc>", esc(command));
+    let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="18" font-size="14" font-weight="bold">{}</text>"#,
+        esc(title)
+    );
+    let _ = writeln!(
+        out,
+        r##"<text x="{LEFT}" y="{}" font-size="11" fill="#666">{}</text>"##,
+        h - 12.0,
+        esc(command)
+    );
+    for (p, panel) in panels.iter().enumerate() {
+        let y0 = TOP + 30.0 + p as f64 * (PANEL_H + GAP);
+        let _ = writeln!(
+            out,
+            r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">mean |SYNC0 skew| vs {}</text>"#,
+            y0 - 10.0,
+            esc(&panel.title)
+        );
+        let _ = writeln!(
+            out,
+            r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+        );
+        let y = log_axis(&mut out, y0, pw, 3);
+        let n = panel.labels.len().max(1);
+        let x = |i: usize| LEFT + (i as f64 + 0.5) / n as f64 * pw;
+        for (i, l) in panel.labels.iter().enumerate() {
+            let _ = writeln!(
+                out,
+                r#"<text x="{:.1}" y="{}" font-size="11" text-anchor="middle">{}</text>"#,
+                x(i),
+                y0 + ph + 16.0,
+                esc(l)
+            );
+        }
+        for (k, (name, pts)) in panel.series.iter().enumerate() {
+            let mut line = String::new();
+            for (i, v) in pts.iter().enumerate() {
+                if let Some(v) = v {
+                    let _ = write!(line, "{:.1},{:.1} ", x(i), y(*v));
+                }
+            }
+            series_line(&mut out, bench_color(name, k), &line, y0, pw, k, name);
+        }
+    }
+    out.push_str("</svg>\n");
+    out
 }

@@ -77,6 +77,27 @@ pub fn slave_table(s: &Summary) -> String {
     out
 }
 
+/// The schemes of the text report, in order.
+const SCHEMES: [&str; 4] = ["ecdc", "seed000", "seed000-printed", "uncompensated"];
+
+/// What a scheme was told beyond what it measured, as `{key: value, …}` (`{}` = nothing).
+pub fn given_text(g: &crate::schemes::Given) -> String {
+    let items: Vec<String> = g.iter().map(|(k, v)| format!("{k}: {v}")).collect();
+    format!("{{{}}}", items.join(", "))
+}
+
+/// One line per scheme: what it was given.
+fn given_section(r: &Report) -> String {
+    let mut out =
+        String::from("\ngiven (what each scheme was told beyond what it measures on the wire)\n");
+    for name in SCHEMES {
+        if let Some(s) = r.schemes.get(name) {
+            let _ = writeln!(out, "{:<15} {}", name, given_text(&s.given));
+        }
+    }
+    out
+}
+
 /// The whole text report.
 pub fn render(r: &Report) -> String {
     let mut out = String::new();
@@ -95,7 +116,7 @@ pub fn render(r: &Report) -> String {
     );
     let ppm: Vec<String> = su.crystal_ppm.iter().map(|p| format!("{p:+.1}")).collect();
     let _ = writeln!(out, "crystals (ppm): {}", ppm.join(" "));
-    for name in ["ecdc", "seed000", "uncompensated"] {
+    for name in SCHEMES {
         let Some(s) = r.schemes.get(name) else {
             continue;
         };
@@ -108,6 +129,7 @@ pub fn render(r: &Report) -> String {
         }
         out.push_str(&slave_table(s));
     }
+    out.push_str(&given_section(r));
     let _ = writeln!(
         out,
         "\nlock (every slave within 100 ns of the reference, true time, for the rest of the run)"
@@ -117,7 +139,7 @@ pub fn render(r: &Report) -> String {
         "{:<15} {:>10} {:>12} {:>14}",
         "scheme", "lock ms", "lock frames", "static drift"
     );
-    for name in ["ecdc", "seed000", "uncompensated"] {
+    for name in SCHEMES {
         if let Some(s) = r.schemes.get(name) {
             let _ = writeln!(
                 out,
@@ -138,7 +160,7 @@ pub fn render(r: &Report) -> String {
         "{:<15} {:>10} {:>10} {:>10} {:>12} {:>9}",
         "scheme", "mean|.|", "p99|.|", "max|.|", "signed mean", "pairs"
     );
-    for name in ["ecdc", "seed000", "uncompensated"] {
+    for name in SCHEMES {
         if let Some(s) = r.schemes.get(name) {
             let _ = writeln!(
                 out,

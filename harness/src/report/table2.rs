@@ -183,58 +183,68 @@ pub fn render(truth: &Truth, paper: Option<&Paper>, schemes: &[(&Summary, &Recor
         ));
     }
     render_rows(&mut out, n, &rows);
-    if let (Some(p), Some((_, r))) = (paper, schemes.iter().find(|(s, _)| s.name == "seed000")) {
+    if let Some(p) = paper {
+        let seeds: Vec<(&str, &Record)> = schemes
+            .iter()
+            .filter(|(s, _)| s.name.starts_with("seed000"))
+            .map(|(s, r)| (s.name.as_str(), *r))
+            .collect();
+        if seeds.is_empty() {
+            return out;
+        }
         let k = PAPER_WINDOW_SAMPLES;
         let _ = writeln!(
             out,
-            "\nclock error, last {k} cycles (paper: 0x092C read on hardware; seed000 here: true \
-             clock error, and its 0x092C)"
+            "\nclock error, last {k} cycles (paper: 0x092C read on hardware; seed 000 schemes \
+             here: true clock error, and their 0x092C)"
         );
         let rng = |v: Option<(i64, i64)>| cell(v.map(|(a, b)| format!("{a}..{b}")));
-        let rows = vec![
-            (
-                "paper mean".to_string(),
-                (1..n)
-                    .map(|i| cell(p.table2_clock_error_mean_ns.get(i - 1)))
-                    .collect(),
-            ),
-            (
-                "seed000 mean".to_string(),
+        let mut rows = vec![(
+            "paper mean".to_string(),
+            (1..n)
+                .map(|i| cell(p.table2_clock_error_mean_ns.get(i - 1)))
+                .collect::<Vec<_>>(),
+        )];
+        for (name, r) in &seeds {
+            rows.push((
+                format!("{name} mean"),
                 (1..n)
                     .map(|i| cell(last_mean(r, i, k).map(|m| format!("{m:.1}"))))
                     .collect(),
-            ),
-            (
-                "paper range".to_string(),
-                (1..n)
-                    .map(|i| {
-                        rng(p
-                            .clock_error_range_ns
-                            .get(i - 1)
-                            .map(|(a, b)| (i64::from(*a), i64::from(*b))))
-                    })
-                    .collect(),
-            ),
-            (
-                "seed000 range".to_string(),
+            ));
+        }
+        rows.push((
+            "paper range".to_string(),
+            (1..n)
+                .map(|i| {
+                    rng(p
+                        .clock_error_range_ns
+                        .get(i - 1)
+                        .map(|(a, b)| (i64::from(*a), i64::from(*b))))
+                })
+                .collect(),
+        ));
+        for (name, r) in &seeds {
+            rows.push((
+                format!("{name} range"),
                 (1..n).map(|i| rng(last_range(r, i, k))).collect(),
-            ),
-            (
-                "seed000 0x092C range".to_string(),
+            ));
+            rows.push((
+                format!("{name} 0x092C"),
                 (1..n)
                     .map(|i| {
                         rng(last_diff_range(r, i, k).map(|(a, b)| (i64::from(a), i64::from(b))))
                     })
                     .collect(),
-            ),
-        ];
+            ));
+        }
         render_rows(&mut out, n, &rows);
     }
     out
 }
 
 fn render_rows(out: &mut String, n: usize, rows: &[(String, Vec<String>)]) {
-    let w0 = 22;
+    let w0 = 24;
     let mut widths: Vec<usize> = (1..n).map(|i| format!("slave {}", i + 1).len()).collect();
     for (_, cells) in rows {
         for (k, c) in cells.iter().enumerate() {

@@ -2,7 +2,7 @@
 //! (`ecdc run --pcap`), with wall-clock timestamps so Wireshark shows real times.
 //!
 //! WHY at the link and not with tcpdump: with `PACKET_QDISC_BYPASS` our own TX frames are
-//! invisible to captures on the interface (wire-and-runtime.md §4.2); recording here sees both
+//! invisible to captures on the interface (docs/background/linux-runtime.md §2); recording here sees both
 //! directions whatever the socket options. Writing goes through a `BufWriter` (no allocation
 //! per frame, a `write` syscall every 8 KiB); a write error stops recording and is reported
 //! at the end instead of failing the real-time loop.

@@ -4,7 +4,7 @@
 //! of the next wake-up deadline.
 //!
 //! App time: the master's nominal DC time of each cycle, advancing exactly one period per
-//! cycle (servo.md §3: the IgH/SOEM model). It is what the FRMW carries and what the machine
+//! cycle (docs/background/servo-design.md §3: the IgH/SOEM model). It is what the FRMW carries and what the machine
 //! gets as `now`; the servo moves the *wake-ups* so that app time and the reference clock agree,
 //! and absorbs large offsets by whole periods (`app_time_step_ns`). A cycle that woke more than
 //! P/4 late is given to the servo as a missing sample (holdover): it measures an OS stall, not

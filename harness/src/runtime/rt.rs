@@ -2,9 +2,9 @@
 //! CPU pinning, timer slack. Each step degrades to a warning when not permitted, because a
 //! functional run without RT (CI, a laptop) is still useful; the summary says what was active.
 //!
-//! Checklist source: wire-and-runtime.md §4.3 (mlockall, absolute sleeps, FIFO around 80,
+//! Checklist source: docs/background/linux-runtime.md §3 (mlockall, absolute sleeps, FIFO around 80,
 //! cpu_dma_latency held at 0, pinning). The measured effect of cpu_dma_latency on this VM
-//! (§5): wake lateness median 35 us -> 18 us.
+//! (§6): wake lateness median 35 us -> 18 us.
 
 use std::fs::File;
 use std::io::Write;

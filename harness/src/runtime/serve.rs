@@ -2,7 +2,7 @@
 //! or the bare [`Reflector`]) process them with the host monotonic clock as true time, and
 //! send the result back at the arrival time the responder computed.
 //!
-//! WHY a bare reflector too: it does what the C probe's slave did in wire-and-runtime.md §5
+//! WHY a bare reflector too: it does what the C probe's slave did in docs/background/linux-runtime.md §6
 //! (WKC + 1 per datagram, processed bit set), so round trips measured against it isolate the
 //! socket path from emulator compute time and compare directly with the C figures.
 

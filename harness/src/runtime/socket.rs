@@ -1,7 +1,7 @@
 //! The `AF_PACKET` raw socket bound to EtherType 0x88A4 on one interface, and the [`Link`]
 //! trait the transport uses so tests can swap in an in-memory link.
 //!
-//! WHY these choices (wire-and-runtime.md §4.2):
+//! WHY these choices (docs/background/linux-runtime.md §2):
 //! - bound to 0x88A4, not `ETH_P_ALL`: the socket never sees its own transmissions;
 //! - non-blocking socket plus `ppoll` with a nanosecond deadline (or a spin): `SO_RCVTIMEO`
 //!   is rounded up to a kernel tick (SOEM issue #451: 1 us became 4 ms);

@@ -25,6 +25,9 @@ pub struct Latched {
     pub port_b: Vec<u32>,
     /// EPU receive time (0x0918, 64-bit local time).
     pub epu: Vec<u64>,
+    /// True time the latching frame left the master (the instant a master stamps with its
+    /// own clock as `t_SYS,REF`).
+    pub latch_sent: u64,
 }
 
 impl Latched {
@@ -99,7 +102,10 @@ pub fn discover_and_latch(link: &mut Link, n: usize) -> anyhow::Result<Latched> 
         &[0u8; 4],
         wkc,
     )?;
-    let mut out = Latched::default();
+    let mut out = Latched {
+        latch_sent: link.last_sent,
+        ..Latched::default()
+    };
     for i in 0..n {
         let d = link.one(
             Command::Fprd,

@@ -4,7 +4,7 @@
 
 use ecdc_core::dc::{Config, Event, Machine, MonitorConfig, State, SyncConfig};
 
-use super::{Scheme, Written};
+use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 use crate::sim::Sim;
 
@@ -143,5 +143,15 @@ impl<const N: usize> Scheme for EcdcN<N> {
 
     fn frames_lost(&self) -> u64 {
         self.sim.stats().lost
+    }
+
+    fn given(&self) -> Given {
+        // Whatever t_DIFF the configuration carries was handed in, not measured.
+        let t = self.sim.machine.config().t_diff_ns;
+        let mut g = Given::new();
+        if t != 0 {
+            g.insert("t_diff_ns", i64::from(t));
+        }
+        g
     }
 }

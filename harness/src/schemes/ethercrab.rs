@@ -1,6 +1,6 @@
-//! An ethercrab-like master (ethercrab HEAD `d4a7cfe`, as documented in
-//! `../shared/reference/masters.md` §3), reproduced as a small independent master over the
-//! emulator. Written from that description; its documented bugs are **reproduced, not fixed**
+//! An ethercrab-like master (ethercrab HEAD `d4a7cfe`: `src/dc.rs`, `src/maindevice.rs`;
+//! docs/bench.md), reproduced as a small independent master over the emulator. Written from a
+//! description of that code; its documented bugs are **reproduced, not fixed**
 //! (each marked `BUG (reproduced)` below and listed in docs/bench.md).
 //!
 //! Blocking bring-up, one PDU per frame, each awaited (as `init` does):
@@ -24,8 +24,8 @@
 //!    0x0980 not written;
 //! 8. cyclic (§3.5): one FRMW (8 bytes) to the reference's 0x0910 per cycle.
 //!
-//! Frame loss (docs/bench.md "Frame loss"; masters.md documents no loss handling for
-//! ethercrab, so these are assumptions): a lost bring-up PDU is resent after the link's
+//! Frame loss (docs/bench.md "Frame loss"; no loss handling of ethercrab's is documented, so
+//! these are assumptions): a lost bring-up PDU is resent after the link's
 //! timeout ([`super::link::RETRIES`] times at most); a lost static-sync or cyclic FRMW is not
 //! resent, the loop goes on with the next one (it still counts as an iteration).
 
@@ -35,7 +35,7 @@ use ecdc_core::wire::{Address, Command};
 
 use super::bringup::{assign_addresses, count_slaves, station};
 use super::link::{le_u32, le_u64, Link};
-use super::{Scheme, Written};
+use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 
 /// `MainDeviceConfig::dc_static_sync_iterations` default.
@@ -459,8 +459,8 @@ impl Scheme for Ethercrab {
                 Phase::Burst => {
                     while self.burst_sent < STATIC_SYNC_ITERATIONS && self.link.now < until {
                         // A lost FRMW times out and the loop goes on with the next iteration
-                        // (ASSUMPTION: masters.md §3.4 does not document what a timed-out
-                        // static-sync PDU does; docs/bench.md "Frame loss").
+                        // (ASSUMPTION: what a timed-out static-sync PDU does is not
+                        // documented; docs/bench.md "Frame loss").
                         self.frmw()?;
                         self.burst_sent += 1;
                         self.dist_frames += 1;
@@ -512,6 +512,11 @@ impl Scheme for Ethercrab {
 
     fn frames_lost(&self) -> u64 {
         self.link.lost
+    }
+
+    fn given(&self) -> Given {
+        // Delays without t_DIFF: the method has no per-ESC processing/forwarding split.
+        Given::new()
     }
 }
 

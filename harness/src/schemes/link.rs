@@ -40,6 +40,8 @@ pub struct Link {
     pub frames: u64,
     /// Frames lost.
     pub lost: u64,
+    /// True time the last frame left the master.
+    pub last_sent: TrueTime,
     buf: Vec<u8>,
 }
 
@@ -52,6 +54,7 @@ impl Link {
             gap_ns: 2_000,
             frames: 0,
             lost: 0,
+            last_sent: 0,
             buf: vec![0u8; 1514],
         }
     }
@@ -82,6 +85,7 @@ impl Link {
         self.frames += 1;
         // Observers (clock samples) may have moved the network's time past our cursor.
         self.now = self.now.max(self.net.now());
+        self.last_sent = self.now;
         let frame = self.buf[..n].to_vec();
         let r = match self.net.transact(&frame, self.now).context("emulator")? {
             Delivery::Returned(r) => r,

@@ -48,6 +48,8 @@ pub struct SlaveRow {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Summary {
     pub name: String,
+    /// What the scheme was told beyond what it measured (`{}` = nothing), e.g. `t_diff_ns`.
+    pub given: super::Given,
     /// Why the scheme stopped early, if it did.
     pub error: Option<String>,
     pub lock_frames: Option<u64>,
@@ -191,6 +193,7 @@ pub fn summarize(r: &Record) -> Summary {
         .collect();
     Summary {
         name: r.name.to_string(),
+        given: r.given.clone(),
         error: r.error.clone(),
         lock_frames: lock.map(|l| l.1),
         lock_ms: lock.map(|l| l.0 as f64 / 1e6),

@@ -2,11 +2,12 @@
 //! the same emulated network (same [`crate::emu::Scenario`], same seed):
 //!
 //! - [`ecdc::Ecdc`]: ecdc's state machine through the simulation driver;
-//! - [`seed000::Seed000`]: an independent reproduction of the seed 000 scheme (eq. 23 as
-//!   printed, eq. 24 without delay folding, fixed 15 000-frame burst, one FRMW per cycle);
+//! - [`seed000::Seed000`]: independent reproductions of the seed 000 scheme: `seed000`, the
+//!   flow the paper describes with eq. 23 as its own eq. 22 implies it, and `seed000-printed`,
+//!   eq. 23 exactly as printed in the old minimal flow (see the module for both);
 //! - [`uncompensated::Uncompensated`]: offsets only, no delay and no drift compensation;
 //! - [`igh::Igh`] and [`ethercrab::Ethercrab`] (used by `ecdc bench dc`): reproductions of the
-//!   IgH and ethercrab DC bring-ups as documented in `../shared/reference/masters.md`.
+//!   IgH and ethercrab DC bring-ups (sources in docs/bench.md).
 //!
 //! [`run::run_scheme`] drives any of them under one recorder (true clock errors, 0x092C,
 //! SYNC0 edges, lock), and [`measure`] turns the record into the reported numbers.
@@ -21,7 +22,14 @@ pub mod run;
 pub mod seed000;
 pub mod uncompensated;
 
+use std::collections::BTreeMap;
+
 use crate::emu::{Network, TrueTime};
+
+/// What a scheme was told about the network beyond what it measures on the wire, by name
+/// (e.g. `t_diff_ns` → 80). Empty when the scheme knows only what it measures. Reported next
+/// to every scheme's numbers so that a comparison shows who knew what.
+pub type Given = BTreeMap<&'static str, i64>;
 
 /// What a scheme wrote to one slave during bring-up (`None` = not written).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
@@ -35,7 +43,8 @@ pub struct Written {
 /// A master under test. The recorder calls [`Scheme::advance`] with increasing true times and
 /// observes the network in between.
 pub trait Scheme {
-    /// Short name used in reports (`ecdc`, `seed000`, `uncompensated`).
+    /// Short name used in reports (`ecdc`, `seed000`, `seed000-printed`, `igh`, `ethercrab`,
+    /// `uncompensated`).
     fn name(&self) -> &'static str;
     /// Does everything the master does up to true time `until` (a blocking step, such as a
     /// bring-up, may end later), then lets the network run to at least `until`.
@@ -53,4 +62,6 @@ pub trait Scheme {
     fn written(&self) -> Vec<Written>;
     /// Frames this master sent that the network lost (every kind of frame).
     fn frames_lost(&self) -> u64;
+    /// What this master was told beyond what it measures on the wire (see [`Given`]).
+    fn given(&self) -> Given;
 }

@@ -9,7 +9,7 @@
 
 use ecdc_core::wire::register::{reg, SystemTimeDifference};
 
-use super::{Scheme, Written};
+use super::{Given, Scheme, Written};
 use crate::emu::{SyncSignal, TrueTime};
 
 /// Timing of a recorded run.
@@ -72,6 +72,8 @@ pub struct Record {
     pub ref_sys: Vec<Option<u64>>,
     /// Frames the master sent that the network lost.
     pub frames_lost: u64,
+    /// What the scheme was told beyond what it measured ([`Scheme::given`]).
+    pub given: Given,
 }
 
 /// Clock error `a − b` of two system times: wrapping on 64 bits when both slaves are 64-bit,
@@ -100,6 +102,7 @@ pub fn run_scheme(
         .collect();
     let mut r = Record {
         name: s.name(),
+        given: s.given(),
         slaves: n,
         has_32bit: wide.iter().any(|w| !w),
         cyc_err: vec![Vec::new(); n],

@@ -1,0 +1,191 @@
+#!/usr/bin/env bash
+# Integration test of the C ABI: the C example master (ffi/examples/c_master.c, linked against
+# target/release/libecdc_ffi.a) brings DC up on emulated ESCs over a veth pair between two
+# network namespaces created (and always deleted) by this script.
+#
+#   master ns  [ecm0] <--veth--> [ecs0]  slave ns
+#   c_master                       ecdc emulate
+#
+# Part 1: c_master with ecdc_machine_new and ecdc_poll_transmit: lock reached, every frame
+#   answered by the emulator, round trips measured.
+# Part 2: c_master -s -i: machine in caller storage (ecdc_machine_init), cyclic frames built by
+#   the host (its own BRD plus ecdc_poll_transmit_into): lock reached, the host's datagram came
+#   back with the right working counter.
+# Part 3: c_master under valgrind (memcheck: no error, no definite leak) or, without valgrind,
+#   built with -fsanitize=address,undefined: lock reached and a clean report.
+#
+# Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
+# Usage: scripts/ffi-netns-test.sh [path/to/ecdc]   (default: builds it with cargo)
+set -uo pipefail
+cd "$(dirname "$0")/.."
+
+skip() { echo "SKIP: $*"; exit 77; }
+fail() { echo "FAIL: $*"; exit 1; }
+
+[ "$(id -u)" = 0 ] || skip "needs root to create network namespaces (run: sudo $0)"
+command -v ip >/dev/null 2>&1 || skip "iproute2 'ip' not installed"
+CC="${CC:-cc}"
+command -v "$CC" >/dev/null 2>&1 || skip "no C compiler ($CC)"
+
+SUFFIX="$$"
+NS_M="ecdc-fm-$SUFFIX"
+NS_S="ecdc-fs-$SUFFIX"
+WORK="$(mktemp -d /tmp/ecdc-ffi-netns.XXXXXX)"
+PIDS=()
+
+cleanup() {
+    for p in "${PIDS[@]:-}"; do
+        [ -n "$p" ] && kill -TERM "$p" 2>/dev/null
+    done
+    for p in "${PIDS[@]:-}"; do
+        [ -n "$p" ] && wait "$p" 2>/dev/null
+    done
+    ip netns del "$NS_M" 2>/dev/null
+    ip netns del "$NS_S" 2>/dev/null
+    rm -rf "$WORK"
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+ip netns add "$NS_M" 2>/dev/null || skip "cannot create network namespaces (no netns support or not permitted)"
+ip netns add "$NS_S" || fail "creating namespace $NS_S"
+ip link add ecm0 netns "$NS_M" type veth peer name ecs0 netns "$NS_S" 2>/dev/null \
+    || skip "cannot create a veth pair (veth module missing?)"
+ip -n "$NS_S" link set ecs0 up || fail "bringing ecs0 up"
+# c_master does not bring interfaces up (it says how when one is down).
+ip -n "$NS_M" link set ecm0 up || fail "bringing ecm0 up"
+
+ECDC="${1:-}"
+if [ -z "$ECDC" ]; then
+    cargo build -q -p ecdc-harness --bin ecdc || fail "cargo build (ecdc)"
+    ECDC="${CARGO_TARGET_DIR:-target}/debug/ecdc"
+fi
+[ -x "$ECDC" ] || fail "no ecdc binary at $ECDC"
+ECDC="$(cd "$(dirname "$ECDC")" && pwd)/$(basename "$ECDC")"
+
+cargo build -q --release -p ecdc-ffi || fail "cargo build --release -p ecdc-ffi"
+LIB="${CARGO_TARGET_DIR:-target}/release/libecdc_ffi.a"
+[ -f "$LIB" ] || fail "no static library at $LIB"
+CFLAGS=(-std=c99 -Wall -Wextra -Werror -pedantic -O2 -g -Iffi/include)
+LIBS=("$LIB" -lpthread -ldl -lm)
+"$CC" "${CFLAGS[@]}" ffi/examples/c_master.c "${LIBS[@]}" -o "$WORK/c_master" \
+    || fail "compiling ffi/examples/c_master.c"
+
+# start_emulator [ARGS...]: `ecdc emulate` (ESC engine) in the slave namespace; its JSON
+# summary lands in $WORK/emu.json when it is stopped.
+start_emulator() {
+    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --json "$@" >"$WORK/emu.json" 2>"$WORK/emu.err" &
+    EMU_PID=$!
+    PIDS+=("$EMU_PID")
+    for _ in $(seq 50); do
+        grep -q "serving" "$WORK/emu.err" 2>/dev/null && return 0
+        kill -0 "$EMU_PID" 2>/dev/null || break
+        sleep 0.1
+    done
+    cat "$WORK/emu.err"
+    return 1
+}
+stop_emulator() {
+    kill -TERM "$EMU_PID" 2>/dev/null
+    wait "$EMU_PID"
+    local rc=$?
+    PIDS=("${PIDS[@]/$EMU_PID}")
+    return $rc
+}
+
+FAILED=0
+ok() { echo "  ok   $*"; }
+bad() { echo "  FAIL $*"; FAILED=1; }
+# field FILE KEY: the value of KEY=... on the summary line.
+field() { grep -m1 '^summary:' "$1" | grep -o "\b$2=[^ ]*" | cut -d= -f2; }
+# run_master LABEL OUT [PREFIX...] -- [ARGS...]: runs c_master in the master namespace.
+run_master() {
+    local out="$1"
+    shift
+    ip netns exec "$NS_M" "$@" >"$out" 2>&1
+}
+check_lock() { # check_lock OUT RC
+    if [ "$2" -eq 0 ] && [ "$(field "$1" lock_reached)" = yes ]; then
+        ok "lock reached (lock_frames $(field "$1" lock_frames), locked at end: $(field "$1" locked_at_end), restarts $(field "$1" restarts))"
+    else
+        bad "no lock (exit $2):"
+        tail -n 15 "$1" | sed 's/^/    /'
+    fi
+}
+
+echo "== part 1: ecdc_machine_new + ecdc_poll_transmit"
+start_emulator || fail "emulator did not start"
+run_master "$WORK/p1.out" "$WORK/c_master" -d 3 ecm0
+RC=$?
+stop_emulator || bad "emulator exited with an error"
+grep -m1 '^summary:' "$WORK/p1.out" || tail -n 20 "$WORK/p1.out"
+check_lock "$WORK/p1.out" "$RC"
+SENT=$(field "$WORK/p1.out" frames_sent)
+RECV=$(field "$WORK/p1.out" frames_received)
+EMU_RX=$(jq -r '.frames.received' "$WORK/emu.json" 2>/dev/null || grep -o '"received": *[0-9]*' "$WORK/emu.json" | grep -o '[0-9]*$')
+if [ -n "$SENT" ] && [ "$SENT" -gt 0 ] && [ "$EMU_RX" = "$SENT" ]; then
+    ok "emulator received all $SENT frames the master sent"
+else
+    bad "master sent ${SENT:-?}, emulator received ${EMU_RX:-?}"
+fi
+# Every reply comes back on a veth; a reply the master waited too long for still arrives.
+if [ -n "$RECV" ] && [ "$RECV" -le "$SENT" ] && [ $((RECV * 20)) -ge $((SENT * 19)) ]; then
+    ok "master received $RECV of $SENT replies"
+else
+    bad "master received ${RECV:-?} of ${SENT:-?} replies"
+fi
+MED=$(field "$WORK/p1.out" rtt_us_median)
+[ -n "$MED" ] && [ "$MED" != "0.0" ] && ok "round trip median $MED us" || bad "no round trip measured"
+
+echo "== part 2: ecdc_machine_init (caller storage) + host frames with ecdc_poll_transmit_into"
+start_emulator || fail "emulator did not start"
+run_master "$WORK/p2.out" "$WORK/c_master" -d 3 -s -i -q ecm0
+RC=$?
+stop_emulator || bad "emulator exited with an error"
+grep -m1 '^summary:' "$WORK/p2.out" || tail -n 20 "$WORK/p2.out"
+check_lock "$WORK/p2.out" "$RC"
+HF=$(field "$WORK/p2.out" host_frames)
+HW=$(field "$WORK/p2.out" host_wkc_ok)
+if [ -n "$HF" ] && [ "$HF" -gt 100 ] && [ "$HW" -le "$HF" ] && [ $((HW * 10)) -ge $((HF * 9)) ]; then
+    ok "host-built cyclic frames: $HW of $HF came back with the host BRD's working counter = slaves"
+else
+    bad "host-built cyclic frames: ${HW:-?} of ${HF:-?} with the right working counter"
+fi
+
+echo "== part 3: memory checking"
+if command -v valgrind >/dev/null 2>&1; then
+    start_emulator || fail "emulator did not start"
+    run_master "$WORK/p3.out" valgrind --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite \
+        "$WORK/c_master" -d 8 -q ecm0
+    RC=$?
+    stop_emulator || bad "emulator exited with an error"
+    grep -m1 '^summary:' "$WORK/p3.out" || tail -n 20 "$WORK/p3.out"
+    grep -m1 'ERROR SUMMARY' "$WORK/p3.out"
+    if [ "$RC" -eq 99 ] || ! grep -q 'ERROR SUMMARY: 0 errors' "$WORK/p3.out"; then
+        bad "valgrind reported errors:"
+        grep -A8 '^==[0-9]*== [A-Z]' "$WORK/p3.out" | head -n 40 | sed 's/^/    /'
+    else
+        ok "valgrind memcheck: 0 errors, no definite leak"
+    fi
+    check_lock "$WORK/p3.out" "$RC"
+elif "$CC" "${CFLAGS[@]}" -fsanitize=address,undefined -fno-omit-frame-pointer ffi/examples/c_master.c \
+    "${LIBS[@]}" -o "$WORK/c_master_asan" 2>"$WORK/asan-build.err"; then
+    start_emulator || fail "emulator did not start"
+    ASAN_OPTIONS=detect_leaks=1:abort_on_error=0:exitcode=99 UBSAN_OPTIONS=halt_on_error=1:exitcode=99 \
+        run_master "$WORK/p3.out" "$WORK/c_master_asan" -d 4 -q ecm0
+    RC=$?
+    stop_emulator || bad "emulator exited with an error"
+    grep -m1 '^summary:' "$WORK/p3.out"
+    if [ "$RC" -eq 99 ] || grep -q 'Sanitizer' "$WORK/p3.out"; then
+        bad "sanitizer report:"
+        head -n 40 "$WORK/p3.out" | sed 's/^/    /'
+    else
+        ok "AddressSanitizer + UBSan: clean"
+    fi
+    check_lock "$WORK/p3.out" "$RC"
+else
+    bad "neither valgrind nor -fsanitize=address available (install valgrind)"
+fi
+
+[ "$FAILED" = 0 ] || fail "see the lines marked FAIL above"
+echo "PASS: C ABI netns integration test"

@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# A recorded fuzzing campaign: runs each cargo-fuzz target for a fixed number of executions
+# (not a time), from its committed seed corpus, and writes what libFuzzer reports at the end
+# (executions, exec/s, edges covered, features, corpus size, peak RSS) into
+# benches/results/fuzz.md and fuzz.tsv. Heavy: run by hand, commit the result files; CI fuzzes
+# for a minute per target only (.ci/layers/40-fuzz.sh).
+#
+# Usage: scripts/fuzz-campaign.sh [TARGET...]
+#   PARSER_RUNS   executions per parser target  (default 10000000)
+#   MACHINE_RUNS  executions per other target   (default 1000000)
+#   JOBS          targets run side by side      (default 1)
+# A crash stops nothing else: it is saved under fuzz/regressions/<target>/ and its row says so;
+# the script then exits 1.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+PARSER_RUNS="${PARSER_RUNS:-10000000}"
+MACHINE_RUNS="${MACHINE_RUNS:-1000000}"
+JOBS="${JOBS:-1}"
+PARSERS=" wire_parse wire_roundtrip wire_display registers "
+
+all=$(sed -n '/^\[\[bin\]\]/,/^name/ s/^name *= *"\(.*\)"/\1/p' fuzz/Cargo.toml)
+targets="${*:-$all}"
+cargo +nightly fuzz build --release || { echo "fuzz targets do not build"; exit 1; }
+
+work=$(mktemp -d /tmp/ecdc-fuzz.XXXXXX)
+trap 'rm -rf "$work"' EXIT
+
+one() { # one TARGET: fuzz it, leave "$work/TARGET.row"
+    local t="$1" runs log start end rc
+    case "$PARSERS" in *" $t "*) runs="$PARSER_RUNS" ;; *) runs="$MACHINE_RUNS" ;; esac
+    mkdir -p "$work/$t" "fuzz/regressions/$t" "fuzz/corpus/$t"
+    log="$work/$t.log"
+    start=$(date +%s.%N)
+    cargo +nightly fuzz run --release "$t" "$work/$t" "fuzz/corpus/$t" -- \
+        -runs="$runs" -print_final_stats=1 -timeout=10 -rss_limit_mb=2048 \
+        -artifact_prefix="$PWD/fuzz/regressions/$t/" >"$log" 2>&1
+    rc=$?
+    end=$(date +%s.%N)
+    local execs eps rss cov ft corp
+    execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+    eps=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+    rss=$(sed -n 's/^stat::peak_rss_mb: *//p' "$log" | tail -1)
+    cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | grep -oE '[0-9]+')
+    ft=$(grep -oE 'ft: [0-9]+' "$log" | tail -1 | grep -oE '[0-9]+')
+    corp=$(grep -oE 'corp: [0-9]+' "$log" | tail -1 | grep -oE '[0-9]+')
+    local status=ok
+    [ "$rc" = 0 ] || status="FAILED (exit $rc, input under fuzz/regressions/$t/)"
+    printf '%s\t%s\t%s\t%s\t%.0f\t%s\t%s\t%s\t%s\t%s\n' "$t" "$runs" "${execs:-?}" "${eps:-?}" \
+        "$(awk -v a="$start" -v b="$end" 'BEGIN { print b - a }')" "${cov:-?}" "${ft:-?}" "${corp:-?}" "${rss:-?}" "$status" \
+        >"$work/$t.row"
+    echo "[fuzz-campaign] $t: $status, ${execs:-?} executions, ${eps:-?} exec/s, cov ${cov:-?}"
+}
+export -f one
+export work PARSERS PARSER_RUNS MACHINE_RUNS
+printf '%s\n' $targets | xargs -P "$JOBS" -I{} bash -c 'one {}'
+
+out=benches/results
+mkdir -p "$out"
+commit=$(git rev-parse --short HEAD)
+dirty=$(git status --porcelain -- core proofs fuzz | grep -q . && echo " (with uncommitted changes)")
+{
+    printf 'target\trequested\texecutions\texec_per_s\twall_s\tedges\tfeatures\tcorpus\tpeak_rss_mb\tstatus\n'
+    for t in $targets; do cat "$work/$t.row"; done
+} >"$out/fuzz.tsv"
+{
+    echo "# Fuzzing campaign"
+    echo
+    echo "Produced by \`PARSER_RUNS=$PARSER_RUNS MACHINE_RUNS=$MACHINE_RUNS JOBS=$JOBS scripts/fuzz-campaign.sh\`"
+    echo "at commit \`$commit\`$dirty on $(date -u +%Y-%m-%d), $(nproc) shared vCPUs,"
+    echo "$(cargo +nightly --version). Every target starts from its committed seed corpus"
+    echo "(fuzz/corpus/<target>/); the corpus grown during the run is thrown away. Figures are"
+    echo "libFuzzer's final statistics: \`edges\` = \`cov\` (coverage points reached), \`features\` = \`ft\`,"
+    echo "\`corpus\` = entries kept. Parser targets get $PARSER_RUNS executions, the others"
+    echo "(machine, maths, servo) $MACHINE_RUNS."
+    echo
+    echo "| target | executions | exec/s | wall s | edges | features | corpus | peak RSS MB | status |"
+    echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
+    for t in $targets; do
+        IFS=$'\t' read -r name _ execs eps wall cov ft corp rss status <"$work/$t.row"
+        echo "| $name | $execs | $eps | $wall | $cov | $ft | $corp | $rss | $status |"
+    done
+} >"$out/fuzz.md"
+echo "wrote $out/fuzz.md and $out/fuzz.tsv"
+! grep -q FAILED "$out/fuzz.tsv"
