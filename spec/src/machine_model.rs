@@ -13,7 +13,9 @@
 //!
 //! The model is deterministic and assumes the configuration of the property runs (one latch
 //! round, one retry, burst and convergence gate of one frame, lock after one good cycle, two
-//! lost cycles tolerated, automatic restart, SYNC programmed) — see [`ModelConfig`].
+//! lost cycles tolerated, automatic restart, SYNC programmed, t_Diff measurement off: the
+//! property runs' ring does not model forced port loops; harness/tests/tdiff.rs covers that
+//! step on the emulator) — see [`ModelConfig`].
 
 use ecdc_core::dc::State;
 use ecdc_core::wire::Command;
@@ -80,6 +82,14 @@ pub fn allowed_request(state: State, command: Command, register: u16, len: u16) 
         State::ReadInfo => command == Fprd && matches!(register, 0x0008 | 0x0110),
         State::ProbeSystemTime | State::ReadReferenceTime => {
             command == Fprd && register == 0x0910 && matches!(len, 4 | 8)
+        }
+        State::TdiffRead => {
+            command == Fprd && matches!(register, 0x0000 | 0x0130 | 0x0100) && len == 2
+        }
+        State::TdiffLatch => command == Fprd && register == 0x0900 && len == 16,
+        State::TdiffTrigger => command == Bwr && register == 0x0900,
+        State::TdiffClose | State::TdiffRestore => {
+            command == Fpwr && register == 0x0100 && len == 2
         }
         State::LatchReadBefore => command == Fprd && register == 0x0900 && len == 16,
         State::LatchTrigger => command == Bwr && register == 0x0900,
@@ -175,6 +185,11 @@ impl RefMachine {
         if self.state == State::RestartWait {
             self.enter(State::CountSlaves);
         }
+        // The model runs with the t_Diff measurement off (`TdiffMode::Off`): the step sends
+        // nothing and goes straight on to the delay measurement.
+        if self.state == State::TdiffRead {
+            self.enter(State::LatchReadBefore);
+        }
         if self.state == State::ResetLoops && self.writable == 0 {
             self.enter(State::DriftBurst);
         }
@@ -198,7 +213,7 @@ impl RefMachine {
             ReadInfo => ProbeSystemTime,
             ProbeSystemTime => {
                 ev.push(EventKind::SlavesFound(self.k, self.k));
-                LatchReadBefore
+                TdiffRead
             }
             LatchReadBefore => LatchTrigger,
             LatchTrigger => LatchReadAfter,

@@ -14,6 +14,11 @@ impl<const N: usize> Machine<N> {
         let n = self.count;
         match self.state {
             State::CountSlaves | State::LatchTrigger | State::ReadReferenceTime => 1,
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_count(),
             State::AssignAddresses
             | State::ProbeSystemTime
             | State::LatchReadBefore
@@ -68,6 +73,11 @@ impl<const N: usize> Machine<N> {
             | State::AssignAddresses
             | State::ReadInfo
             | State::ProbeSystemTime => self.discovery_item(i),
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_item(i),
             State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
                 self.measure_item(i)
             }
@@ -107,6 +117,11 @@ impl<const N: usize> Machine<N> {
             | State::AssignAddresses
             | State::ReadInfo
             | State::ProbeSystemTime => self.discovery_reply(i, p, wkc, data),
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_reply(i, p, wkc, data),
             State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
                 self.measure_reply(i, p, wkc, data)
             }
@@ -134,6 +149,7 @@ impl<const N: usize> Machine<N> {
                 self.drift_frames = 0;
                 self.drift_ok = 0;
                 self.drift_bound = None;
+                self.tdiff_reset();
             }
             State::DriftCheck => self.drift_bound = None,
             State::Cyclic => self.cyclic_enter(),
@@ -148,6 +164,11 @@ impl<const N: usize> Machine<N> {
             | State::AssignAddresses
             | State::ReadInfo
             | State::ProbeSystemTime => self.discovery_done(),
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_done(),
             State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
                 self.measure_done()
             }
