@@ -36,6 +36,8 @@ pub struct ModelConfig {
 pub enum EventKind {
     /// Slaves counted and addressed (`count`, `dc`).
     SlavesFound(u16, u16),
+    /// t_Diff values resolved (with the measurement off: every slave's default).
+    TdiffResolved,
     /// Delays measured.
     DelaysMeasured,
     /// Offsets written (`written`, `skipped_running`).
@@ -188,6 +190,7 @@ impl RefMachine {
         // The model runs with the t_Diff measurement off (`TdiffMode::Off`): the step sends
         // nothing and goes straight on to the delay measurement.
         if self.state == State::TdiffRead {
+            ev.push(EventKind::TdiffResolved);
             self.enter(State::LatchReadBefore);
         }
         if self.state == State::ResetLoops && self.writable == 0 {
