@@ -29,7 +29,10 @@ fn scenario(name: &str) -> Scenario {
 }
 
 /// Runs the bring-up to the delay measurement; returns per slave (measured value, source,
-/// truth t_P − t_F) and checks that DL control 0x0101 is back to its power-on value.
+/// truth t_P − t_F) and checks that DL control 0x0101 is back to its power-on value
+/// (REQ-DC-124). Reaching the delays at all means every trigger's working counter with slaves
+/// cut off was accepted (REQ-DC-125); the values and sources are read from `Machine::slaves`
+/// (REQ-DC-126).
 fn measure<const N: usize>(sc: &Scenario, cfg: Config) -> Vec<(i32, TdiffSource, i64)> {
     let mut s = sim::<N>(sc, cfg);
     s.drive_until(60_000_000_000, |e| {
@@ -247,4 +250,29 @@ fn forced_loop_delay_shifts_the_measurement() {
         );
         assert_eq!(slow[i].0 - same[i].0, 30, "slave {i}: {slow:?} vs {same:?}");
     }
+}
+
+/// REQ-DC-124: a value outside the plausible range is not used. A forced loop 600 ns slower than
+/// an open end makes every measurement 680 ns, above `max_ns` (500): each measured slave falls
+/// back to `Config::t_diff_ns` with the rejected value in its source.
+#[test]
+fn implausible_measurement_falls_back() {
+    let mut sc = Scenario::line(4).ideal();
+    sc.defaults.forced_loop_ns = 600;
+    let cfg = Config {
+        t_diff_ns: 33,
+        ..Config::default()
+    };
+    let r = measure::<8>(&sc, cfg);
+    for x in &r[1..3] {
+        assert_eq!(
+            (x.0, x.1),
+            (
+                33,
+                TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns: 680 })
+            )
+        );
+    }
+    // Nothing usable was measured, so the unmeasurable slaves keep the default.
+    assert_eq!((r[0].0, r[0].1), (33, TdiffSource::Default));
 }
