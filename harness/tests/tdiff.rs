@@ -276,3 +276,23 @@ fn implausible_measurement_falls_back() {
     // Nothing usable was measured, so the unmeasurable slaves keep the default.
     assert_eq!((r[0].0, r[0].1), (33, TdiffSource::Default));
 }
+
+/// REQ-DC-126: `ecdc scan`'s table carries each slave's t_Diff and its source.
+#[test]
+fn scan_report_lists_t_diff_and_source() {
+    let mut s = sim::<16>(&Scenario::line(3), nothing_told());
+    s.drive_until(10_000_000_000, |e| {
+        matches!(e, Event::DelaysMeasured { .. })
+    })
+    .unwrap();
+    let (rows, err) = ecdc_harness::cli::scan::report_slaves::<16>(s.machine.slaves(), true);
+    assert!(err.is_none());
+    let src: Vec<&str> = rows
+        .iter()
+        .map(|r| r.t_diff_source.as_deref().unwrap())
+        .collect();
+    assert_eq!(src, ["same type as 1", "measured", "same type as 1"]);
+    for (r, sl) in rows.iter().zip(s.machine.slaves()) {
+        assert_eq!(r.t_diff_ns, Some(sl.t_diff_ns));
+    }
+}

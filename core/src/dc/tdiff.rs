@@ -67,6 +67,21 @@ pub enum TdiffSource {
     Fallback(TdiffFallback),
 }
 
+impl core::fmt::Display for TdiffSource {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            TdiffSource::Default => f.write_str("default"),
+            TdiffSource::Configured => f.write_str("configured"),
+            TdiffSource::Measured => f.write_str("measured"),
+            TdiffSource::SameType { from } => write!(f, "same type as {from}"),
+            TdiffSource::Fallback(TdiffFallback::Running) => f.write_str("fallback: running"),
+            TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns }) => {
+                write!(f, "fallback: measured {measured_ns} ns implausible")
+            }
+        }
+    }
+}
+
 /// Why a wanted measurement was not used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TdiffFallback {
