@@ -296,3 +296,43 @@ fn scan_report_lists_t_diff_and_source() {
         assert_eq!(r.t_diff_ns, Some(sl.t_diff_ns));
     }
 }
+
+/// REQ-DC-124: a bring-up interrupted while a port is closed (here: `start` again) first
+/// reopens it, so the next count sees every slave and DL control ends as it was.
+#[test]
+fn restart_while_closed_restores_the_port_first() {
+    let sc = Scenario::line(5);
+    let mut s = sim::<8>(&sc, nothing_told());
+    let mut closed_at = None;
+    for _ in 0..200_000 {
+        s.step().unwrap();
+        if let Some(i) = (0..5).find(|i| dl_control(&s, *i) != 0x0001) {
+            closed_at = Some(i);
+            break;
+        }
+    }
+    let i = closed_at.expect("a port was closed");
+    // Let the close take effect and a closed latch run, then restart.
+    for _ in 0..4 {
+        s.step().unwrap();
+    }
+    assert_ne!(dl_control(&s, i), 0x0001, "slave {i} still closed");
+    let now = s.master_time_at(s.now());
+    s.machine.start(now);
+    s.drive_until(10_000_000_000, |e| {
+        matches!(e, Event::DelaysMeasured { .. })
+    })
+    .unwrap();
+    assert_eq!(
+        s.machine.slaves().len(),
+        5,
+        "every slave counted after the restart"
+    );
+    for k in 0..5 {
+        assert_eq!(dl_control(&s, k), 0x0001, "slave {k}");
+    }
+    assert!(s
+        .events()
+        .iter()
+        .any(|(_, e)| matches!(e, Event::SlavesFound { count: 5, .. })));
+}

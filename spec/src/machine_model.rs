@@ -79,7 +79,11 @@ pub fn allowed_request(state: State, command: Command, register: u16, len: u16) 
     use Command::*;
     match state {
         State::Idle | State::RestartWait | State::Failed => false,
-        State::CountSlaves => command == Brd && register == 0x0000,
+        // Before the count: the restore of a port an interrupted t_Diff step left closed.
+        State::CountSlaves => {
+            (command == Brd && register == 0x0000)
+                || (command == Fpwr && register == 0x0100 && len == 2)
+        }
         State::AssignAddresses => command == Apwr && register == 0x0010 && len == 2,
         State::ReadInfo => command == Fprd && matches!(register, 0x0008 | 0x0110),
         State::ProbeSystemTime | State::ReadReferenceTime => {

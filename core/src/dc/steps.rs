@@ -13,7 +13,8 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn item_count(&self) -> u16 {
         let n = self.count;
         match self.state {
-            State::CountSlaves | State::LatchTrigger | State::ReadReferenceTime => 1,
+            State::CountSlaves => 1u16.saturating_add(u16::from(self.tdiff.recovering)),
+            State::LatchTrigger | State::ReadReferenceTime => 1,
             State::TdiffRead
             | State::TdiffLatch
             | State::TdiffTrigger
@@ -37,6 +38,8 @@ impl<const N: usize> Machine<N> {
     /// Most items per frame: one FRMW per frame in a burst (each frame is one loop sample).
     pub(crate) fn max_per_frame(&self) -> usize {
         match self.state {
+            // The restore of an interrupted t_Diff measurement goes alone, before the count.
+            State::CountSlaves if self.tdiff.recovering => 1,
             State::DriftBurst => 1,
             // One entry stays free for the FRMW that closes every check frame.
             State::DriftCheck => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
@@ -68,6 +71,12 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
+        if self.state == State::CountSlaves && self.tdiff.recovering {
+            return match i {
+                0 => self.tdiff_recover_item(),
+                _ => self.discovery_item(0),
+            };
+        }
         match self.state {
             State::CountSlaves
             | State::AssignAddresses
@@ -112,6 +121,12 @@ impl<const N: usize> Machine<N> {
         wkc: u16,
         data: &[u8],
     ) -> Result<(), Error> {
+        if self.state == State::CountSlaves && self.tdiff.recovering {
+            return match i {
+                0 => self.tdiff_recover_reply(p, wkc),
+                _ => self.discovery_reply(0, p, wkc, data),
+            };
+        }
         match self.state {
             State::CountSlaves
             | State::AssignAddresses

@@ -171,6 +171,12 @@ pub(crate) struct Tdiff<const N: usize> {
     closed: i64,
     /// Measured mean per target, before plausibility checks.
     result: [Option<i32>; N],
+    /// (station, DL control) of a target whose ports may still be closed: set before its close
+    /// is sent, cleared once the restore is answered. Survives a restart, so that the next
+    /// bring-up first reopens the ports (REQ-DC-124).
+    pending: Option<(u16, u16)>,
+    /// The current `CountSlaves` step starts with the restore of `pending`.
+    pub(crate) recovering: bool,
 }
 
 impl<const N: usize> Tdiff<N> {
@@ -187,6 +193,8 @@ impl<const N: usize> Tdiff<N> {
             first: [(0, 0); N],
             closed: 0,
             result: [None; N],
+            pending: None,
+            recovering: false,
         }
     }
 
@@ -453,6 +461,7 @@ impl<const N: usize> Machine<N> {
             State::TdiffLatch => self.tdiff_latch_done(),
             State::TdiffClose => Ok(State::TdiffTrigger),
             State::TdiffRestore => {
+                self.tdiff.pending = None;
                 if let Phase::Closed { target, .. } = self.tdiff.phase {
                     let c = self.tdiff_cfg();
                     let base = self
@@ -493,6 +502,9 @@ impl<const N: usize> Machine<N> {
                     target: t,
                     round: 0,
                 };
+                let station = self.slave(t).map_or(0, |s| s.station);
+                let original = self.tdiff.dl_control.get(usize::from(t)).copied();
+                self.tdiff.pending = Some((station, original.unwrap_or(0)));
                 self.tdiff.closed = 0;
                 State::TdiffClose
             }
@@ -831,9 +843,30 @@ impl<const N: usize> Machine<N> {
         State::LatchReadBefore
     }
 
-    /// Resets the phase's data at the start of a bring-up.
+    /// Resets the phase's data at the start of a bring-up; a restore left pending by an
+    /// interrupted measurement becomes the first datagram of `CountSlaves`.
     pub(crate) fn tdiff_reset(&mut self) {
         self.tdiff.clear();
+        self.tdiff.recovering = self.tdiff.pending.is_some();
+    }
+
+    /// The restore of a target left closed by an interrupted bring-up (`CountSlaves` item 0
+    /// while recovering): FPWR 0x0100 with the value read before it was closed.
+    pub(crate) fn tdiff_recover_item(&self) -> Item {
+        match self.tdiff.pending {
+            Some((station, v)) => Item::Send(Op::fpwr(station, DL_CONTROL, 2, u64::from(v))),
+            None => Item::Skip,
+        }
+    }
+
+    /// Its reply: WKC 1 (restored) or 0 (the slave is gone or was power-cycled, which also
+    /// resets DL control) ends the recovery.
+    pub(crate) fn tdiff_recover_reply(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
+        if wkc > 1 {
+            return self.expect_wkc(p, 1, wkc);
+        }
+        self.tdiff.pending = None;
+        Ok(())
     }
 }
 
