@@ -113,6 +113,8 @@ pub(crate) enum Plan {
         close: PortSet,
         end: u16,
     },
+    /// Measured: the mean before the plausibility check (`None` if it did not fit).
+    Done { mean: Option<i32> },
 }
 
 /// Which latch the step is in.
@@ -169,8 +171,6 @@ pub(crate) struct Tdiff<const N: usize> {
     first: [(u32, u32); N],
     /// Σ X' over the closed rounds of the current target.
     closed: i64,
-    /// Measured mean per target, before plausibility checks.
-    result: [Option<i32>; N],
     /// (station, DL control) of a target whose ports may still be closed: set before its close
     /// is sent, cleared once the restore is answered. Survives a restart, so that the next
     /// bring-up first reopens the ports (REQ-DC-124).
@@ -192,7 +192,6 @@ impl<const N: usize> Tdiff<N> {
             rtt: [0; N],
             first: [(0, 0); N],
             closed: 0,
-            result: [None; N],
             pending: None,
             recovering: false,
         }
@@ -203,7 +202,6 @@ impl<const N: usize> Tdiff<N> {
         self.running = false;
         self.plan = [Plan::Skip; N];
         self.closed = 0;
-        self.result = [None; N];
         self.base = [0; N];
         self.rtt = [0; N];
     }
@@ -321,7 +319,7 @@ impl<const N: usize> Machine<N> {
                 let original = self.tdiff.dl_control.get(usize::from(pos)).copied();
                 let close = match self.tdiff.plan_of(pos) {
                     Plan::Measure { close, .. } => close,
-                    Plan::Skip => PortSet::EMPTY,
+                    Plan::Skip | Plan::Done { .. } => PortSet::EMPTY,
                 };
                 let mut v = original.unwrap_or(0);
                 for p in Port::PROCESSING_ORDER {
@@ -349,7 +347,7 @@ impl<const N: usize> Machine<N> {
         let cut = match self.tdiff.phase {
             Phase::Closed { target, .. } => match self.tdiff.plan_of(target) {
                 Plan::Measure { end, .. } => Some((target, end)),
-                Plan::Skip => None,
+                Plan::Skip | Plan::Done { .. } => None,
             },
             _ => None,
         };
@@ -483,8 +481,8 @@ impl<const N: usize> Machine<N> {
                                 i64::from(c.rounds).saturating_mul(i64::from(c.base_rounds)),
                             )
                         });
-                    if let Some(slot) = self.tdiff.result.get_mut(usize::from(target)) {
-                        *slot = m;
+                    if let Some(slot) = self.tdiff.plan.get_mut(usize::from(target)) {
+                        *slot = Plan::Done { mean: m };
                     }
                     return Ok(self.tdiff_next(target.saturating_add(1)));
                 }
@@ -786,7 +784,10 @@ impl<const N: usize> Machine<N> {
         let mut resolved = [(0i32, TdiffSource::Default); N];
         for (i, out) in (0u16..).zip(resolved.iter_mut()).take(count) {
             let Some(s) = self.slave(i) else { continue };
-            let r = self.tdiff.result.get(usize::from(i)).copied().flatten();
+            let r = match self.tdiff.plan_of(i) {
+                Plan::Done { mean } => mean,
+                _ => None,
+            };
             *out = if let Some(v) = self.configured_t_diff(i, s) {
                 (v, TdiffSource::Configured)
             } else if let Some(v) = r.filter(|v| (cfg.min_ns..=cfg.max_ns).contains(v)) {
