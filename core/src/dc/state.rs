@@ -2,23 +2,21 @@
 //!
 //! ```text
 //!  Idle ──start──▶ CountSlaves ─▶ AssignAddresses ─▶ ReadInfo ─▶ ProbeSystemTime
-//!                      ▲                                               │
-//!                      │                                               ▼
-//!                      │      TdiffRead ─(mode Off, or a slave running)─────────────┐
-//!                      │          │                                                 │
-//!                      │          ▼         (R all-open rounds, then per target:    │
-//!                      │     TdiffLatch ◀─▶ TdiffTrigger ◀── TdiffClose ◀─┐         │
-//!                      │          │ (R closed rounds)                     │         │
-//!                      │          ▼                                       │         │
-//!                      │     TdiffRestore ──(next target)─────────────────┘         │
-//!                      │          │ (no target left; also from TdiffLatch)          │
+//!                      ▲   (first: restore of a port an                        │
+//!                      │    interrupted t_Diff step left closed)               ▼
+//!                      │      TdiffRead ─(mode Off, or a slave running)────────────┐
+//!                      │          ▼                                                │
+//!                      │     TdiffLatch ◀─▶ TdiffTrigger ◀── TdiffClose ◀─┐        │
+//!                      │  (all-open rounds, then per target closed rounds) │        │
+//!                      │          ▼                                        │        │
+//!                      │     TdiffRestore ──(next target)──────────────────┘        │
+//!                      │          │ (no target left; TdiffLatch too if none at all) │
 //!                      │          ▼                                                 │
-//!                 RestartWait    LatchReadBefore ◀─────────────────────────────────┘
-//!                      ▲       ┌──── LatchReadBefore ◀─────┐ (K rounds)
-//!                      │       ▼                           │
-//!                      │  LatchTrigger ─▶ LatchReadAfter ──┘
-//!            (any fault, auto_restart)                               │
-//!                      │                                             ▼
+//!                 RestartWait  ┌──── LatchReadBefore ◀───────────────────────────────┘
+//!                      ▲       ▼                        ▲
+//!                      │  LatchTrigger ─▶ LatchReadAfter ┘ (K rounds)
+//!            (any fault, auto_restart)         │
+//!                      │                       ▼
 //!                   Failed ◀──(fault, no restart)       ReadAlStatus ─▶ WriteOffsets ─▶ ResetLoops
 //!                                                                                   │
 //!                                 ┌─────────────────────────────────────────────────┘

@@ -13,14 +13,22 @@
 //! ```
 //!
 //! (`X` contains `b`'s round trip `rtt_b` plus its forwarding return hop `t_F(b)`; `X'` contains
-//! `b`'s processing turn-round `t_P(b)`). Each latch is repeated [`TdiffConfig::rounds`] times
-//! and the sums are divided once.
+//! `b`'s processing turn-round `t_P(b)`). The all-open latch is repeated
+//! [`TdiffConfig::base_rounds`] times (shared by every target), the closed one
+//! [`TdiffConfig::rounds`] times per target, and the sums are divided once. `rtt_b` is read on
+//! `b`'s clock and `X` on `a`'s, both over `b`'s whole subtree, so `rtt_b` is first converted
+//! to `a`'s clock (their crystals may differ by ~100 ppm).
+//!
+//! Slaves that cannot be measured this way (the first DC slave, line ends, non-DC slaves: their
+//! t_Diff still enters the delays) take a user value, else the value measured on a slave of the
+//! same ESC type and revision, else `Config::t_diff_ns`.
 //!
 //! Safety rules: the step never runs while any slave reports SAFE-OP or OP (closing a port cuts
 //! the slaves behind it off the frame); DL control is read first and written back exactly;
-//! the triggers' working counters are checked against the slaves that are still reachable.
+//! the triggers' working counters are checked against the slaves that are still reachable; a
+//! restore interrupted by a restart is sent first in the next `CountSlaves`.
 //!
-//! The phase owns its working data ([`Tdiff`]); the machine only keeps one `Tdiff` field and
+//! The phase owns its working data (`Tdiff`); the machine only keeps one `Tdiff` field and
 //! receives the result per slave in [`SlaveInfo::t_diff_ns`] and [`SlaveInfo::t_diff_source`].
 
 use crate::dc::config::{TdiffConfig, TdiffMode};
