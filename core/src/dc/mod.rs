@@ -30,11 +30,13 @@ pub mod request;
 pub mod slave;
 pub mod state;
 mod steps;
+pub mod tdiff;
 #[cfg(test)]
 mod tests;
 
 pub use config::{
     Config, ConfigError, DriftCheck, DriftCommand, DriftConfig, MonitorConfig, SyncConfig,
+    TdiffConfig, TdiffMode, TdiffType,
 };
 pub use error::Error;
 pub use event::Event;
@@ -42,3 +44,4 @@ pub use machine::{Machine, Stats};
 pub use request::MAX_INFLIGHT;
 pub use slave::{DcKind, SlaveInfo};
 pub use state::State;
+pub use tdiff::{TdiffFallback, TdiffSource};
