@@ -4,14 +4,14 @@
 //! Pipeline: discover → latch receive times → delays → offsets → static drift compensation →
 //! SYNC0/SYNC1 start → cyclic drift compensation and monitoring.
 
-// --- DC maths (owner: DC maths engineer): pure functions the machine calls ---
+// --- DC maths: pure functions the machine calls ---
 pub mod delay;
 pub mod offset;
 pub mod port;
 pub mod sync;
 pub mod topology;
 
-// --- state machine (owner: state-machine engineer) ---
+// --- state machine ---
 mod activation;
 mod adjust;
 mod bridge;
