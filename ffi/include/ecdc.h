@@ -176,6 +176,10 @@ typedef enum ecdc_event_kind {
    */
   ECDC_EVENT_RESTARTING = 10,
   /**
+   * Every slave's t_Diff is known: `u.tdiff_resolved`.
+   */
+  ECDC_EVENT_TDIFF_RESOLVED = 11,
+  /**
    * An event this header predates (a newer library); only `text` describes it.
    */
   ECDC_EVENT_OTHER = 255,
@@ -325,6 +329,26 @@ typedef enum ecdc_machine_state {
    */
   ECDC_STATE_FAILED = 19,
   /**
+   * t_Diff measurement: read ESC type, AL status and DL control.
+   */
+  ECDC_STATE_TDIFF_READ = 20,
+  /**
+   * t_Diff measurement: read the port times of a latch.
+   */
+  ECDC_STATE_TDIFF_LATCH = 21,
+  /**
+   * t_Diff measurement: BWR 0x0900 latch trigger.
+   */
+  ECDC_STATE_TDIFF_TRIGGER = 22,
+  /**
+   * t_Diff measurement: close the target's downstream ports (DL control 0x0100).
+   */
+  ECDC_STATE_TDIFF_CLOSE = 23,
+  /**
+   * t_Diff measurement: restore the target's DL control exactly.
+   */
+  ECDC_STATE_TDIFF_RESTORE = 24,
+  /**
    * A state this header predates (a newer library), or no valid handle.
    */
   ECDC_STATE_UNKNOWN = 255,
@@ -393,6 +417,28 @@ typedef enum ecdc_drift_command {
  * `ecdc_machine_free`. One thread at a time.
  */
 typedef struct ecdc_machine ecdc_machine;
+
+/**
+ * A user-supplied t_Diff for every ESC of one type and revision (`ecdc_config.tdiff_types`).
+ */
+typedef struct ecdc_tdiff_type {
+  /**
+   * 1 = this entry is used, 0 = empty.
+   */
+  uint8_t used;
+  /**
+   * Reserved, keep 0.
+   */
+  uint8_t reserved;
+  /**
+   * 0x0000 (type, low byte) and 0x0001 (revision, high byte) as one word.
+   */
+  uint16_t esc_type;
+  /**
+   * t_Diff = t_P − t_F of that ESC, ns.
+   */
+  int32_t t_diff_ns;
+} ecdc_tdiff_type;
 
 /**
  * Machine configuration: the knobs of `ecdc_core::dc::Config`, flattened. Always start from
@@ -550,6 +596,34 @@ typedef struct ecdc_config {
    * Pause before a re-initialisation. Default 10 ms.
    */
   uint64_t restart_delay_ns;
+  /**
+   * t_Diff measurement mode (`ecdc_tdiff_mode`). Default per slave.
+   */
+  uint8_t tdiff_mode;
+  /**
+   * Latches per closed-port measurement. Default 64.
+   */
+  uint8_t tdiff_rounds;
+  /**
+   * Latches with every port open, the measurement's baseline. Default 64.
+   */
+  uint8_t tdiff_base_rounds;
+  /**
+   * Reserved, keep 0.
+   */
+  uint8_t tdiff_reserved;
+  /**
+   * Smallest plausible measured t_Diff, ns; below it the slave falls back. Default −10.
+   */
+  int32_t tdiff_min_ns;
+  /**
+   * Largest plausible measured t_Diff, ns. Default 500.
+   */
+  int32_t tdiff_max_ns;
+  /**
+   * User-supplied t_Diff per ESC type and revision (unused entries: `used` 0).
+   */
+  struct ecdc_tdiff_type tdiff_types[4];
 } ecdc_config;
 
 /**
@@ -748,6 +822,29 @@ typedef struct ecdc_fault {
 } ecdc_fault;
 
 /**
+ * `TDIFF_RESOLVED` data: how many slaves got their t_Diff from where (per-slave values:
+ * `ecdc_slave_info`).
+ */
+typedef struct ecdc_ev_tdiff_resolved {
+  /**
+   * Slaves measured themselves (forced port loop).
+   */
+  uint16_t measured;
+  /**
+   * Slaves given the value of a measured slave of the same ESC type and revision.
+   */
+  uint16_t same_type;
+  /**
+   * Slaves with a user-supplied value.
+   */
+  uint16_t configured;
+  /**
+   * Slaves whose measurement was wanted but not used (running network, implausible value).
+   */
+  uint16_t fallback;
+} ecdc_ev_tdiff_resolved;
+
+/**
  * The data of an event; read the member named by `ecdc_event.kind`.
  */
 typedef union ecdc_event_data {
@@ -787,6 +884,10 @@ typedef union ecdc_event_data {
    * `ECDC_EVENT_ERROR`.
    */
   struct ecdc_fault error;
+  /**
+   * `ECDC_EVENT_TDIFF_RESOLVED`.
+   */
+  struct ecdc_ev_tdiff_resolved tdiff_resolved;
   /**
    * Sizes the union and zero-fills it before a member is written.
    */

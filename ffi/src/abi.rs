@@ -302,9 +302,12 @@ unsafe fn new<const N: usize>(cfg: *const ecdc_config, out: *mut *mut ecdc_machi
     }
     // SAFETY: non-null, readable (contract), plain integer fields.
     let cfg = unsafe { cfg.read() };
-    // Validate before allocating, so a bad config costs no allocation.
+    // Validate before allocating, so a bad config costs no allocation. Only the config is
+    // checked here: building a whole machine just to throw it away would put one more
+    // machine-sized value on the caller's stack (230 KiB for the large capacity).
     if let Err(e) = guard(Err(S::ECDC_ERR_PANIC), || {
-        Slot::<N>::new(&cfg, OWNER_LIBRARY).map(|_| ())
+        let rust = config_from_c(&cfg)?;
+        rust.validate(N).map_err(status_of_config_error)
     }) {
         return e;
     }

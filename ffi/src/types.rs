@@ -11,7 +11,7 @@ use core::fmt::Write as _;
 
 use ecdc_core::dc::{
     Config, ConfigError, DcKind, DriftCheck, DriftCommand, DriftConfig, Error, Event,
-    MonitorConfig, SlaveInfo, State, Stats, SyncConfig,
+    MonitorConfig, SlaveInfo, State, Stats, SyncConfig, TdiffConfig, TdiffMode, TdiffType,
 };
 
 /// Result of every fallible call. `ECDC_OK` is 0; `ecdc_strerror` names each code.
@@ -87,6 +87,32 @@ pub enum ecdc_drift_command {
     ECDC_DRIFT_FRMW = 0,
     /// ARMW to the reference's auto-increment position.
     ECDC_DRIFT_ARMW = 1,
+}
+
+/// `ecdc_config.tdiff_mode` values: which slaves the bring-up measures t_Diff on.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ecdc_tdiff_mode {
+    /// Measure nothing: per-slave values, the per-type table or `t_diff_ns` are used.
+    ECDC_TDIFF_OFF = 0,
+    /// Measure every slave whose t_Diff enters a delay and can be measured (the default).
+    ECDC_TDIFF_PER_SLAVE = 1,
+    /// Measure one slave per ESC type and revision and use its value for the others.
+    ECDC_TDIFF_PER_ESC_TYPE = 2,
+}
+
+/// A user-supplied t_Diff for every ESC of one type and revision (`ecdc_config.tdiff_types`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ecdc_tdiff_type {
+    /// 1 = this entry is used, 0 = empty.
+    pub used: u8,
+    /// Reserved, keep 0.
+    pub reserved: u8,
+    /// 0x0000 (type, low byte) and 0x0001 (revision, high byte) as one word.
+    pub esc_type: u16,
+    /// t_Diff = t_P − t_F of that ESC, ns.
+    pub t_diff_ns: i32,
 }
 
 /// Machine configuration: the knobs of `ecdc_core::dc::Config`, flattened. Always start from
@@ -171,6 +197,20 @@ pub struct ecdc_config {
     pub reserved: u16,
     /// Pause before a re-initialisation. Default 10 ms.
     pub restart_delay_ns: u64,
+    /// t_Diff measurement mode (`ecdc_tdiff_mode`). Default per slave.
+    pub tdiff_mode: u8,
+    /// Latches per closed-port measurement. Default 64.
+    pub tdiff_rounds: u8,
+    /// Latches with every port open, the measurement's baseline. Default 64.
+    pub tdiff_base_rounds: u8,
+    /// Reserved, keep 0.
+    pub tdiff_reserved: u8,
+    /// Smallest plausible measured t_Diff, ns; below it the slave falls back. Default −10.
+    pub tdiff_min_ns: i32,
+    /// Largest plausible measured t_Diff, ns. Default 500.
+    pub tdiff_max_ns: i32,
+    /// User-supplied t_Diff per ESC type and revision (unused entries: `used` 0).
+    pub tdiff_types: [ecdc_tdiff_type; 4],
 }
 
 /// The C view of a Rust [`Config`].
@@ -221,6 +261,30 @@ pub fn config_to_c(c: &Config) -> ecdc_config {
         max_wkc_errors: c.monitor.max_wkc_errors,
         reserved: 0,
         restart_delay_ns: c.restart_delay_ns,
+        tdiff_mode: match c.tdiff.mode {
+            TdiffMode::Off => ecdc_tdiff_mode::ECDC_TDIFF_OFF as u8,
+            TdiffMode::PerSlave => ecdc_tdiff_mode::ECDC_TDIFF_PER_SLAVE as u8,
+            TdiffMode::PerEscType => ecdc_tdiff_mode::ECDC_TDIFF_PER_ESC_TYPE as u8,
+        },
+        tdiff_rounds: c.tdiff.rounds,
+        tdiff_base_rounds: c.tdiff.base_rounds,
+        tdiff_reserved: 0,
+        tdiff_min_ns: c.tdiff.min_ns,
+        tdiff_max_ns: c.tdiff.max_ns,
+        tdiff_types: c.tdiff.types.map(|t| match t {
+            Some(t) => ecdc_tdiff_type {
+                used: 1,
+                reserved: 0,
+                esc_type: t.esc_type,
+                t_diff_ns: t.t_diff_ns,
+            },
+            None => ecdc_tdiff_type {
+                used: 0,
+                reserved: 0,
+                esc_type: 0,
+                t_diff_ns: 0,
+            },
+        }),
     }
 }
 
@@ -239,7 +303,26 @@ pub fn config_from_c(c: &ecdc_config) -> Result<Config, ecdc_status> {
         x if x == ecdc_drift_command::ECDC_DRIFT_ARMW as u8 => DriftCommand::Armw,
         _ => return Err(ecdc_status::ECDC_ERR_CONFIG_ENUM),
     };
+    let tdiff_mode = match c.tdiff_mode {
+        x if x == ecdc_tdiff_mode::ECDC_TDIFF_OFF as u8 => TdiffMode::Off,
+        x if x == ecdc_tdiff_mode::ECDC_TDIFF_PER_SLAVE as u8 => TdiffMode::PerSlave,
+        x if x == ecdc_tdiff_mode::ECDC_TDIFF_PER_ESC_TYPE as u8 => TdiffMode::PerEscType,
+        _ => return Err(ecdc_status::ECDC_ERR_CONFIG_ENUM),
+    };
     Ok(Config {
+        tdiff: TdiffConfig {
+            mode: tdiff_mode,
+            rounds: c.tdiff_rounds,
+            base_rounds: c.tdiff_base_rounds,
+            min_ns: c.tdiff_min_ns,
+            max_ns: c.tdiff_max_ns,
+            types: c.tdiff_types.map(|t| {
+                (t.used != 0).then_some(TdiffType {
+                    esc_type: t.esc_type,
+                    t_diff_ns: t.t_diff_ns,
+                })
+            }),
+        },
         station_base: c.station_base,
         index_first: c.index_first,
         index_count: c.index_count,
@@ -418,6 +501,16 @@ pub enum ecdc_machine_state {
     ECDC_STATE_RESTART_WAIT = 18,
     /// Stopped after a fault (`auto_restart` 0).
     ECDC_STATE_FAILED = 19,
+    /// t_Diff measurement: read ESC type, AL status and DL control.
+    ECDC_STATE_TDIFF_READ = 20,
+    /// t_Diff measurement: read the port times of a latch.
+    ECDC_STATE_TDIFF_LATCH = 21,
+    /// t_Diff measurement: BWR 0x0900 latch trigger.
+    ECDC_STATE_TDIFF_TRIGGER = 22,
+    /// t_Diff measurement: close the target's downstream ports (DL control 0x0100).
+    ECDC_STATE_TDIFF_CLOSE = 23,
+    /// t_Diff measurement: restore the target's DL control exactly.
+    ECDC_STATE_TDIFF_RESTORE = 24,
     /// A state this header predates (a newer library), or no valid handle.
     ECDC_STATE_UNKNOWN = 255,
 }
@@ -448,13 +541,18 @@ pub fn state_to_c(s: State) -> ecdc_machine_state {
         State::Cyclic => C::ECDC_STATE_CYCLIC,
         State::RestartWait => C::ECDC_STATE_RESTART_WAIT,
         State::Failed => C::ECDC_STATE_FAILED,
+        State::TdiffRead => C::ECDC_STATE_TDIFF_READ,
+        State::TdiffLatch => C::ECDC_STATE_TDIFF_LATCH,
+        State::TdiffTrigger => C::ECDC_STATE_TDIFF_TRIGGER,
+        State::TdiffClose => C::ECDC_STATE_TDIFF_CLOSE,
+        State::TdiffRestore => C::ECDC_STATE_TDIFF_RESTORE,
         _ => C::ECDC_STATE_UNKNOWN,
     }
 }
 
 /// NUL-terminated lower-case name of a state value (the CLI's names), "unknown" otherwise.
 pub fn state_name(code: i64) -> &'static core::ffi::CStr {
-    const NAMES: [&core::ffi::CStr; 20] = [
+    const NAMES: [&core::ffi::CStr; 25] = [
         c"idle",
         c"count-slaves",
         c"assign-addresses",
@@ -475,6 +573,11 @@ pub fn state_name(code: i64) -> &'static core::ffi::CStr {
         c"cyclic",
         c"restart-wait",
         c"failed",
+        c"tdiff-read",
+        c"tdiff-latch",
+        c"tdiff-trigger",
+        c"tdiff-close",
+        c"tdiff-restore",
     ];
     usize::try_from(code)
         .ok()
@@ -509,6 +612,8 @@ pub enum ecdc_event_kind {
     ECDC_EVENT_ERROR = 9,
     /// The machine re-initialises after `restart_delay_ns` (no data).
     ECDC_EVENT_RESTARTING = 10,
+    /// Every slave's t_Diff is known: `u.tdiff_resolved`.
+    ECDC_EVENT_TDIFF_RESOLVED = 11,
     /// An event this header predates (a newer library); only `text` describes it.
     ECDC_EVENT_OTHER = 255,
 }
@@ -579,6 +684,20 @@ pub struct ecdc_ev_slaves_found {
     pub count: u16,
     /// Slaves with DC and a system time.
     pub dc: u16,
+}
+/// `TDIFF_RESOLVED` data: how many slaves got their t_Diff from where (per-slave values:
+/// `ecdc_slave_info`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ecdc_ev_tdiff_resolved {
+    /// Slaves measured themselves (forced port loop).
+    pub measured: u16,
+    /// Slaves given the value of a measured slave of the same ESC type and revision.
+    pub same_type: u16,
+    /// Slaves with a user-supplied value.
+    pub configured: u16,
+    /// Slaves whose measurement was wanted but not used (running network, implausible value).
+    pub fallback: u16,
 }
 /// `DELAYS_MEASURED` data.
 #[repr(C)]
@@ -660,6 +779,8 @@ pub union ecdc_event_data {
     pub delays_updated: ecdc_ev_delays_updated,
     /// `ECDC_EVENT_ERROR`.
     pub error: ecdc_fault,
+    /// `ECDC_EVENT_TDIFF_RESOLVED`.
+    pub tdiff_resolved: ecdc_ev_tdiff_resolved,
     /// Sizes the union and zero-fills it before a member is written.
     pub raw: [u64; 4],
 }
@@ -828,6 +949,25 @@ pub fn event_to_c(e: &Event) -> ecdc_event {
             let _ = write!(w, "{count} slaves found, {dc} with a DC system time");
             out.u.slaves_found = ecdc_ev_slaves_found { count, dc };
             K::ECDC_EVENT_SLAVES_FOUND
+        }
+        Event::TdiffResolved {
+            measured,
+            same_type,
+            configured,
+            fallback,
+        } => {
+            let _ = write!(
+                w,
+                "t_Diff known: {measured} measured, {same_type} from the same ESC type, \
+                 {configured} configured, {fallback} fallback"
+            );
+            out.u.tdiff_resolved = ecdc_ev_tdiff_resolved {
+                measured,
+                same_type,
+                configured,
+                fallback,
+            };
+            K::ECDC_EVENT_TDIFF_RESOLVED
         }
         Event::DelaysMeasured { max_delay_ns } => {
             let _ = write!(w, "propagation delays measured, largest {max_delay_ns} ns");

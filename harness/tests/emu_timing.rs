@@ -147,3 +147,56 @@ fn jitter_is_bounded() {
     }
     assert!(seen.len() > 1, "jitter on by default");
 }
+
+/// Closed ports (docs/emulator.md): with every port open a frame leaves the middle slave's
+/// port 0 after t_P + round trip behind port 1 + t_F; with port 1 forced closed through DL
+/// control 0x0101 (loop bits 0b11) it leaves after t_P, as from a line end, plus
+/// `forced_loop_ns` of the scenario (0 by default).
+#[test]
+fn forced_closed_port_turns_round_like_a_line_end() {
+    use ecdc_harness::emu::Network;
+    for extra in [0u64, 25] {
+        let mut sc = Scenario::line(3).ideal();
+        sc.defaults.forced_loop_ns = extra;
+        let mut net = Network::new(&sc).unwrap();
+        // Close slave 1's port 1 (APWR to auto-increment position 1).
+        let mut buf = [0u8; 64];
+        let mut b = ecdc_core::wire::FrameBuilder::new(&mut buf).unwrap();
+        b.push(
+            ecdc_core::wire::Command::Apwr,
+            0x01,
+            ecdc_core::wire::Address::position(1, 0x0101),
+            &[0b0000_1100],
+        )
+        .unwrap();
+        let n = b.finish().unwrap();
+        let rt = |net: &mut Network, t: u64| {
+            let mut buf = [0u8; 64];
+            let mut b = ecdc_core::wire::FrameBuilder::new(&mut buf).unwrap();
+            b.push_zeroed(
+                ecdc_core::wire::Command::Brd,
+                0x02,
+                ecdc_core::wire::Address::broadcast(0x0000),
+                2,
+            )
+            .unwrap();
+            let n = b.finish().unwrap();
+            match net.transact(&buf[..n], t).unwrap() {
+                ecdc_harness::emu::Delivery::Returned(r) => r.arrival - t,
+                other => panic!("{other:?}"),
+            }
+        };
+        let t_open = rt(&mut net, 1_000);
+        net.transact(&buf[..n], 2_000).unwrap();
+        let t_closed = rt(&mut net, 2_000_000);
+        // Slave 2 is cut off: its t_P, slave 1's t_F and two 1 m cables (5 ns each) are gone;
+        // slave 1's forced loop adds `extra`.
+        let d = &sc.defaults;
+        assert_eq!(t_open - t_closed, d.t_p_ns + d.t_f_ns + 10 - extra);
+        let mut sc2 = Scenario::line(2).ideal();
+        sc2.defaults.forced_loop_ns = extra;
+        let mut net2 = Network::new(&sc2).unwrap();
+        let t_end = rt(&mut net2, 2_000_000);
+        assert_eq!(t_closed, t_end + extra, "forced loop {extra} ns");
+    }
+}

@@ -117,6 +117,7 @@ fn transmit(w: &mut World, events: &mut Vec<Event>, sent: &mut Vec<(State, Vec<u
 fn kind(e: &Event) -> Option<EventKind> {
     Some(match *e {
         Event::SlavesFound { count, dc } => EventKind::SlavesFound(count, dc),
+        Event::TdiffResolved { .. } => EventKind::TdiffResolved,
         Event::DelaysMeasured { .. } => EventKind::DelaysMeasured,
         Event::OffsetsWritten {
             written,

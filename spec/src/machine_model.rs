@@ -13,7 +13,9 @@
 //!
 //! The model is deterministic and assumes the configuration of the property runs (one latch
 //! round, one retry, burst and convergence gate of one frame, lock after one good cycle, two
-//! lost cycles tolerated, automatic restart, SYNC programmed) — see [`ModelConfig`].
+//! lost cycles tolerated, automatic restart, SYNC programmed, t_Diff measurement off: the
+//! property runs' ring does not model forced port loops; harness/tests/tdiff.rs covers that
+//! step on the emulator) — see [`ModelConfig`].
 
 use ecdc_core::dc::State;
 use ecdc_core::wire::Command;
@@ -34,6 +36,8 @@ pub struct ModelConfig {
 pub enum EventKind {
     /// Slaves counted and addressed (`count`, `dc`).
     SlavesFound(u16, u16),
+    /// t_Diff values resolved (with the measurement off: every slave's default).
+    TdiffResolved,
     /// Delays measured.
     DelaysMeasured,
     /// Offsets written (`written`, `skipped_running`).
@@ -75,11 +79,23 @@ pub fn allowed_request(state: State, command: Command, register: u16, len: u16) 
     use Command::*;
     match state {
         State::Idle | State::RestartWait | State::Failed => false,
-        State::CountSlaves => command == Brd && register == 0x0000,
+        // Before the count: the restore of a port an interrupted t_Diff step left closed.
+        State::CountSlaves => {
+            (command == Brd && register == 0x0000)
+                || (command == Fpwr && register == 0x0100 && len == 2)
+        }
         State::AssignAddresses => command == Apwr && register == 0x0010 && len == 2,
         State::ReadInfo => command == Fprd && matches!(register, 0x0008 | 0x0110),
         State::ProbeSystemTime | State::ReadReferenceTime => {
             command == Fprd && register == 0x0910 && matches!(len, 4 | 8)
+        }
+        State::TdiffRead => {
+            command == Fprd && matches!(register, 0x0000 | 0x0130 | 0x0100) && len == 2
+        }
+        State::TdiffLatch => command == Fprd && register == 0x0900 && len == 16,
+        State::TdiffTrigger => command == Bwr && register == 0x0900,
+        State::TdiffClose | State::TdiffRestore => {
+            command == Fpwr && register == 0x0100 && len == 2
         }
         State::LatchReadBefore => command == Fprd && register == 0x0900 && len == 16,
         State::LatchTrigger => command == Bwr && register == 0x0900,
@@ -175,6 +191,12 @@ impl RefMachine {
         if self.state == State::RestartWait {
             self.enter(State::CountSlaves);
         }
+        // The model runs with the t_Diff measurement off (`TdiffMode::Off`): the step sends
+        // nothing and goes straight on to the delay measurement.
+        if self.state == State::TdiffRead {
+            ev.push(EventKind::TdiffResolved);
+            self.enter(State::LatchReadBefore);
+        }
         if self.state == State::ResetLoops && self.writable == 0 {
             self.enter(State::DriftBurst);
         }
@@ -198,7 +220,7 @@ impl RefMachine {
             ReadInfo => ProbeSystemTime,
             ProbeSystemTime => {
                 ev.push(EventKind::SlavesFound(self.k, self.k));
-                LatchReadBefore
+                TdiffRead
             }
             LatchReadBefore => LatchTrigger,
             LatchTrigger => LatchReadAfter,
@@ -324,6 +346,7 @@ mod tests {
             events,
             vec![
                 EventKind::SlavesFound(3, 3),
+                EventKind::TdiffResolved,
                 EventKind::DelaysMeasured,
                 EventKind::OffsetsWritten(1, 2),
                 EventKind::DriftConverged,
@@ -337,9 +360,13 @@ mod tests {
             .filter(|w| w[0] == State::LatchReadAfter && w[1] == State::LatchReadBefore)
             .count();
         assert_eq!(rounds, 1);
-        // Every transition is one the machine's table allows.
+        // Every transition is one the machine's table allows. TdiffRead sends nothing with the
+        // measurement off: the exchange after it already is LatchReadBefore's.
         for w in seen.windows(2) {
-            assert!(w[0] == w[1] || w[0].can_go(w[1]), "{:?}", w);
+            let through = w[0] == State::TdiffRead
+                && w[0].can_go(State::LatchReadBefore)
+                && State::LatchReadBefore.can_go(w[1]);
+            assert!(w[0] == w[1] || w[0].can_go(w[1]) || through, "{:?}", w);
         }
     }
 

@@ -26,10 +26,7 @@ impl<const N: usize> Machine<N> {
     fn latch_round_delays(&self) -> Result<(Topology<N>, Delays<N>), Error> {
         let count = usize::from(self.count);
         let mut samples = [SlaveSample::default(); N];
-        for (position, (s, out)) in (0u16..)
-            .zip(self.slaves.iter().zip(samples.iter_mut()))
-            .take(count)
-        {
+        for (s, out) in self.slaves.iter().zip(samples.iter_mut()).take(count) {
             let open = PortSet::from_dl_status(s.dl_status);
             let mut ports = open;
             let latches = if s.dc.has_latches() {
@@ -53,7 +50,7 @@ impl<const N: usize> Machine<N> {
             *out = SlaveSample {
                 ports,
                 latches,
-                t_diff: self.slave_t_diff(position), // REQ-DC-015
+                t_diff: s.t_diff_ns, // REQ-DC-015, REQ-DC-126
             };
         }
         let samples = samples.get(..count).unwrap_or(&[]);

@@ -214,6 +214,8 @@ pub struct Config {
     pub auto_restart: bool,
     /// Pause before a re-initialisation. ecdc choice: 10 ms, lets a flapping link settle.
     pub restart_delay_ns: u64,
+    /// How the t_Diff of each ESC is learned (REQ-DC-120).
+    pub tdiff: TdiffConfig,
 }
 
 impl Default for Config {
@@ -235,6 +237,7 @@ impl Default for Config {
             monitor: MonitorConfig::default(),
             auto_restart: true,
             restart_delay_ns: 10_000_000,
+            tdiff: TdiffConfig::default(),
         }
     }
 }
@@ -286,11 +289,84 @@ impl Config {
         if !(0x0080..=0x3FFF).contains(&self.speed_counter_start) {
             return Err(ConfigError::SpeedCounterStart);
         }
+        if self.tdiff.mode != TdiffMode::Off
+            && (self.tdiff.rounds == 0 || self.tdiff.base_rounds == 0)
+        {
+            return Err(ConfigError::Zero);
+        }
         if let Some(s) = self.sync {
             if s.sync0_cycle_ns == 0 || s.shift_ns >= s.sync0_cycle_ns {
                 return Err(ConfigError::SyncCycle);
             }
         }
         Ok(())
+    }
+}
+
+/// Which slaves the bring-up measures t_Diff on (REQ-DC-120).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TdiffMode {
+    /// Nothing is measured: per-slave overrides, [`TdiffConfig::types`] or
+    /// [`Config::t_diff_ns`] are used.
+    Off,
+    /// Every DC slave whose t_Diff enters a delay and can be measured (entered at port 0, with
+    /// a downstream port, below another DC slave) is measured; the others take the value of a
+    /// measured slave of the same ESC type and revision.
+    PerSlave,
+    /// One slave per ESC type and revision (0x0000..0x0001) is measured and the value is used
+    /// for every slave of that type: fewer port closings on large networks, exact only if
+    /// ESCs of one type do not differ.
+    PerEscType,
+}
+
+/// A user-supplied t_Diff for every ESC of one type and revision.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TdiffType {
+    /// 0x0000 (type, low byte) and 0x0001 (revision, high byte) as one little-endian word.
+    pub esc_type: u16,
+    /// t_Diff = t_P − t_F of that ESC, ns (ESI or datasheet).
+    pub t_diff_ns: i32,
+}
+
+/// t_Diff measurement settings (REQ-DC-120..126).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TdiffConfig {
+    /// What is measured. Default [`TdiffMode::PerSlave`].
+    pub mode: TdiffMode,
+    /// Latches averaged with the target's downstream ports closed, per measured slave (2
+    /// frames each, plus the close and the restore). ecdc choice: 64. The result combines
+    /// three differences of 10 ns-quantised stamps with PHY jitter (about 4–5 ns standard
+    /// deviation each for one latch). On the emulated 512-slave line (seed 7) 16 closed
+    /// rounds left 10 of 510 slaves 6–7 ns off, 32 left one at −6 ns, 64 kept all within
+    /// ±3 ns (harness/tests/tdiff.rs, target ±5 ns). Cost: 130 frames per measured slave, so
+    /// on long lines [`TdiffMode::PerEscType`] is much cheaper.
+    pub rounds: u8,
+    /// All-open latches, shared by every measured slave (2 frames each). ecdc choice: 64: they
+    /// are paid once per bring-up, so they are made long enough that their share of the
+    /// noise is no larger than that of the closed rounds.
+    pub base_rounds: u8,
+    /// Smallest plausible t_Diff, ns; a smaller mean is rejected (source
+    /// `Fallback(Implausible)`). ecdc choice: −10 ns: the processing path includes the
+    /// forwarding path's port logic plus the EPU, so t_P < t_F beyond one 10 ns stamp tick
+    /// means the loop did not close or a latch is stale.
+    pub min_ns: i32,
+    /// Largest plausible t_Diff, ns. ecdc choice: 500 ns: an order of magnitude above the
+    /// tens of ns expected of real ESCs and the emulator's 80 ns, and below one hop's
+    /// ≈ 1 µs (DS S1-88), which a port that stayed open would add.
+    pub max_ns: i32,
+    /// Known values per ESC type + revision; slaves of these types are not measured.
+    pub types: [Option<TdiffType>; 4],
+}
+
+impl Default for TdiffConfig {
+    fn default() -> Self {
+        TdiffConfig {
+            mode: TdiffMode::PerSlave,
+            rounds: 64,
+            base_rounds: 64,
+            min_ns: -10,
+            max_ns: 500,
+            types: [None; 4],
+        }
     }
 }

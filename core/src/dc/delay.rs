@@ -476,9 +476,9 @@ mod tests {
     use super::*;
     use crate::dc::port::PortSet;
 
-    /// The plain-`i64` checked chain `twice_delay_from_upstream` had before its arithmetic
-    /// became the Word-generic [`twice_delay_step`]; kept as the oracle that the refactoring
-    /// changed no result and no error.
+    /// The hop arithmetic of `twice_delay_from_upstream` as a plain-`i64` checked chain: the
+    /// oracle that the Word-generic [`twice_delay_step`] (which SMT runs on bit-vectors) gives
+    /// the same result and the same error.
     fn hop_i64(x: [i64; 7], c: u16) -> Result<i64, DelayError> {
         let [abs_a, before, excursion, rtt_c, corr_a, corr_c, non_dc] = x;
         let overflow = DelayError::Overflow { slave: c };

@@ -153,7 +153,7 @@ impl<const N: usize> Machine<N> {
                     count: self.count,
                     dc: sys,
                 });
-                Ok(State::LatchReadBefore)
+                Ok(State::TdiffRead)
             }
             _ => Ok(self.state),
         }

@@ -15,6 +15,18 @@ pub enum Event {
         /// Slaves with DC and a system time (the FRMW working counter).
         dc: u16,
     },
+    /// Every slave's t_Diff is known (REQ-DC-126); the per-slave values and sources are in
+    /// [`crate::dc::Machine::slaves`].
+    TdiffResolved {
+        /// Slaves measured themselves.
+        measured: u16,
+        /// Slaves given the value of a measured slave of the same ESC type and revision.
+        same_type: u16,
+        /// Slaves with a user-supplied value.
+        configured: u16,
+        /// Slaves whose measurement was wanted but not used (running network, implausible).
+        fallback: u16,
+    },
     /// Propagation delays measured (after `latch_rounds` latches).
     DelaysMeasured {
         /// Largest delay from the reference, ns.

@@ -9,6 +9,7 @@ use crate::dc::monitor::MonitorList;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
+use crate::dc::tdiff::Tdiff;
 use crate::time::SystemTime;
 use crate::wire::{EthernetFrame, FrameBuilder};
 
@@ -107,6 +108,8 @@ pub struct Machine<const N: usize> {
     pub(crate) cyc: CyclicState,
     /// The round robin's slave list (a cache of `slaves`, see `dc/monitor.rs`).
     pub(crate) monitor: MonitorList<N>,
+    /// The t_Diff measurement's own data (`dc/tdiff.rs`).
+    pub(crate) tdiff: Tdiff<N>,
 }
 
 impl<const N: usize> Machine<N> {
@@ -143,6 +146,7 @@ impl<const N: usize> Machine<N> {
             sync_start: 0,
             cyc: CyclicState::default(),
             monitor: MonitorList::new(),
+            tdiff: Tdiff::new(),
         })
     }
 
@@ -188,7 +192,9 @@ impl<const N: usize> Machine<N> {
         Ok(core::mem::replace(slot, t_diff_ns))
     }
 
-    /// The `t_Diff` used for the slave at `position`: its override, else `Config::t_diff_ns`.
+    /// The configured `t_Diff` of the slave at `position`: its override, else
+    /// `Config::t_diff_ns`. The value a bring-up used (measured or configured) and its source
+    /// are in [`SlaveInfo::t_diff_ns`] / [`SlaveInfo::t_diff_source`].
     pub fn slave_t_diff(&self, position: u16) -> i32 {
         self.t_diff
             .get(usize::from(position))
@@ -460,6 +466,8 @@ impl<const N: usize> Machine<N> {
             if matches!(self.state, State::LatchTrigger | State::LatchReadAfter) {
                 // The trigger may or may not have latched: measure the whole round again.
                 self.enter(State::LatchReadBefore);
+            } else if let Some(s) = self.tdiff_retry_state() {
+                self.enter(s);
             } else {
                 self.cursor = self.chunk_start;
                 self.step_error = None;

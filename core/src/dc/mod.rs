@@ -4,14 +4,14 @@
 //! Pipeline: discover → latch receive times → delays → offsets → static drift compensation →
 //! SYNC0/SYNC1 start → cyclic drift compensation and monitoring.
 
-// --- DC maths (owner: DC maths engineer): pure functions the machine calls ---
+// --- DC maths: pure functions the machine calls ---
 pub mod delay;
 pub mod offset;
 pub mod port;
 pub mod sync;
 pub mod topology;
 
-// --- state machine (owner: state-machine engineer) ---
+// --- state machine ---
 mod activation;
 mod adjust;
 mod bridge;
@@ -30,11 +30,13 @@ pub mod request;
 pub mod slave;
 pub mod state;
 mod steps;
+pub mod tdiff;
 #[cfg(test)]
 mod tests;
 
 pub use config::{
     Config, ConfigError, DriftCheck, DriftCommand, DriftConfig, MonitorConfig, SyncConfig,
+    TdiffConfig, TdiffMode, TdiffType,
 };
 pub use error::Error;
 pub use event::Event;
@@ -42,3 +44,4 @@ pub use machine::{Machine, Stats};
 pub use request::MAX_INFLIGHT;
 pub use slave::{DcKind, SlaveInfo};
 pub use state::State;
+pub use tdiff::{TdiffFallback, TdiffSource};

@@ -12,7 +12,7 @@
 //! ```
 //!
 //! SOEM, IgH and ethercrab write `M − local` instead and leave every slave `D_s` behind for the
-//! drift loop to remove; folding `D_s` in starts the loop at zero error (masters.md §9 item 5).
+//! drift loop to remove; folding `D_s` in starts the loop at zero error (docs/background/masters-dc.md §9 item 5).
 //! Seed 000 eq. 24 and seed 003 eq. 5 are the `D_s = 0` case (eq. 24 with its sign corrected,
 //! see `spec::seed000`).
 //!
@@ -166,7 +166,7 @@ pub fn corrected_offset(
 /// REQ-DC-030: whether 0x0920 may be written to a slave with this AL Status (0x0130). Only in
 /// INIT, PRE-OP or BOOT: stepping the offset of a slave in SAFE-OP or OP moves its SYNC grid
 /// under running outputs, which can make it miss SYNC pulses until a 32-bit clock wraps (~4 s)
-/// or, on a 64-bit clock, forever (IgH Lambert patch 0009, masters.md §2.3). Unknown states
+/// or, on a 64-bit clock, forever (IgH Lambert patch 0009, docs/background/masters-dc.md §2.3 item 7). Unknown states
 /// count as running.
 pub const fn offset_write_permitted(al_status: u16) -> bool {
     matches!(al_status & 0x000F, 0x1..=0x3)

@@ -73,6 +73,13 @@ pub struct SlaveInfo {
     pub(crate) diff_abs_sum: u64,
     /// Sum of the signed 0x092C values over the same streak.
     pub(crate) diff_sum: i64,
+    /// ESC type (0x0000, low byte) and revision (0x0001, high byte), read by the t_Diff step
+    /// (0 if not read).
+    pub esc_type: u16,
+    /// t_Diff used in this bring-up's delay measurement, ns (REQ-DC-126).
+    pub t_diff_ns: i32,
+    /// Where `t_diff_ns` came from.
+    pub t_diff_source: crate::dc::tdiff::TdiffSource,
 }
 
 /// AL status state codes (0x0130 bits 3:0), ETG.1000.6.

@@ -2,13 +2,21 @@
 //!
 //! ```text
 //!  Idle ──start──▶ CountSlaves ─▶ AssignAddresses ─▶ ReadInfo ─▶ ProbeSystemTime
-//!                      ▲                                               │
-//!                      │                                               ▼
-//!                 RestartWait                      ┌──── LatchReadBefore ◀─────┐ (K rounds)
-//!                      ▲                           ▼                           │
-//!                      │                      LatchTrigger ─▶ LatchReadAfter ──┘
-//!            (any fault, auto_restart)                               │
-//!                      │                                             ▼
+//!                      ▲   (first: restore of a port an                        │
+//!                      │    interrupted t_Diff step left closed)               ▼
+//!                      │      TdiffRead ─(mode Off, or a slave running)────────────┐
+//!                      │          ▼                                                │
+//!                      │     TdiffLatch ◀─▶ TdiffTrigger ◀── TdiffClose ◀─┐        │
+//!                      │  (all-open rounds, then per target closed rounds) │        │
+//!                      │          ▼                                        │        │
+//!                      │     TdiffRestore ──(next target)──────────────────┘        │
+//!                      │          │ (no target left; TdiffLatch too if none at all) │
+//!                      │          ▼                                                 │
+//!                 RestartWait  ┌──── LatchReadBefore ◀───────────────────────────────┘
+//!                      ▲       ▼                        ▲
+//!                      │  LatchTrigger ─▶ LatchReadAfter ┘ (K rounds)
+//!            (any fault, auto_restart)         │
+//!                      │                       ▼
 //!                   Failed ◀──(fault, no restart)       ReadAlStatus ─▶ WriteOffsets ─▶ ResetLoops
 //!                                                                                   │
 //!                                 ┌─────────────────────────────────────────────────┘
@@ -37,6 +45,18 @@ pub enum State {
     ReadInfo,
     /// FPRD 0x0910 per DC slave: WKC 1 = has system time, WKC 0 = delay-only ESC.
     ProbeSystemTime,
+    /// FPRD 0x0000 (type, revision) and 0x0130 per slave, 0x0100 per possible
+    /// t_Diff target (REQ-DC-120, REQ-DC-123).
+    TdiffRead,
+    /// FPRD 0x0900..0x090F: the port times of a t_Diff latch (every DC slave with all ports
+    /// open; only the upstream DC slave while a target is closed).
+    TdiffLatch,
+    /// BWR 0x0900 of a t_Diff latch; slaves behind a closed port do not count (REQ-DC-125).
+    TdiffTrigger,
+    /// FPWR 0x0100: force the target's downstream ports closed (loop bits 0b11).
+    TdiffClose,
+    /// FPWR 0x0100: the target's DL control as read in `TdiffRead`.
+    TdiffRestore,
     /// FPRD 0x0900..0x090F per DC slave: latches before the trigger (stale-latch detection).
     LatchReadBefore,
     /// BWR 0x0900: latch receive times everywhere; master time sampled just before sending.
@@ -71,12 +91,17 @@ pub enum State {
 
 impl State {
     /// All states, in bring-up order (for tables, tests and the dot graph).
-    pub const ALL: [State; 20] = [
+    pub const ALL: [State; 25] = [
         State::Idle,
         State::CountSlaves,
         State::AssignAddresses,
         State::ReadInfo,
         State::ProbeSystemTime,
+        State::TdiffRead,
+        State::TdiffLatch,
+        State::TdiffTrigger,
+        State::TdiffClose,
+        State::TdiffRestore,
         State::LatchReadBefore,
         State::LatchTrigger,
         State::LatchReadAfter,
@@ -115,7 +140,18 @@ impl State {
                 | (CountSlaves, AssignAddresses)
                 | (AssignAddresses, ReadInfo)
                 | (ReadInfo, ProbeSystemTime)
-                | (ProbeSystemTime, LatchReadBefore)
+                | (ProbeSystemTime, TdiffRead)
+                | (TdiffRead, TdiffLatch)
+                | (TdiffRead, LatchReadBefore)
+                | (TdiffLatch, TdiffTrigger)
+                | (TdiffLatch, TdiffClose)
+                | (TdiffLatch, TdiffRestore)
+                | (TdiffLatch, LatchReadBefore)
+                | (TdiffTrigger, TdiffLatch)
+                | (TdiffTrigger, TdiffTrigger)
+                | (TdiffClose, TdiffTrigger)
+                | (TdiffRestore, TdiffClose)
+                | (TdiffRestore, LatchReadBefore)
                 | (LatchReadBefore, LatchTrigger)
                 | (LatchTrigger, LatchReadAfter)
                 | (LatchTrigger, LatchReadBefore)
@@ -143,6 +179,11 @@ impl State {
             State::AssignAddresses => "assign-addresses",
             State::ReadInfo => "read-info",
             State::ProbeSystemTime => "probe-system-time",
+            State::TdiffRead => "tdiff-read",
+            State::TdiffLatch => "tdiff-latch",
+            State::TdiffTrigger => "tdiff-trigger",
+            State::TdiffClose => "tdiff-close",
+            State::TdiffRestore => "tdiff-restore",
             State::LatchReadBefore => "latch-read-before",
             State::LatchTrigger => "latch-trigger",
             State::LatchReadAfter => "latch-read-after",
@@ -183,6 +224,14 @@ mod tests {
             AssignAddresses,
             ReadInfo,
             ProbeSystemTime,
+            TdiffRead,
+            TdiffLatch,
+            TdiffTrigger,
+            TdiffLatch,
+            TdiffClose,
+            TdiffTrigger,
+            TdiffLatch,
+            TdiffRestore,
             LatchReadBefore,
             LatchTrigger,
             LatchReadAfter,
@@ -201,6 +250,11 @@ mod tests {
             assert!(w[0].can_go(w[1]), "{} -> {}", w[0], w[1]);
         }
         assert!(!LatchReadAfter.can_go(WriteOffsets));
+        // The delay measurement always follows the t_Diff step, which ends with every port
+        // restored.
+        assert!(!ProbeSystemTime.can_go(LatchReadBefore));
+        assert!(!TdiffClose.can_go(LatchReadBefore));
+        assert!(!TdiffTrigger.can_go(LatchReadBefore));
         assert!(!ResetLoops.can_go(Cyclic));
         assert!(!DriftBurst.can_go(Cyclic));
         assert!(!Idle.can_go(Cyclic));

@@ -13,7 +13,13 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn item_count(&self) -> u16 {
         let n = self.count;
         match self.state {
-            State::CountSlaves | State::LatchTrigger | State::ReadReferenceTime => 1,
+            State::CountSlaves => 1u16.saturating_add(u16::from(self.tdiff.recovering)),
+            State::LatchTrigger | State::ReadReferenceTime => 1,
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_count(),
             State::AssignAddresses
             | State::ProbeSystemTime
             | State::LatchReadBefore
@@ -32,6 +38,8 @@ impl<const N: usize> Machine<N> {
     /// Most items per frame: one FRMW per frame in a burst (each frame is one loop sample).
     pub(crate) fn max_per_frame(&self) -> usize {
         match self.state {
+            // The restore of an interrupted t_Diff measurement goes alone, before the count.
+            State::CountSlaves if self.tdiff.recovering => 1,
             State::DriftBurst => 1,
             // One entry stays free for the FRMW that closes every check frame.
             State::DriftCheck => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
@@ -63,11 +71,22 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
+        if self.state == State::CountSlaves && self.tdiff.recovering {
+            return match i {
+                0 => self.tdiff_recover_item(),
+                _ => self.discovery_item(0),
+            };
+        }
         match self.state {
             State::CountSlaves
             | State::AssignAddresses
             | State::ReadInfo
             | State::ProbeSystemTime => self.discovery_item(i),
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_item(i),
             State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
                 self.measure_item(i)
             }
@@ -102,11 +121,22 @@ impl<const N: usize> Machine<N> {
         wkc: u16,
         data: &[u8],
     ) -> Result<(), Error> {
+        if self.state == State::CountSlaves && self.tdiff.recovering {
+            return match i {
+                0 => self.tdiff_recover_reply(p, wkc),
+                _ => self.discovery_reply(0, p, wkc, data),
+            };
+        }
         match self.state {
             State::CountSlaves
             | State::AssignAddresses
             | State::ReadInfo
             | State::ProbeSystemTime => self.discovery_reply(i, p, wkc, data),
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_reply(i, p, wkc, data),
             State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
                 self.measure_reply(i, p, wkc, data)
             }
@@ -134,6 +164,7 @@ impl<const N: usize> Machine<N> {
                 self.drift_frames = 0;
                 self.drift_ok = 0;
                 self.drift_bound = None;
+                self.tdiff_reset();
             }
             State::DriftCheck => self.drift_bound = None,
             State::Cyclic => self.cyclic_enter(),
@@ -148,6 +179,11 @@ impl<const N: usize> Machine<N> {
             | State::AssignAddresses
             | State::ReadInfo
             | State::ProbeSystemTime => self.discovery_done(),
+            State::TdiffRead
+            | State::TdiffLatch
+            | State::TdiffTrigger
+            | State::TdiffClose
+            | State::TdiffRestore => self.tdiff_done(),
             State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
                 self.measure_done()
             }

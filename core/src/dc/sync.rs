@@ -17,7 +17,7 @@ use crate::time::SystemTime;
 
 /// Largest lead of the start time over the reference's current time: a 32-bit slave (and any
 /// ESC with the ~2.1 s near-future window, 0x0981 bit 6) accepts only starts less than 2^31 ns
-/// ahead (Section II Tab. 110; esc-dc.md §2). ecdc choice: enforce it for every slave so one
+/// ahead (Section II Tab. 110; docs/background/esc-registers.md §2). ecdc choice: enforce it for every slave so one
 /// start value is valid on all of them.
 pub const MAX_START_LEAD_NS: u64 = 1 << 31;
 

@@ -2,8 +2,10 @@
 //! 32 / 64 bit), the topology tree and the measured propagation delays.
 //!
 //! It runs the core DC machine up to the delay measurement and stops there: the only writes
-//! are the station addresses (0x0010) and the receive-time latch trigger (BWR 0x0900), never
-//! an offset, a delay register or a SYNC unit.
+//! are the station addresses (0x0010), the receive-time latch trigger (BWR 0x0900) and, during
+//! the t_Diff measurement, DL control 0x0100 (ports closed one slave at a time and restored to
+//! the value read; skipped when a slave is in SAFE-OP/OP), never an offset, a delay register or
+//! a SYNC unit. Each slave's t_Diff and its source are listed (REQ-DC-126).
 
 use anyhow::Context;
 use ecdc_core::dc::port::{Port, PortSet};
@@ -51,6 +53,11 @@ pub struct ScannedSlave {
     pub parent: Option<(u16, u8)>,
     /// Propagation delay from the reference clock, ns (DC slaves).
     pub delay_ns: Option<u32>,
+    /// t_Diff the delay measurement used, ns, and where it came from (REQ-DC-126).
+    pub t_diff_ns: Option<i32>,
+    /// Source of `t_diff_ns`: "measured", "same type as N", "configured", "fallback: …",
+    /// "default".
+    pub t_diff_source: Option<String>,
     /// Port receive times of the last latch (local time, ns; open ports only).
     pub receive_times: Vec<(u8, u32)>,
 }
@@ -122,6 +129,8 @@ pub fn report_slaves<const N: usize>(
                     .and_then(|n| n.parent)
                     .map(|l| (l.slave, l.port.number())),
                 delay_ns: (measured && s.dc.has_latches()).then_some(s.delay_ns),
+                t_diff_ns: measured.then_some(s.t_diff_ns),
+                t_diff_source: measured.then(|| s.t_diff_source.to_string()),
                 receive_times: if measured && s.dc.has_latches() {
                     open_ports(ports)
                         .into_iter()
@@ -139,8 +148,8 @@ pub fn report_slaves<const N: usize>(
 /// Prints the slave table and the tree.
 pub fn print_slaves(slaves: &[ScannedSlave], reference: Option<u16>, topology_error: Option<&str>) {
     println!(
-        "{:>4}  {:>7}  {:<10}  {:<8}  {:>5}  {:<12}  {:>9}",
-        "pos", "station", "DC", "ports", "entry", "parent", "delay ns"
+        "{:>4}  {:>7}  {:<10}  {:<8}  {:>5}  {:<12}  {:>9}  {:>8}  t_Diff source",
+        "pos", "station", "DC", "ports", "entry", "parent", "delay ns", "t_Diff"
     );
     for s in slaves {
         let ports = s
@@ -157,20 +166,23 @@ pub fn print_slaves(slaves: &[ScannedSlave], reference: Option<u16>, topology_er
             ),
         };
         let delay = s.delay_ns.map_or("-".to_owned(), |d| d.to_string());
+        let t_diff = s.t_diff_ns.map_or("-".to_owned(), |d| d.to_string());
+        let source = s.t_diff_source.as_deref().unwrap_or("-");
         let refmark = if reference == Some(s.position) {
             "  (reference clock)"
         } else {
             ""
         };
         println!(
-            "{:>4}  {:>7}  {:<10}  {:<8}  {:>5}  {:<12}  {:>9}{refmark}",
+            "{:>4}  {:>7}  {:<10}  {:<8}  {:>5}  {:<12}  {:>9}  {:>8}  {source}{refmark}",
             s.position,
             format!("{:#06x}", s.station),
             s.dc,
             ports,
             s.entry_port.map_or("-".to_owned(), |e| e.to_string()),
             parent,
-            delay
+            delay,
+            t_diff
         );
     }
     match topology_error {

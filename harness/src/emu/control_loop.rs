@@ -1,7 +1,7 @@
 //! The ESC's hardware time-control loop (drift compensation), as a *rate* correction with
 //! memory.
 //!
-//! What is documented (esc-dc.md §4.1): every ECAT write covering 0x0910 on a slave gives a
+//! What is documented (docs/background/esc-registers.md §4.1): every ECAT write covering 0x0910 on a slave gives a
 //! sample Δt = (local copy at SOF − 0x0928) − received, on the lower 32 bits; 0x092C is the mean
 //! of Δt over 0x0934 samples in sign-magnitude; 0x0932 is a filtered period-deviation estimate
 //! (depth 0x0935) in ±(S − 0x7F); the clock runs `correction_rate(S, D)` faster or slower.

@@ -13,7 +13,7 @@ const ETHERTYPE_VLAN: u16 = 0x8100;
 /// Datagram header length.
 pub const DG_HEADER: usize = 10;
 
-/// Command codes (wire-and-runtime.md §1.4).
+/// Command codes (docs/background/wire-format.md §1.4).
 pub mod cmd {
     pub const NOP: u8 = 0;
     pub const APRD: u8 = 1;
@@ -125,7 +125,7 @@ pub const SRC_MAC: usize = 6;
 pub const CIRCULATING: u16 = 0x4000;
 
 /// Frame duration on the wire in ns at 100 Mbit/s: preamble+SFD (8), frame padded to 60,
-/// FCS (4), 80 ns per byte (esc-dc.md §6, DS S1-88).
+/// FCS (4), 80 ns per byte (docs/background/esc-registers.md §6; ESC datasheet Section I p.88).
 pub fn wire_duration_ns(frame_len: usize) -> u64 {
     (8 + frame_len.max(60) + 4) as u64 * 80
 }

@@ -102,6 +102,8 @@ struct Hop {
     ports: u8,
     t_p: u64,
     t_f: u64,
+    /// Extra turn-round time at a downstream port forced closed by DL control (model).
+    forced_loop: u64,
 }
 
 /// Statistics since construction.
@@ -312,6 +314,7 @@ impl Network {
         let mut info = Vec::with_capacity(slaves.len());
         let mut parents = Vec::with_capacity(slaves.len());
         let mut cables = Vec::with_capacity(slaves.len());
+        let mut forced_loop = Vec::with_capacity(slaves.len());
         for (i, s) in slaves.iter().enumerate() {
             let drawn = draw_ppm(&sc.defaults.ppm, &mut ppm_rng);
             let ppm = s.ppm.unwrap_or(drawn);
@@ -360,6 +363,7 @@ impl Network {
                 cable_ns: cable(s.cable_m),
                 ppm,
             });
+            forced_loop.push(s.forced_loop_ns);
             parents.push(s.parent);
             cables.push(cable(s.cable_m));
         }
@@ -395,10 +399,12 @@ impl Network {
         net.hops = net
             .info
             .iter()
-            .map(|i| Hop {
+            .zip(&forced_loop)
+            .map(|(i, &forced_loop)| Hop {
                 ports: i.ports,
                 t_p: i.t_p_ns,
                 t_f: i.t_f_ns,
+                forced_loop,
             })
             .collect();
         for f in &sc.faults {
@@ -722,6 +728,11 @@ impl Network {
             t += self.hops[s].t_p;
             for q in [3u8, 1, 2] {
                 if !self.port_open(s, q, t) {
+                    // A port forced closed by DL control may turn the frame round later than
+                    // an unconnected one (`SlaveDefaults::forced_loop_ns`, model).
+                    if q < self.hops[s].ports && self.forced_closed(s, q) {
+                        t += self.hops[s].forced_loop;
+                    }
                     continue;
                 }
                 let Some(child) = self.topo.children[s][usize::from(q)] else {

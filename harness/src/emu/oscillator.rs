@@ -336,7 +336,7 @@ impl Oscillator {
 
 /// Correction rate (× 2^FRAC, correction ns per raw ns) for speed counter start `s` and speed
 /// counter diff `d`: one +1 ns step every (S − D + 2) ticks and one −1 ns step every
-/// (S + D + 2) ticks of 10 ns (esc-dc.md §4.1, DS S2-76 Tab.105 deviation formula). REQ-ESC-052.
+/// (S + D + 2) ticks of 10 ns (docs/background/esc-registers.md §4.1; ESC datasheet Section II Table 105 deviation formula). REQ-ESC-052.
 pub fn correction_rate(s: u16, d: i16) -> i128 {
     let s = i128::from(s);
     let d = i128::from(d);
@@ -382,7 +382,7 @@ mod test {
 
     #[test]
     fn correction_formula_limits() {
-        // 50 ppm needs D ≈ 2560 at S = 0x1000 (esc-dc.md §4.2); max ≈ 763 ppm.
+        // 50 ppm needs D ≈ 2560 at S = 0x1000 (docs/background/esc-registers.md §4.2); max ≈ 763 ppm.
         assert!((correction_ppm(0x1000, 2560) - 50.0).abs() < 0.1);
         assert!((correction_ppm(0x1000, 3969) - 763.0).abs() < 1.0);
         assert_eq!(correction_rate(0x1000, 0), 0);

@@ -1,7 +1,7 @@
 //! The register file of one ESC: which bytes exist, which the EtherCAT side may write, and
 //! their reset values. Side effects of writes live in `esc.rs`; this file is only the map.
 //!
-//! Addresses, widths and access follow esc-dc.md §2 (Beckhoff Section II) and spec/req/esc.md
+//! Addresses, widths and access follow docs/background/esc-registers.md §2 (Beckhoff Section II) and spec/req/esc.md
 //! (REQ-ESC-010..REQ-ESC-031).
 
 use serde::{Deserialize, Serialize};
@@ -63,7 +63,7 @@ pub enum EscKind {
     /// 32-bit DC with system time, no enhanced SYNC activation (ET1200 / ESC20 like).
     Dc32,
     /// Receive-time registers only (0x0900..0x090F), no system time: the master must treat it
-    /// as a delay element (esc-dc.md §5 "more than 2 ports must at least support receive times").
+    /// as a delay element (docs/background/esc-registers.md §5 "more than 2 ports must at least support receive times").
     DcReceiveTimesOnly,
     /// No DC at all: forwards and processes datagrams, only adds delay.
     NoDc,

@@ -119,6 +119,12 @@ pub struct SlaveDefaults {
     pub ram_bytes: u16,
     /// 0x0982 SYNC pulse length, 10 ns units (EEPROM value; model default 1 µs).
     pub pulse_len: u16,
+    /// Extra time, ns, a frame spends turning round at a downstream port that DL control
+    /// 0x0101 forces closed (loop bits 0b11), compared with a port closed because nothing is
+    /// connected. Model default 0: both loop back in the port logic at no cost
+    /// (docs/emulator.md "Closed ports"); a non-zero value shows how the t_Diff measurement,
+    /// which closes ports, depends on that assumption.
+    pub forced_loop_ns: u64,
 }
 
 impl Default for SlaveDefaults {
@@ -132,6 +138,7 @@ impl Default for SlaveDefaults {
             ppm: PpmSpec::default(),
             ram_bytes: 4096,
             pulse_len: 100,
+            forced_loop_ns: 0,
         }
     }
 }
@@ -165,6 +172,8 @@ pub struct SlaveSpec {
     pub initial_local_ns: Option<u64>,
     /// 0x0000 type byte.
     pub esc_type: Option<u8>,
+    /// [`SlaveDefaults::forced_loop_ns`] of this slave.
+    pub forced_loop_ns: Option<u64>,
 }
 
 impl Default for SlaveSpec {
@@ -184,6 +193,7 @@ impl Default for SlaveSpec {
             station: 0,
             initial_local_ns: None,
             esc_type: None,
+            forced_loop_ns: None,
         }
     }
 }
@@ -235,6 +245,7 @@ pub struct ResolvedSlave {
     pub station: u16,
     pub initial_local_ns: Option<u64>,
     pub esc_type: Option<u8>,
+    pub forced_loop_ns: u64,
 }
 
 impl Scenario {
@@ -374,6 +385,7 @@ impl Scenario {
                     station: spec.station,
                     initial_local_ns: spec.initial_local_ns,
                     esc_type: spec.esc_type,
+                    forced_loop_ns: spec.forced_loop_ns.unwrap_or(d.forced_loop_ns),
                 });
                 let mut u = [false; 4];
                 u[0] = true;

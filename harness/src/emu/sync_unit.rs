@@ -3,7 +3,7 @@
 //! distance (in local-copy ns) to the next pulse and inverts its clock to get the true time.
 //! REQ-ESC-070..REQ-ESC-079.
 //!
-//! Comparison rule (an inference, esc-dc.md §3.5): a pulse fires when the local copy of system
+//! Comparison rule (an inference, docs/background/esc-registers.md §3.5): a pulse fires when the local copy of system
 //! time *reaches* the programmed value, i.e. after the modular distance (X − now) mod 2^width.
 //! A start time already in the past therefore fires only after the counter wraps round to it
 //! (≈ 4.3 s on a 32-bit DC, never on a 64-bit DC) unless the plausibility check (0x0981 bit 5)

@@ -2,7 +2,7 @@
 //! only adapts it to the [`Scheme`] interface and counts the frames that carry the reference
 //! time (everything sent in `DriftBurst`, `DriftCheck` and `Cyclic`).
 
-use ecdc_core::dc::{Config, Event, Machine, MonitorConfig, State, SyncConfig};
+use ecdc_core::dc::{Config, Event, Machine, MonitorConfig, State, SyncConfig, TdiffSource};
 
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
@@ -20,9 +20,18 @@ pub struct EcdcN<const N: usize> {
     dist_frames: u64,
 }
 
-/// ecdc's default configuration for a run: `t_diff_ns` from the ESI (here the scenario's
-/// nominal t_P − t_F), SYNC0 and the monitor at `cycle_ns`.
-pub fn config(t_diff_ns: i32, cycle_ns: u32) -> Config {
+/// ecdc's default configuration for a run: SYNC0 and the monitor at `cycle_ns`, and nothing
+/// told about t_Diff. `_esi_t_diff_ns` (the scenario's nominal t_P − t_F, what an ESI would
+/// say) is accepted for the callers but not given to the machine: `Config::t_diff_ns` stays
+/// 0 and the bring-up measures every ESC's t_Diff itself (REQ-DC-121), so no number of a
+/// comparison depends on the emulator's truth. [`config_told`] is the variant that is told.
+pub fn config(_esi_t_diff_ns: i32, cycle_ns: u32) -> Config {
+    config_told(0, cycle_ns)
+}
+
+/// [`config`] with `t_diff_ns` given as the fallback for slaves whose t_Diff is not measured
+/// (the measurement stays on).
+pub fn config_told(t_diff_ns: i32, cycle_ns: u32) -> Config {
     let d = Config::default();
     Config {
         t_diff_ns,
@@ -64,6 +73,17 @@ impl<const N: usize> EcdcN<N> {
     /// The machine.
     pub fn machine(&self) -> &Machine<N> {
         &self.sim.machine
+    }
+
+    /// Per slave (position order) the t_Diff the last bring-up used, ns, and where it came
+    /// from (measured, same ESC type, configured, fallback, default), for reports.
+    pub fn t_diff(&self) -> Vec<(i32, TdiffSource)> {
+        self.sim
+            .machine
+            .slaves()
+            .iter()
+            .map(|s| (s.t_diff_ns, s.t_diff_source))
+            .collect()
     }
 }
 

@@ -1,0 +1,895 @@
+//! t_Diff measurement (REQ-DC-120..126): ecdc measures each ESC's `t_Diff = t_P − t_F` itself
+//! instead of relying on a value from the ESI.
+//!
+//! Method (docs/background/t-diff.md): with every port open, one latch gives the excursion
+//! `X = t_a(p) − t_a(q)` the nearest upstream DC slave `a` sees through the port `p` towards
+//! slave `b`, and `b`'s own round trip `rtt_b = t_b(last) − t_b(entry)`. Then `b`'s downstream
+//! ports are forced closed through the loop bits of DL control 0x0101, so `b` turns the frame
+//! round as a line end does, and a second latch gives the excursion `X'`. Everything outside
+//! `b` is the same in both latches (symmetric cables), so
+//!
+//! ```text
+//!   X' − X + rtt_b = t_P(b) − t_F(b) = t_Diff(b)
+//! ```
+//!
+//! (`X` contains `b`'s round trip `rtt_b` plus its forwarding return hop `t_F(b)`; `X'` contains
+//! `b`'s processing turn-round `t_P(b)`). The all-open latch is repeated
+//! [`TdiffConfig::base_rounds`] times (shared by every target), the closed one
+//! [`TdiffConfig::rounds`] times per target, and the sums are divided once. `rtt_b` is read on
+//! `b`'s clock and `X` on `a`'s, both over `b`'s whole subtree, so `rtt_b` is first converted
+//! to `a`'s clock (their crystals may differ by ~100 ppm).
+//!
+//! Slaves that cannot be measured this way (the first DC slave, line ends, non-DC slaves: their
+//! t_Diff still enters the delays) take a user value, else the value measured on a slave of the
+//! same ESC type and revision, else `Config::t_diff_ns`.
+//!
+//! Safety rules: the step never runs while any slave reports SAFE-OP or OP (closing a port cuts
+//! the slaves behind it off the frame); DL control is read first and written back exactly;
+//! the triggers' working counters are checked against the slaves that are still reachable; a
+//! restore interrupted by a restart is sent first in the next `CountSlaves`.
+//!
+//! The phase owns its working data (`Tdiff`); the machine only keeps one `Tdiff` field and
+//! receives the result per slave in [`SlaveInfo::t_diff_ns`] and [`SlaveInfo::t_diff_source`].
+
+use crate::dc::config::{TdiffConfig, TdiffMode};
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::{Item, Machine};
+use crate::dc::offset::offset_write_permitted;
+use crate::dc::port::{Port, PortSet};
+use crate::dc::request::{le, Op, Pending};
+use crate::dc::slave::SlaveInfo;
+use crate::dc::state::State;
+use crate::dc::topology::{Latches, SlaveSample, Topology};
+use crate::time::PortTime;
+use crate::wire::register::reg;
+
+/// ESC type (0x0000) and revision (0x0001), read as one little-endian word.
+const ESC_TYPE: u16 = 0x0000;
+/// ESC DL control 0x0100..0x0103; bits 8..15 (byte 0x0101) are the loop control of ports 0..3,
+/// two bits per port, 0b11 = "closed" (Beckhoff ESC datasheet section II, DL control).
+const DL_CONTROL: u16 = 0x0100;
+/// Loop-control value "closed" of one port (two bits).
+const LOOP_CLOSED: u16 = 0b11;
+
+/// Where the `t_Diff` used for a slave came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TdiffSource {
+    /// [`crate::dc::Config::t_diff_ns`]: nothing was measured or configured for this slave
+    /// (with the default 0: no t_Diff at all). Also the value before the step ran.
+    #[default]
+    Default,
+    /// Given by the user: [`Machine::set_slave_t_diff`] or an entry of
+    /// [`TdiffConfig::types`]. Configured slaves are not measured.
+    Configured,
+    /// Measured on this slave (REQ-DC-121), the mean over [`TdiffConfig::rounds`] latch pairs.
+    Measured,
+    /// Measured on the slave at auto-increment position `from`, which has the same ESC type
+    /// and revision (0x0000..0x0001). Used for slaves that cannot be measured themselves (the
+    /// first DC slave, line ends) and in [`TdiffMode::PerEscType`].
+    SameType {
+        /// Position of the measured slave.
+        from: u16,
+    },
+    /// A measurement was wanted but could not be used; the value is `Config::t_diff_ns`.
+    Fallback(TdiffFallback),
+}
+
+impl core::fmt::Display for TdiffSource {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            TdiffSource::Default => f.write_str("default"),
+            TdiffSource::Configured => f.write_str("configured"),
+            TdiffSource::Measured => f.write_str("measured"),
+            TdiffSource::SameType { from } => write!(f, "same type as {from}"),
+            TdiffSource::Fallback(TdiffFallback::Running) => f.write_str("fallback: running"),
+            TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns }) => {
+                write!(f, "fallback: measured {measured_ns} ns implausible")
+            }
+        }
+    }
+}
+
+/// Why a wanted measurement was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TdiffFallback {
+    /// A slave reported SAFE-OP, OP or an unknown AL state, so no port was closed (REQ-DC-123).
+    Running,
+    /// The measured value was outside [`TdiffConfig::min_ns`]..=[`TdiffConfig::max_ns`]
+    /// (REQ-DC-124).
+    Implausible {
+        /// The rejected mean, ns.
+        measured_ns: i32,
+    },
+}
+
+/// How one slave takes part in the measurement, decided from the first all-open latch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) enum Plan {
+    /// Not measured.
+    #[default]
+    Skip,
+    /// Measured through its nearest upstream DC slave `parent`, whose ports `q` (the open port
+    /// before `p`) and `p` (towards this slave) bracket its subtree; `close` holds the ports to
+    /// force closed; `end` is one past the last position of its subtree (cut off while closed).
+    Measure {
+        parent: u16,
+        q: Port,
+        p: Port,
+        entry: Port,
+        last: Port,
+        close: PortSet,
+        end: u16,
+    },
+    /// Measured: the mean before the plausibility check (`None` if it did not fit).
+    Done { mean: Option<i32> },
+}
+
+/// Which latch the step is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) enum Phase {
+    /// The read before the first trigger (stale-latch reference).
+    #[default]
+    Pre,
+    /// All ports open, round `round`.
+    Base { round: u8 },
+    /// `target`'s downstream ports closed, round `round`.
+    Closed { target: u16, round: u8 },
+}
+
+/// One typed work item of a t_Diff request step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Work {
+    /// FPRD 0x0000 (type, revision) of a slave.
+    Ident(u16),
+    /// FPRD 0x0130 of any slave (the running check).
+    AlStatus(u16),
+    /// FPRD 0x0100 (2 bytes) of a possible target: the value to restore.
+    ReadDlControl(u16),
+    /// BWR 0x0900.
+    Trigger,
+    /// FPRD 0x0900..0x090F of a DC slave.
+    ReadPorts(u16),
+    /// FPWR 0x0100 of the target with its downstream loop bits closed.
+    Close(u16),
+    /// FPWR 0x0100 of the target with the value read before.
+    Restore(u16),
+}
+
+/// The t_Diff phase's data (REQ-DC-120..126).
+#[derive(Debug, Clone)]
+pub(crate) struct Tdiff<const N: usize> {
+    pub(crate) phase: Phase,
+    /// A slave is in SAFE-OP/OP (or an unknown state): no port is closed.
+    running: bool,
+    plan: [Plan; N],
+    /// DL control 0x0100..0x0101 as read, per slave.
+    dl_control: [u16; N],
+    /// Port times of the latest read, per slave (validated when the read step is complete).
+    cur: [[u32; 4]; N],
+    /// Port times of the previous complete read (stale-latch reference).
+    prev: [[u32; 4]; N],
+    /// Per target: Σ X over the all-open rounds (upstream slave's clock), then, once they are
+    /// done, Σ (X − rtt) with `rtt` converted to the upstream slave's clock.
+    base: [i64; N],
+    /// Per target: Σ rtt over the all-open rounds (its own clock).
+    rtt: [i64; N],
+    /// Per target: the upstream slave's stamp at `q` and the target's at its entry in the first
+    /// all-open round, for the ratio of the two free-running clocks.
+    first: [(u32, u32); N],
+    /// Σ X' over the closed rounds of the current target.
+    closed: i64,
+    /// (station, DL control) of a target whose ports may still be closed: set before its close
+    /// is sent, cleared once the restore is answered. Survives a restart, so that the next
+    /// bring-up first reopens the ports (REQ-DC-124).
+    pending: Option<(u16, u16)>,
+    /// The current `CountSlaves` step starts with the restore of `pending`.
+    pub(crate) recovering: bool,
+}
+
+impl<const N: usize> Tdiff<N> {
+    pub(crate) const fn new() -> Self {
+        Tdiff {
+            phase: Phase::Pre,
+            running: false,
+            plan: [Plan::Skip; N],
+            dl_control: [0; N],
+            cur: [[0; 4]; N],
+            prev: [[0; 4]; N],
+            base: [0; N],
+            rtt: [0; N],
+            first: [(0, 0); N],
+            closed: 0,
+            pending: None,
+            recovering: false,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.phase = Phase::Pre;
+        self.running = false;
+        self.plan = [Plan::Skip; N];
+        self.closed = 0;
+        self.base = [0; N];
+        self.rtt = [0; N];
+    }
+
+    fn plan_of(&self, i: u16) -> Plan {
+        self.plan.get(usize::from(i)).copied().unwrap_or_default()
+    }
+
+    /// First target at or after position `from`.
+    fn next_target(&self, from: u16) -> Option<u16> {
+        (from..)
+            .zip(self.plan.iter().skip(usize::from(from)))
+            .find(|(_, p)| matches!(p, Plan::Measure { .. }))
+            .map(|(i, _)| i)
+    }
+}
+
+/// Wrapping difference `t[to] − t[from]` of one slave's stamps.
+fn diff(t: &[u32; 4], to: Port, from: Port) -> i64 {
+    let a = PortTime(t.get(to.index()).copied().unwrap_or(0));
+    let b = PortTime(t.get(from.index()).copied().unwrap_or(0));
+    i64::from(a.wrapping_since(b))
+}
+
+/// Whether the stamp of `port` changed between two reads.
+fn changed(cur: &[u32; 4], prev: &[u32; 4], port: Port) -> bool {
+    cur.get(port.index()) != prev.get(port.index())
+}
+
+/// `sum / n` rounded to nearest (ties up); `None` if it does not fit an `i32`.
+fn mean(sum: i64, n: i64) -> Option<i32> {
+    let q = sum
+        .checked_mul(2)?
+        .checked_add(n)?
+        .checked_div_euclid(n.checked_mul(2)?)?;
+    i32::try_from(q).ok()
+}
+
+impl<const N: usize> Machine<N> {
+    fn tdiff_cfg(&self) -> &TdiffConfig {
+        &self.cfg.tdiff
+    }
+
+    /// The user's value for slave `i`, if any: a per-slave override, else a per-type entry.
+    fn configured_t_diff(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
+        if let Some(v) = self.t_diff.get(usize::from(i)).copied().flatten() {
+            return Some(v);
+        }
+        self.tdiff_cfg()
+            .types
+            .iter()
+            .flatten()
+            .find(|t| t.esc_type == s.esc_type)
+            .map(|t| t.t_diff_ns)
+    }
+
+    /// Number of items of the current t_Diff step.
+    pub(crate) fn tdiff_count(&self) -> u16 {
+        match self.state {
+            State::TdiffRead => self.count.saturating_mul(3),
+            State::TdiffLatch => self.count,
+            State::TdiffTrigger | State::TdiffClose | State::TdiffRestore => 1,
+            _ => 0,
+        }
+    }
+
+    /// The typed work item `i` of the current step, `None` when there is nothing to send.
+    fn tdiff_work(&self, i: u16) -> Option<Work> {
+        let off = self.tdiff_cfg().mode == TdiffMode::Off;
+        match self.state {
+            State::TdiffRead if !off => {
+                let pos = i / 3;
+                let s = self.slave(pos)?;
+                match i % 3 {
+                    0 => Some(Work::Ident(pos)),
+                    1 => Some(Work::AlStatus(pos)),
+                    _ => (s.dc.has_latches() && PortSet::from_dl_status(s.dl_status).len() >= 2)
+                        .then_some(Work::ReadDlControl(pos)),
+                }
+            }
+            State::TdiffLatch => {
+                let s = self.slave(i)?;
+                match self.tdiff.phase {
+                    Phase::Closed { target, .. } => match self.tdiff.plan_of(target) {
+                        Plan::Measure { parent, .. } if parent == i => Some(Work::ReadPorts(i)),
+                        _ => None,
+                    },
+                    _ => s.dc.has_latches().then_some(Work::ReadPorts(i)),
+                }
+            }
+            State::TdiffTrigger => Some(Work::Trigger),
+            State::TdiffClose | State::TdiffRestore => match self.tdiff.phase {
+                Phase::Closed { target, .. } if self.state == State::TdiffClose => {
+                    Some(Work::Close(target))
+                }
+                Phase::Closed { target, .. } => Some(Work::Restore(target)),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+
+    pub(crate) fn tdiff_item(&self, i: u16) -> Item {
+        let Some(w) = self.tdiff_work(i) else {
+            return Item::Skip;
+        };
+        let station = |pos: u16| self.slave(pos).map_or(0, |s| s.station);
+        let op = match w {
+            Work::Ident(pos) => Op::fprd(station(pos), ESC_TYPE, 2),
+            Work::AlStatus(pos) => Op::fprd(station(pos), reg::AL_STATUS, 2),
+            Work::ReadDlControl(pos) => Op::fprd(station(pos), DL_CONTROL, 2),
+            Work::Trigger => Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4),
+            Work::ReadPorts(pos) => Op::fprd(station(pos), reg::RECEIVE_TIME_PORT0, 16),
+            Work::Close(pos) => {
+                let original = self.tdiff.dl_control.get(usize::from(pos)).copied();
+                let close = match self.tdiff.plan_of(pos) {
+                    Plan::Measure { close, .. } => close,
+                    Plan::Skip | Plan::Done { .. } => PortSet::EMPTY,
+                };
+                let mut v = original.unwrap_or(0);
+                for p in Port::PROCESSING_ORDER {
+                    if close.contains(p) {
+                        v |= LOOP_CLOSED << (8u8.saturating_add(p.number().saturating_mul(2)));
+                    }
+                }
+                Op::fpwr(station(pos), DL_CONTROL, 2, u64::from(v))
+            }
+            Work::Restore(pos) => {
+                let original = self.tdiff.dl_control.get(usize::from(pos)).copied();
+                Op::fpwr(
+                    station(pos),
+                    DL_CONTROL,
+                    2,
+                    u64::from(original.unwrap_or(0)),
+                )
+            }
+        };
+        Item::Send(op)
+    }
+
+    /// Slaves (all, latching) that the current trigger can reach.
+    fn tdiff_reachable(&self) -> (u16, u16) {
+        let cut = match self.tdiff.phase {
+            Phase::Closed { target, .. } => match self.tdiff.plan_of(target) {
+                Plan::Measure { end, .. } => Some((target, end)),
+                Plan::Skip | Plan::Done { .. } => None,
+            },
+            _ => None,
+        };
+        let mut all = 0u16;
+        let mut latching = 0u16;
+        for (i, s) in (0u16..).zip(self.slaves()) {
+            if cut.is_some_and(|(t, end)| i > t && i < end) {
+                continue;
+            }
+            all = all.saturating_add(1);
+            if s.dc.has_latches() {
+                latching = latching.saturating_add(1);
+            }
+        }
+        (all, latching)
+    }
+
+    pub(crate) fn tdiff_reply(
+        &mut self,
+        i: u16,
+        p: Pending,
+        wkc: u16,
+        data: &[u8],
+    ) -> Result<(), Error> {
+        let Some(w) = self.tdiff_work(i) else {
+            return Ok(());
+        };
+        let bad = Error::OutOfRange {
+            station: p.station,
+            register: p.register,
+        };
+        if w == Work::Trigger {
+            // REQ-DC-125: the slaves behind a closed port are cut off and do not count.
+            let (all, latching) = self.tdiff_reachable();
+            if wkc < latching || wkc > all {
+                return Err(Error::Wkc {
+                    command: p.command,
+                    station: 0,
+                    register: p.register,
+                    expected: latching,
+                    actual: wkc,
+                });
+            }
+            return Ok(());
+        }
+        self.expect_wkc(p, 1, wkc)?;
+        let word = || le(data, 2).and_then(|v| u16::try_from(v).ok()).ok_or(bad);
+        match w {
+            Work::Ident(pos) => {
+                let v = word()?;
+                if let Some(s) = self.slave_mut(pos) {
+                    s.esc_type = v;
+                }
+            }
+            Work::AlStatus(pos) => {
+                let v = word()?;
+                if let Some(s) = self.slave_mut(pos) {
+                    s.al_status = Some(v);
+                }
+            }
+            Work::ReadDlControl(pos) => {
+                let v = word()?;
+                if let Some(slot) = self.tdiff.dl_control.get_mut(usize::from(pos)) {
+                    *slot = v;
+                }
+            }
+            Work::ReadPorts(pos) => {
+                let mut t = [0u32; 4];
+                for (k, slot) in t.iter_mut().enumerate() {
+                    let at = k.saturating_mul(4);
+                    let v = data
+                        .get(at..at.saturating_add(4))
+                        .and_then(|d| le(d, 4))
+                        .ok_or(bad)?;
+                    *slot = u32::try_from(v).map_err(|_| bad)?;
+                }
+                if let Some(slot) = self.tdiff.cur.get_mut(usize::from(pos)) {
+                    *slot = t;
+                }
+            }
+            Work::Trigger | Work::Close(_) | Work::Restore(_) => {}
+        }
+        Ok(())
+    }
+
+    /// Retry target of a failed t_Diff step: a failed trigger or read latches again.
+    pub(crate) fn tdiff_retry_state(&self) -> Option<State> {
+        matches!(self.state, State::TdiffTrigger | State::TdiffLatch).then_some(State::TdiffTrigger)
+    }
+
+    pub(crate) fn tdiff_done(&mut self) -> Result<State, Error> {
+        match self.state {
+            State::TdiffRead => {
+                if self.tdiff_cfg().mode == TdiffMode::Off {
+                    return Ok(self.tdiff_finish());
+                }
+                // REQ-DC-123: never cut off a running slave.
+                self.tdiff.running = self
+                    .slaves()
+                    .iter()
+                    .any(|s| !s.al_status.is_some_and(offset_write_permitted));
+                if self.tdiff.running {
+                    return Ok(self.tdiff_finish());
+                }
+                self.tdiff.phase = Phase::Pre;
+                Ok(State::TdiffLatch)
+            }
+            State::TdiffTrigger => Ok(State::TdiffLatch),
+            State::TdiffLatch => self.tdiff_latch_done(),
+            State::TdiffClose => Ok(State::TdiffTrigger),
+            State::TdiffRestore => {
+                self.tdiff.pending = None;
+                if let Phase::Closed { target, .. } = self.tdiff.phase {
+                    let c = self.tdiff_cfg();
+                    let base = self
+                        .tdiff
+                        .base
+                        .get(usize::from(target))
+                        .copied()
+                        .unwrap_or(0);
+                    // closed/R − base/B = (closed·B − base·R) / (R·B), rounded once.
+                    let m = self
+                        .tdiff
+                        .closed
+                        .checked_mul(i64::from(c.base_rounds))
+                        .zip(base.checked_mul(i64::from(c.rounds)))
+                        .and_then(|(x, y)| x.checked_sub(y))
+                        .and_then(|d| {
+                            mean(
+                                d,
+                                i64::from(c.rounds).saturating_mul(i64::from(c.base_rounds)),
+                            )
+                        });
+                    if let Some(slot) = self.tdiff.plan.get_mut(usize::from(target)) {
+                        *slot = Plan::Done { mean: m };
+                    }
+                    return Ok(self.tdiff_next(target.saturating_add(1)));
+                }
+                Ok(self.tdiff_finish())
+            }
+            _ => Ok(self.state),
+        }
+    }
+
+    /// The next target from position `from` on (its port gets closed), or the end.
+    fn tdiff_next(&mut self, from: u16) -> State {
+        match self.tdiff.next_target(from) {
+            Some(t) => {
+                self.tdiff.phase = Phase::Closed {
+                    target: t,
+                    round: 0,
+                };
+                let station = self.slave(t).map_or(0, |s| s.station);
+                let original = self.tdiff.dl_control.get(usize::from(t)).copied();
+                self.tdiff.pending = Some((station, original.unwrap_or(0)));
+                self.tdiff.closed = 0;
+                State::TdiffClose
+            }
+            None => self.tdiff_finish(),
+        }
+    }
+
+    fn tdiff_latch_done(&mut self) -> Result<State, Error> {
+        let rounds = self.tdiff_cfg().rounds;
+        let base_rounds = self.tdiff_cfg().base_rounds;
+        let stale = |m: &Self, pos: u16| Error::Measurement {
+            station: m.slave(pos).map_or(0, |s| s.station),
+        };
+        match self.tdiff.phase {
+            Phase::Pre => {
+                self.tdiff.prev = self.tdiff.cur;
+                self.tdiff.phase = Phase::Base { round: 0 };
+                Ok(State::TdiffTrigger)
+            }
+            Phase::Base { round } => {
+                if round == 0 {
+                    self.tdiff_plan()?;
+                }
+                for b in self.positions() {
+                    let Plan::Measure {
+                        parent,
+                        q,
+                        p,
+                        entry,
+                        last,
+                        ..
+                    } = self.tdiff.plan_of(b)
+                    else {
+                        continue;
+                    };
+                    let (tc, tp) = self.tdiff_times(parent);
+                    let (bc, bp) = self.tdiff_times(b);
+                    if !changed(&tc, &tp, q)
+                        || !changed(&tc, &tp, p)
+                        || !changed(&bc, &bp, entry)
+                        || !changed(&bc, &bp, last)
+                    {
+                        return Err(stale(self, b));
+                    }
+                    let i = usize::from(b);
+                    if round == 0 {
+                        if let Some(f) = self.tdiff.first.get_mut(i) {
+                            *f = (
+                                tc.get(q.index()).copied().unwrap_or(0),
+                                bc.get(entry.index()).copied().unwrap_or(0),
+                            );
+                        }
+                    }
+                    if let Some(x) = self.tdiff.base.get_mut(i) {
+                        *x = x.saturating_add(diff(&tc, p, q));
+                    }
+                    if let Some(r) = self.tdiff.rtt.get_mut(i) {
+                        *r = r.saturating_add(diff(&bc, last, entry));
+                    }
+                }
+                self.tdiff.prev = self.tdiff.cur;
+                let next = round.saturating_add(1);
+                if next < base_rounds {
+                    self.tdiff.phase = Phase::Base { round: next };
+                    return Ok(State::TdiffTrigger);
+                }
+                self.tdiff_rate_correct();
+                Ok(self.tdiff_next(0))
+            }
+            Phase::Closed { target, round } => {
+                let Plan::Measure { parent, q, p, .. } = self.tdiff.plan_of(target) else {
+                    return Ok(self.tdiff_next(target.saturating_add(1)));
+                };
+                let (tc, tp) = self.tdiff_times(parent);
+                if !changed(&tc, &tp, q) || !changed(&tc, &tp, p) {
+                    return Err(stale(self, parent));
+                }
+                self.tdiff.closed = self.tdiff.closed.saturating_add(diff(&tc, p, q));
+                if let (Some(dst), Some(src)) = (
+                    self.tdiff.prev.get_mut(usize::from(parent)),
+                    self.tdiff.cur.get(usize::from(parent)),
+                ) {
+                    *dst = *src;
+                }
+                let next = round.saturating_add(1);
+                if next < rounds {
+                    self.tdiff.phase = Phase::Closed {
+                        target,
+                        round: next,
+                    };
+                    return Ok(State::TdiffTrigger);
+                }
+                Ok(State::TdiffRestore)
+            }
+        }
+    }
+
+    /// After the all-open rounds: `base[b]` = Σ X − Σ rtt·(Δ_a/Δ_b). X is read on the upstream
+    /// slave's free-running clock and rtt on the target's; both are long on a long line (the
+    /// whole subtree's round trip) and two crystals differ by up to ~100 ppm, i.e. 50 ns over
+    /// 500 µs, so rtt is converted to the upstream clock with the ratio of the two clocks'
+    /// advance between the first and the last round (Δ_a at port q, Δ_b at the target's entry:
+    /// the same frames). REQ-DC-121.
+    fn tdiff_rate_correct(&mut self) {
+        for b in self.positions() {
+            let Plan::Measure {
+                parent, q, entry, ..
+            } = self.tdiff.plan_of(b)
+            else {
+                continue;
+            };
+            let i = usize::from(b);
+            let (fa, fb) = self.tdiff.first.get(i).copied().unwrap_or((0, 0));
+            let last_a = self
+                .tdiff
+                .prev
+                .get(usize::from(parent))
+                .and_then(|t| t.get(q.index()));
+            let last_b = self.tdiff.prev.get(i).and_then(|t| t.get(entry.index()));
+            let span = |last: Option<&u32>, first: u32| {
+                last.map(|l| i64::from(PortTime(*l).wrapping_since(PortTime(first))))
+            };
+            let rtt = self.tdiff.rtt.get(i).copied().unwrap_or(0);
+            // Without a usable span (one round), the clocks are taken as equal.
+            let conv = match (span(last_a, fa), span(last_b, fb)) {
+                (Some(da), Some(db)) if da > 0 && db > 0 => rtt
+                    .checked_mul(da)
+                    .and_then(|v| v.checked_add(db.checked_div(2)?))
+                    .and_then(|v| v.checked_div(db))
+                    .unwrap_or(rtt),
+                _ => rtt,
+            };
+            if let Some(x) = self.tdiff.base.get_mut(i) {
+                *x = x.saturating_sub(conv);
+            }
+        }
+    }
+
+    fn tdiff_times(&self, pos: u16) -> ([u32; 4], [u32; 4]) {
+        let i = usize::from(pos);
+        (
+            self.tdiff.cur.get(i).copied().unwrap_or_default(),
+            self.tdiff.prev.get(i).copied().unwrap_or_default(),
+        )
+    }
+
+    /// REQ-DC-121/122: from the first all-open latch, which slaves are measured and through
+    /// which upstream port pair.
+    fn tdiff_plan(&mut self) -> Result<(), Error> {
+        let count = usize::from(self.count);
+        let mut samples = [SlaveSample::default(); N];
+        for ((s, out), (cur, prev)) in self
+            .slaves
+            .iter()
+            .zip(samples.iter_mut())
+            .zip(self.tdiff.cur.iter().zip(self.tdiff.prev.iter()))
+            .take(count)
+        {
+            let open = PortSet::from_dl_status(s.dl_status);
+            let mut ports = open;
+            let latches = if s.dc.has_latches() {
+                let mut ch = PortSet::EMPTY;
+                for p in Port::PROCESSING_ORDER {
+                    if open.contains(p) && changed(cur, prev, p) {
+                        ch = ch.with(p);
+                    }
+                }
+                ports = ch;
+                Some(Latches::from_raw(*cur, 0))
+            } else {
+                None
+            };
+            *out = SlaveSample {
+                ports,
+                latches,
+                t_diff: 0,
+            };
+        }
+        let samples = samples.get(..count).unwrap_or(&[]);
+        let topo = Topology::<N>::build(samples).map_err(|_| Error::Measurement { station: 0 })?;
+        // Subtree ends: preorder, so the subtree of i is i..i+size(i).
+        let mut size = [1u16; N];
+        for i in (0..count).rev() {
+            let own = size.get(i).copied().unwrap_or(1);
+            if let Some(parent) = topo.node(i).and_then(|n| n.parent) {
+                if let Some(ps) = size.get_mut(usize::from(parent.slave)) {
+                    *ps = ps.saturating_add(own);
+                }
+            }
+        }
+        let mode = self.tdiff_cfg().mode;
+        let mut types_done: [Option<u16>; 8] = [None; 8];
+        let mut plan = [Plan::Skip; N];
+        for (b, slot) in (0u16..).zip(plan.iter_mut()).take(count) {
+            let Some(s) = self.slave(b) else { continue };
+            if !s.dc.has_latches() || self.configured_t_diff(b, s).is_some() {
+                continue;
+            }
+            let Some(node) = topo.node(usize::from(b)) else {
+                continue;
+            };
+            // Only an ESC entered at port 0 with a downstream port turns the frame round through
+            // its EPU when closed, and only then does its return hop cost t_F (REQ-DC-122).
+            if node.entry != Port::P0 || node.downstream_ports() == 0 {
+                continue;
+            }
+            // Nearest upstream slave with latches; non-DC slaves in between must be plain wire
+            // (two ports), as in the delay walk (REQ-DC-017).
+            let Some(mut link) = node.parent else {
+                continue;
+            };
+            let mut ok = true;
+            let mut steps = 0usize;
+            while samples
+                .get(usize::from(link.slave))
+                .is_some_and(|x| x.latches.is_none())
+            {
+                let up = topo.node(usize::from(link.slave));
+                match up
+                    .and_then(|u| (u.ports.len() == 2).then_some(u.parent))
+                    .flatten()
+                {
+                    Some(l) => link = l,
+                    None => {
+                        ok = false;
+                        break;
+                    }
+                }
+                steps = steps.saturating_add(1);
+                if steps > N {
+                    ok = false;
+                    break;
+                }
+            }
+            let Some(up) = topo.node(usize::from(link.slave)) else {
+                continue;
+            };
+            if !ok {
+                continue;
+            }
+            if mode == TdiffMode::PerEscType {
+                if types_done.iter().flatten().any(|t| *t == s.esc_type) {
+                    continue;
+                }
+                if let Some(free) = types_done.iter_mut().find(|t| t.is_none()) {
+                    *free = Some(s.esc_type);
+                }
+            }
+            let mut close = PortSet::EMPTY;
+            for p in Port::PROCESSING_ORDER {
+                if p != node.entry && node.ports.contains(p) {
+                    close = close.with(p);
+                }
+            }
+            let own = size.get(usize::from(b)).copied().unwrap_or(1);
+            *slot = Plan::Measure {
+                parent: link.slave,
+                q: up.ports.prev_before(link.port).unwrap_or(up.entry),
+                p: link.port,
+                entry: node.entry,
+                last: node.last_port(),
+                close,
+                end: b.saturating_add(own),
+            };
+        }
+        self.tdiff.plan = plan;
+        Ok(())
+    }
+
+    /// REQ-DC-126: every slave's t_Diff and its source; then the delay measurement.
+    fn tdiff_finish(&mut self) -> State {
+        let cfg = *self.tdiff_cfg();
+        let default = self.cfg.t_diff_ns;
+        let count = usize::from(self.count);
+        let mut measured = 0u16;
+        let mut same_type = 0u16;
+        let mut configured = 0u16;
+        let mut fallback = 0u16;
+        let mut resolved = [(0i32, TdiffSource::Default); N];
+        for (i, out) in (0u16..).zip(resolved.iter_mut()).take(count) {
+            let Some(s) = self.slave(i) else { continue };
+            let r = match self.tdiff.plan_of(i) {
+                Plan::Done { mean } => mean,
+                _ => None,
+            };
+            *out = if let Some(v) = self.configured_t_diff(i, s) {
+                (v, TdiffSource::Configured)
+            } else if let Some(v) = r.filter(|v| (cfg.min_ns..=cfg.max_ns).contains(v)) {
+                (v, TdiffSource::Measured)
+            } else if let Some(v) = r {
+                (
+                    default,
+                    TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns: v }),
+                )
+            } else if self.tdiff.running && s.dc.has_latches() && cfg.mode != TdiffMode::Off {
+                (default, TdiffSource::Fallback(TdiffFallback::Running))
+            } else {
+                (default, TdiffSource::Default)
+            };
+        }
+        // Slaves without their own value (including non-DC slaves, whose t_Diff enters the
+        // delays of the DC slaves behind them) take one measured on the same ESC type +
+        // revision.
+        for i in 0..count {
+            let Some((_, TdiffSource::Default)) = resolved.get(i).copied() else {
+                continue;
+            };
+            let Some(s) = self.slaves.get(i) else {
+                continue;
+            };
+            let ty = s.esc_type;
+            let from = (0u16..)
+                .zip(self.slaves.iter().zip(resolved.iter()))
+                .take(count)
+                .find(|(_, (o, (_, src)))| o.esc_type == ty && *src == TdiffSource::Measured)
+                .map(|(j, (_, (v, _)))| (j, *v));
+            if let (Some((j, v)), Some(slot)) = (from, resolved.get_mut(i)) {
+                *slot = (v, TdiffSource::SameType { from: j });
+            }
+        }
+        for (s, (v, src)) in self.slaves.iter_mut().zip(resolved.iter()).take(count) {
+            s.t_diff_ns = *v;
+            s.t_diff_source = *src;
+            match src {
+                TdiffSource::Measured => measured = measured.saturating_add(1),
+                TdiffSource::SameType { .. } => same_type = same_type.saturating_add(1),
+                TdiffSource::Configured => configured = configured.saturating_add(1),
+                TdiffSource::Fallback(_) => fallback = fallback.saturating_add(1),
+                TdiffSource::Default => {}
+            }
+        }
+        self.push_event(Event::TdiffResolved {
+            measured,
+            same_type,
+            configured,
+            fallback,
+        });
+        self.tdiff.clear();
+        State::LatchReadBefore
+    }
+
+    /// Resets the phase's data at the start of a bring-up; a restore left pending by an
+    /// interrupted measurement becomes the first datagram of `CountSlaves`.
+    pub(crate) fn tdiff_reset(&mut self) {
+        self.tdiff.clear();
+        self.tdiff.recovering = self.tdiff.pending.is_some();
+    }
+
+    /// The restore of a target left closed by an interrupted bring-up (`CountSlaves` item 0
+    /// while recovering): FPWR 0x0100 with the value read before it was closed.
+    pub(crate) fn tdiff_recover_item(&self) -> Item {
+        match self.tdiff.pending {
+            Some((station, v)) => Item::Send(Op::fpwr(station, DL_CONTROL, 2, u64::from(v))),
+            None => Item::Skip,
+        }
+    }
+
+    /// Its reply: WKC 1 (restored) or 0 (the slave is gone or was power-cycled, which also
+    /// resets DL control) ends the recovery.
+    pub(crate) fn tdiff_recover_reply(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
+        if wkc > 1 {
+            return self.expect_wkc(p, 1, wkc);
+        }
+        self.tdiff.pending = None;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::mean;
+
+    #[test]
+    fn mean_rounds_to_nearest() {
+        assert_eq!(mean(80 * 16, 16), Some(80));
+        assert_eq!(mean(8 * 16 + 8, 16), Some(9));
+        assert_eq!(mean(8 * 16 + 7, 16), Some(8));
+        assert_eq!(mean(-(8 * 16 + 7), 16), Some(-8));
+        assert_eq!(mean(i64::MAX, 16), None);
+        assert_eq!(mean(5, 0), None);
+    }
+}
