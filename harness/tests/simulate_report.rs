@@ -63,6 +63,42 @@ fn default_scenario_short_run_reports_four_schemes() {
         );
     }
     assert_eq!(schemes["uncompensated"]["given"], serde_json::json!({}));
+    // ecdc is told nothing and reports the t_DIFF it measured, per slave, against the truth;
+    // only schemes that determine t_DIFF themselves carry the list.
+    assert_eq!(schemes["ecdc"]["given"], serde_json::json!({}));
+    let td = schemes["ecdc"]["t_diff_ns"]
+        .as_array()
+        .expect("ecdc.t_diff_ns");
+    assert_eq!(td.len(), 6);
+    for (k, row) in td.iter().enumerate() {
+        assert_eq!(row["slave"], k + 1);
+        let (m, t) = (
+            row["measured"].as_i64().unwrap(),
+            row["true"].as_i64().unwrap(),
+        );
+        assert_eq!(t, 10, "the calibrated line's t_P - t_F");
+        assert!(
+            (m - t).abs() <= 5,
+            "slave {}: measured {m}, true {t}",
+            k + 1
+        );
+        let src = row["source"].as_str().unwrap();
+        assert!(
+            src == "measured" || src.starts_with("same ESC type as slave"),
+            "{src}"
+        );
+    }
+    assert!(td.iter().filter(|r| r["source"] == "measured").count() >= 4);
+    for name in ["seed000", "seed000-printed", "uncompensated"] {
+        assert!(schemes[name].get("t_diff_ns").is_none(), "{name}");
+    }
+    // The truth and the paper's Table 2 row, for the default scenario.
+    assert_eq!(json["truth"]["delays_ns"].as_array().unwrap().len(), 6);
+    assert_eq!(json["truth"]["delays_ns"][0].as_f64(), Some(0.0));
+    assert_eq!(
+        json["paper"]["table2_delays_ns"],
+        serde_json::json!([105, 206, 310, 410, 520])
+    );
     // skew ratios are ecdc ÷ seed000, null while seed000 has no pairs here (see above).
     assert!(json["ratios"].get("skew_mean").is_some());
     assert!(json["ratios"]["lock_ms"].as_f64().is_some());

@@ -13,7 +13,7 @@ use super::validate::{self, CYCLE_NS, MAX_DURATION_MS, MAX_PPM};
 use crate::emu::{Network, PpmSpec, Scenario, SlaveSpec};
 use crate::report::{self, table2, Report, Setup};
 use crate::schemes::ecdc::{self, Ecdc};
-use crate::schemes::measure::summarize;
+use crate::schemes::measure::{summarize, TdiffRow};
 use crate::schemes::run::{run_scheme, Record, RunOpts};
 use crate::schemes::seed000::Seed000;
 use crate::schemes::uncompensated::Uncompensated;
@@ -256,12 +256,14 @@ pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
     schemes.extend(comparison_schemes(&net, t_diff, cycle)?);
     let mut bar = Progress::new(duration_ns * schemes.len() as u64, !args.no_progress);
     let mut records = Vec::new();
+    let mut t_diffs = Vec::new();
     for (k, s) in schemes.iter_mut().enumerate() {
         let base = duration_ns * k as u64;
         let name = s.name();
         let rec = run_scheme(s.as_mut(), opts, &mut |t| bar.update(base + t, name))
             .with_context(|| format!("scheme {name}"))?;
         records.push(rec);
+        t_diffs.push((name, s.t_diff_used()));
     }
     bar.finish();
     let setup = Setup {
@@ -277,6 +279,26 @@ pub fn simulate(args: &Args) -> anyhow::Result<(Report, Vec<Record>)> {
         ecdc_drift_burst_frames: cfg.drift.burst_frames,
     };
     let mut report = Report::new(setup, records.iter().map(summarize).collect());
+    let true_t_diff: Vec<i64> = (0..probe.slave_count())
+        .filter_map(|i| probe.slave_info(i))
+        .map(|s| s.t_p_ns as i64 - s.t_f_ns as i64)
+        .collect();
+    for (name, used) in t_diffs {
+        if let (Some(used), Some(summary)) = (used, report.schemes.get_mut(name)) {
+            summary.t_diff_ns = Some(
+                used.into_iter()
+                    .zip(&true_t_diff)
+                    .enumerate()
+                    .map(|(k, ((measured, source), &truth))| TdiffRow {
+                        slave: k + 1,
+                        measured,
+                        truth,
+                        source,
+                    })
+                    .collect(),
+            );
+        }
+    }
     table2_section(args, &sc, &mut report)?;
     Ok((report, records))
 }

@@ -98,6 +98,37 @@ fn given_section(r: &Report) -> String {
     out
 }
 
+/// Per slave, the t_DIFF each scheme that determines it itself used, against the truth.
+fn t_diff_section(r: &Report) -> String {
+    let mut out = String::new();
+    for name in SCHEMES {
+        let Some(rows) = r.schemes.get(name).and_then(|s| s.t_diff_ns.as_ref()) else {
+            continue;
+        };
+        let _ = writeln!(
+            out,
+            "\n[{name}] t_DIFF used (ns; measured by forced port loops, docs/background/t-diff.md)"
+        );
+        let _ = writeln!(
+            out,
+            "{:<8} {:>8} {:>6} {:>6}  source",
+            "slave", "used", "true", "error"
+        );
+        for t in rows {
+            let _ = writeln!(
+                out,
+                "{:<8} {:>8} {:>6} {:>+6}  {}",
+                t.slave,
+                t.measured,
+                t.truth,
+                t.measured - t.truth,
+                t.source
+            );
+        }
+    }
+    out
+}
+
 /// The whole text report.
 pub fn render(r: &Report) -> String {
     let mut out = String::new();
@@ -130,6 +161,7 @@ pub fn render(r: &Report) -> String {
         out.push_str(&slave_table(s));
     }
     out.push_str(&given_section(r));
+    out.push_str(&t_diff_section(r));
     let _ = writeln!(
         out,
         "\nlock (every slave within 100 ns of the reference, true time, for the rest of the run)"

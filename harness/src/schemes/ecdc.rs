@@ -96,6 +96,24 @@ pub fn max_anchor(net: &Network) -> TrueTime {
 }
 
 impl<const N: usize> Scheme for EcdcN<N> {
+    fn t_diff_used(&self) -> Option<Vec<(i64, String)>> {
+        Some(
+            self.t_diff()
+                .into_iter()
+                .map(|(v, src)| {
+                    // Reports number slaves from 1; the machine's positions start at 0.
+                    let text = match src {
+                        TdiffSource::SameType { from } => {
+                            format!("same ESC type as slave {}", u32::from(from) + 1)
+                        }
+                        other => other.to_string(),
+                    };
+                    (i64::from(v), text)
+                })
+                .collect(),
+        )
+    }
+
     fn name(&self) -> &'static str {
         "ecdc"
     }

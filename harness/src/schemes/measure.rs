@@ -68,6 +68,25 @@ pub struct Summary {
     /// Signed mean of the skew (a constant bias shows here).
     pub skew_signed_mean_ns: Option<f64>,
     pub slaves: Vec<SlaveRow>,
+    /// Per slave, the t_DIFF the scheme used against the emulator's truth (schemes that
+    /// determine it themselves; set by the caller, `None` otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t_diff_ns: Option<Vec<TdiffRow>>,
+}
+
+/// One slave's t_DIFF in a report: what the scheme used, the truth, and where the value came
+/// from.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TdiffRow {
+    /// Slave number as in the per-slave tables (1 = first slave).
+    pub slave: usize,
+    /// The value the scheme used, ns.
+    pub measured: i64,
+    /// t_P − t_F of the emulated ESC, ns.
+    #[serde(rename = "true")]
+    pub truth: i64,
+    /// `measured`, `same-type (slave k)`, `configured`, `fallback (…)` or `default`.
+    pub source: String,
 }
 
 /// Nearest-rank percentile of sorted values (`p` in 0..=100).
@@ -208,5 +227,6 @@ pub fn summarize(r: &Record) -> Summary {
         skew_max_ns: all.last().copied(),
         skew_signed_mean_ns: skew_signed,
         slaves,
+        t_diff_ns: None,
     }
 }

@@ -64,4 +64,9 @@ pub trait Scheme {
     fn frames_lost(&self) -> u64;
     /// What this master was told beyond what it measures on the wire (see [`Given`]).
     fn given(&self) -> Given;
+    /// Per slave (position order) the t_DIFF the scheme determined itself, ns, and where the
+    /// value came from; `None` for schemes that only use what they were given.
+    fn t_diff_used(&self) -> Option<Vec<(i64, String)>> {
+        None
+    }
 }
