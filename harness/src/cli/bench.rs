@@ -377,6 +377,20 @@ fn build(
     })
 }
 
+/// Slaves (reference included) with a SYNC0 edge in the steady-state window of `summary`.
+pub(crate) fn sync0_slaves(
+    rec: &crate::schemes::run::Record,
+    summary: &crate::schemes::measure::Summary,
+) -> usize {
+    let w0 = summary.window_start_ns.unwrap_or(u64::MAX);
+    rec.sync0
+        .iter()
+        .filter(|e| e.true_time >= w0 && e.true_time <= rec.end)
+        .map(|e| e.slave)
+        .collect::<std::collections::BTreeSet<usize>>()
+        .len()
+}
+
 /// Builds scheme `which` on a fresh network of `sc`, telling it what `bench dc` tells it
 /// (docs/bench.md).
 pub(crate) fn build_scheme(
@@ -457,14 +471,7 @@ pub fn run_scenario(
             lock_index(&rec.track).map(|i| rec.track[i].1),
             summary.lock_frames
         );
-        let w0 = summary.window_start_ns.unwrap_or(u64::MAX);
-        let fired: std::collections::BTreeSet<usize> = rec
-            .sync0
-            .iter()
-            .filter(|e| e.true_time >= w0 && e.true_time <= rec.end)
-            .map(|e| e.slave)
-            .collect();
-        let mut res = SchemeResult::from_summary(&summary, fired.len());
+        let mut res = SchemeResult::from_summary(&summary, sync0_slaves(&rec, &summary));
         if result.frame_loss_rate.is_some() {
             res.frames_lost = Some(rec.frames_lost);
         }

@@ -23,7 +23,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use super::bench::{build_scheme, BenchScenario, SchemeName, SchemeResult};
+use super::bench::{build_scheme, sync0_slaves, BenchScenario, SchemeName, SchemeResult};
 use crate::emu::{PpmSpec, Scenario};
 use crate::report::svg::{render_sensitivity, SensitivityPanel};
 use crate::report::table::{given_text, markdown};
@@ -195,14 +195,10 @@ fn run_cell(sc: &Scenario, duration_ns: u64) -> anyhow::Result<Vec<SchemeResult>
         let mut scheme = build_scheme(which, sc, cycle)?;
         let rec = run_scheme(scheme.as_mut(), opts, &mut |_| {})?;
         let summary = summarize(&rec);
-        let w0 = summary.window_start_ns.unwrap_or(u64::MAX);
-        let fired: std::collections::BTreeSet<usize> = rec
-            .sync0
-            .iter()
-            .filter(|e| e.true_time >= w0 && e.true_time <= rec.end)
-            .map(|e| e.slave)
-            .collect();
-        out.push(SchemeResult::from_summary(&summary, fired.len()));
+        out.push(SchemeResult::from_summary(
+            &summary,
+            sync0_slaves(&rec, &summary),
+        ));
     }
     Ok(out)
 }

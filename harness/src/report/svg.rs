@@ -324,14 +324,9 @@ fn log_axis(out: &mut String, y0: f64, pw: f64, decades: i32) -> impl Fn(f64) ->
     y
 }
 
-/// The `ecdc bench dc` plot of one scenario: (1) lock — the largest |clock error| over all
-/// slaves against true time for every scheme (log scale, min/max envelope per pixel column);
-/// (2) the distribution of steady-state |SYNC0 skew| (empirical CDF, log x). `command` is
-/// written into the file.
-pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchSeries]) -> String {
-    let pw = W - LEFT - RIGHT;
-    let ph = PANEL_H;
-    let h = TOP + 2.0 * (PANEL_H + GAP) + 50.0;
+/// The opening of a bench plot of height `h`: the `svg` element, `command` as its description,
+/// a white background and the bold title.
+fn plot_header(title: &str, command: &str, h: f64) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -344,6 +339,18 @@ pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchS
         r#"<text x="{LEFT}" y="18" font-size="14" font-weight="bold">{}</text>"#,
         esc(title)
     );
+    out
+}
+
+/// The `ecdc bench dc` plot of one scenario: (1) lock — the largest |clock error| over all
+/// slaves against true time for every scheme (log scale, min/max envelope per pixel column);
+/// (2) the distribution of steady-state |SYNC0 skew| (empirical CDF, log x). `command` is
+/// written into the file.
+pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchSeries]) -> String {
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let h = TOP + 2.0 * (PANEL_H + GAP) + 50.0;
+    let mut out = plot_header(title, command, h);
     let _ = writeln!(
         out,
         r#"<text x="{LEFT}" y="34" font-size="11">{}</text>"#,
@@ -495,18 +502,7 @@ pub fn render_sensitivity(title: &str, command: &str, panels: &[SensitivityPanel
     let pw = W - LEFT - RIGHT;
     let ph = PANEL_H;
     let h = TOP + panels.len() as f64 * (PANEL_H + GAP) + 50.0;
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
-    );
-    let _ = writeln!(out, "<desc>{}</desc>", esc(command));
-    let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(
-        out,
-        r#"<text x="{LEFT}" y="18" font-size="14" font-weight="bold">{}</text>"#,
-        esc(title)
-    );
+    let mut out = plot_header(title, command, h);
     let _ = writeln!(
         out,
         r##"<text x="{LEFT}" y="{}" font-size="11" fill="#666">{}</text>"##,
