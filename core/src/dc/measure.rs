@@ -65,15 +65,7 @@ impl<const N: usize> Machine<N> {
             }
             State::LatchReadBefore | State::LatchReadAfter => {
                 self.expect_wkc(p, 1, wkc)?;
-                let mut t = [0u32; 4];
-                for (k, slot) in t.iter_mut().enumerate() {
-                    let at = k.saturating_mul(4);
-                    let v = data
-                        .get(at..at.saturating_add(4))
-                        .and_then(|d| le(d, 4))
-                        .ok_or(bad)?;
-                    *slot = u32::try_from(v).map_err(|_| bad)?;
-                }
+                let t = port_times(data).ok_or(bad)?;
                 let after = self.state == State::LatchReadAfter;
                 let epu = if after {
                     data.get(24..32).and_then(|d| le(d, 8)).ok_or(bad)?
@@ -150,4 +142,16 @@ impl<const N: usize> Machine<N> {
         });
         Ok(())
     }
+}
+
+/// The four 32-bit port receive times 0x0900..0x090F (ports 0..3) at the start of a latch
+/// read's data, little-endian (REQ-DC-020); `None` when fewer than 16 bytes came back.
+pub(crate) fn port_times(data: &[u8]) -> Option<[u32; 4]> {
+    let mut t = [0u32; 4];
+    for (k, slot) in t.iter_mut().enumerate() {
+        let at = k.saturating_mul(4);
+        let v = data.get(at..at.saturating_add(4)).and_then(|d| le(d, 4))?;
+        *slot = u32::try_from(v).ok()?;
+    }
+    Some(t)
 }

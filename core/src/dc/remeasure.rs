@@ -8,7 +8,8 @@ use crate::dc::cyclic::Remeasure;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::Machine;
-use crate::dc::request::{le, Op, Pending, Tag};
+use crate::dc::measure::port_times;
+use crate::dc::request::{Op, Pending, Tag};
 use crate::wire::register::reg;
 use crate::wire::FrameBuilder;
 
@@ -93,15 +94,7 @@ impl<const N: usize> Machine<N> {
             }
             Remeasure::Before | Remeasure::After => {
                 self.expect_wkc(p, 1, wkc)?;
-                let mut t = [0u32; 4];
-                for (k, slot) in t.iter_mut().enumerate() {
-                    let at = k.saturating_mul(4);
-                    let v = data
-                        .get(at..at.saturating_add(4))
-                        .and_then(|d| le(d, 4))
-                        .ok_or(bad)?;
-                    *slot = u32::try_from(v).map_err(|_| bad)?;
-                }
+                let t = port_times(data).ok_or(bad)?;
                 let after = self.cyc.remeasure == Remeasure::After;
                 if let Some(s) = self.slave_mut(i) {
                     if after {

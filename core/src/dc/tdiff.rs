@@ -35,6 +35,7 @@ use crate::dc::config::{TdiffConfig, TdiffMode};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
+use crate::dc::measure::port_times;
 use crate::dc::offset::offset_write_permitted;
 use crate::dc::port::{Port, PortSet};
 use crate::dc::request::{le, Op, Pending};
@@ -423,15 +424,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
             Work::ReadPorts(pos) => {
-                let mut t = [0u32; 4];
-                for (k, slot) in t.iter_mut().enumerate() {
-                    let at = k.saturating_mul(4);
-                    let v = data
-                        .get(at..at.saturating_add(4))
-                        .and_then(|d| le(d, 4))
-                        .ok_or(bad)?;
-                    *slot = u32::try_from(v).map_err(|_| bad)?;
-                }
+                let t = port_times(data).ok_or(bad)?;
                 if let Some(slot) = self.tdiff.cur.get_mut(usize::from(pos)) {
                     *slot = t;
                 }
