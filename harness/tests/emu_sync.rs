@@ -121,6 +121,94 @@ fn past_start_on_32bit_fires_after_wrap() {
     assert_eq!(e[0].true_time, ((1u64 << 32) - 1_000_000).div_ceil(10) * 10);
 }
 
+/// Length of one linear piece of the emulated clock in the piece tests below (the frequency
+/// wander interval; wander steps of 0 ppb keep the rate constant across pieces).
+const PIECE_NS: u64 = 100_000_000;
+
+/// Like [`one_slave`] (64-bit DC, addressed as 0x1000), with a fixed crystal error and the
+/// clock evaluated in pieces of [`PIECE_NS`].
+fn one_slave_in_pieces(ppm: f64, l0: u64) -> Network {
+    let mut sc = Scenario::default().ideal();
+    sc.timing.wander_interval_ns = PIECE_NS;
+    sc.defaults.ppm = PpmSpec::Fixed(ppm);
+    sc = sc.with_slave(SlaveSpec {
+        kind: Some(EscKind::Dc64),
+        initial_local_ns: Some(l0),
+        station: 0x1000,
+        ..SlaveSpec::default()
+    });
+    Network::new(&sc).unwrap()
+}
+
+/// Starts SYNC0 at `start` with a 1 ms cycle.
+fn start_sync0(net: &mut Network, start: u64) {
+    let t = wr(net, 0, 0x09A0, &1_000_000u32.to_le_bytes());
+    let t = wr(net, t, 0x0990, &start.to_le_bytes());
+    let _ = wr(net, t, 0x0981, &[0x03]);
+}
+
+/// REQ-ESC-075, REQ-ESC-076: a pulse whose time the local copy steps over exactly at the end
+/// of one of the clock's linear pieces fires there, and the cycle goes on. Without drift the
+/// local copy steps from L0 + 100 ms − 10 to L0 + 100 ms at true time 100 ms, the first piece
+/// boundary; the pulses sit 3 ns before the 10 ns grid, so that step passes over one.
+#[test]
+fn pulse_stepped_over_at_a_piece_boundary_fires() {
+    let mut net = one_slave_in_pieces(0.0, L0);
+    let start = L0 + 20_000_000 - 3;
+    start_sync0(&mut net, start);
+    net.advance_to(250_000_000).unwrap();
+    let e = net.take_sync_edges();
+    assert_eq!(e.len(), 231, "last edge at {:?}", e.last());
+    for (k, edge) in e.iter().enumerate() {
+        assert_eq!(edge.system_time, start + k as u64 * 1_000_000);
+        // Reached on the next 10 ns tick.
+        assert_eq!(edge.true_time, edge.system_time + 3 - L0);
+    }
+    let (next, _) = rd(&mut net, 250_000_000, 0x0990, 8);
+    assert_eq!(u64_of(&next), start + 231_000_000);
+}
+
+/// The same with drifting crystals: pulses are programmed 1..=9 ns below the value the local
+/// copy shows at the piece boundary (read on an identical twin network). Whether that value
+/// is first shown at the boundary depends on where the 10 ns ticks fall; the sweep includes
+/// cases where it is (checked), and in every case each pulse up to the end fires exactly once.
+#[test]
+fn drifting_pulse_stepped_over_at_a_piece_boundary_fires() {
+    let mut at_boundary = 0;
+    for i in 0..40u32 {
+        let ppm = -50.0 + 2.5 * f64::from(i) + 0.0137 * f64::from(i * i);
+        let mut twin = one_slave_in_pieces(ppm, L0);
+        let before = twin.clock(0, PIECE_NS - 1).unwrap().system_time.unwrap();
+        let shown = twin.clock(0, PIECE_NS).unwrap().system_time.unwrap();
+        let below = 1 + u64::from(i % 9);
+        let target = shown - below;
+        let stepped_at_boundary = before < target;
+
+        let mut net = one_slave_in_pieces(ppm, L0);
+        let start = target - 80_000_000;
+        start_sync0(&mut net, start);
+        net.advance_to(250_000_000).unwrap();
+        let end = net.clock(0, 250_000_000).unwrap().system_time.unwrap();
+        let e = net.take_sync_edges();
+        let want = (end - start) / 1_000_000 + 1;
+        assert_eq!(e.len() as u64, want, "ppm {ppm}: last edge {:?}", e.last());
+        for (k, edge) in e.iter().enumerate() {
+            assert_eq!(edge.system_time, start + k as u64 * 1_000_000, "ppm {ppm}");
+        }
+        let hit = e.iter().find(|x| x.system_time == target).expect("pulse");
+        if stepped_at_boundary {
+            at_boundary += 1;
+            assert_eq!(hit.true_time, PIECE_NS, "ppm {ppm}");
+        } else {
+            assert!(hit.true_time < PIECE_NS, "ppm {ppm}: {hit:?}");
+        }
+    }
+    assert!(
+        at_boundary > 0,
+        "the sweep never stepped over a pulse at the boundary"
+    );
+}
+
 /// REQ-ESC-077: SYNC1 mirrors SYNC0 (cycle 0), follows each SYNC0 by its cycle, or with a
 /// cycle that is a multiple of SYNC0's, fires every n-th cycle.
 #[test]

@@ -38,12 +38,7 @@ fn default_scenario_short_run_reports_four_schemes() {
         }
         assert!(s["error"].is_null(), "{name} stopped: {}", s["error"]);
         assert_eq!(s["slaves"].as_array().unwrap().len(), 6);
-        // Skew measured on real pulses, finite. seed000's reference stops firing SYNC0 on this
-        // line (an open emulator issue, reproduced by the ignored test
-        // `seed000_reference_keeps_firing_on_the_calibrated_line`), so it has no pairs here.
-        if name == "seed000" {
-            continue;
-        }
+        // Skew measured on real pulses, finite.
         assert!(s["skew_samples"].as_u64().unwrap() > 100, "{name}");
         for key in ["skew_mean_ns", "skew_p99_ns", "skew_max_ns"] {
             let v = s[key]
@@ -99,8 +94,13 @@ fn default_scenario_short_run_reports_four_schemes() {
         json["paper"]["table2_delays_ns"],
         serde_json::json!([105, 206, 310, 410, 520])
     );
-    // skew ratios are ecdc ÷ seed000, null while seed000 has no pairs here (see above).
-    assert!(json["ratios"].get("skew_mean").is_some());
+    // skew ratios are ecdc ÷ seed000.
+    for key in ["skew_mean", "skew_p99", "skew_max"] {
+        let v = json["ratios"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("ratios.{key} null"));
+        assert!(v.is_finite() && v > 0.0, "ratios.{key} = {v}");
+    }
     assert!(json["ratios"]["lock_ms"].as_f64().is_some());
 
     // ecdc locks (true time) and its skew is in the tens of ns at most.
@@ -297,12 +297,11 @@ fn eq23_erratum_adds_t_diff_to_the_last_slave() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Open emulator issue: on seed 000's calibrated line the derived seed 000 scheme's reference
-/// (slave 1) stops firing SYNC0 about 260 ms after its start while the other slaves go on, the
-/// symptom docs/bench.md reports for seed000 on the 512-slave line. Fails today; run with
-/// `--ignored` once the emulator is fixed.
+/// On seed 000's calibrated line the derived seed 000 scheme's reference (slave 1) keeps firing
+/// SYNC0 to the end like the other slaves. The cyclic FPWR to its 0x0910 steers its clock to
+/// the master's time, so its pulses come due close to the emulated clock's piece boundaries
+/// (every 100 ms of true time): the case of emu_sync.rs's piece-boundary tests.
 #[test]
-#[ignore = "open emulator issue: the reference's SYNC0 stops under seed000's cyclic FPWR"]
 fn seed000_reference_keeps_firing_on_the_calibrated_line() {
     let (_, recs) = simulate(&short(800)).expect("simulate");
     let r = record(&recs, "seed000");
@@ -318,5 +317,14 @@ fn seed000_reference_keeps_firing_on_the_calibrated_line() {
     assert!(
         reference + 2_000_000 >= other,
         "reference stopped at {reference} ns, slave 2 fired until {other} ns"
+    );
+    // Every slave fires as many pulses as the others (±1 for the edge of the run).
+    let counts: Vec<usize> = (0..6)
+        .map(|i| r.sync0.iter().filter(|e| e.slave == i).count())
+        .collect();
+    let (lo, hi) = (counts.iter().min().unwrap(), counts.iter().max().unwrap());
+    assert!(
+        *lo > 0 && hi - lo <= 1,
+        "SYNC0 pulses per slave: {counts:?}"
     );
 }

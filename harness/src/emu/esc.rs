@@ -301,7 +301,7 @@ impl Esc {
         loop {
             let local = self.osc.local_wide();
             let sys = (local as u64).wrapping_add(off) & mask;
-            let Some((sig, d)) = self.sync.next_due(&self.regs, sys) else {
+            let Some((_, d)) = self.sync.next_due(&self.regs, sys) else {
                 break;
             };
             // Cheap bound first: most calls ask about a pulse well after `until` (REQ-ESC-101:
@@ -313,19 +313,33 @@ impl Esc {
                 self.quiet_until = self.osc.anchor().saturating_add(slack - slack / 100);
                 break;
             }
-            match self.osc.time_to_advance_from(d, local) {
-                Some(te) if te <= until => {
-                    self.osc.advance(te);
-                    self.fire(sig, te, edges);
+            // Where to move next: to the pulse if it is reached before `until`, else to
+            // `until`, never past the end of the clock's current linear piece (the inversion
+            // works inside one piece).
+            let to = match self.osc.time_to_advance_from(d, local) {
+                Some(te) if te <= until => te,
+                Some(_) => until,
+                None => self.osc.piece_end().min(until),
+            };
+            self.osc.advance(to);
+            // REQ-ESC-075: a pulse fires when the local copy *reaches* its time, and the local
+            // copy moves in steps (10 ns ticks, ±1 ns loop corrections). Every pulse this move
+            // passed over fires now, measured from the system time before the move: a search
+            // from after it would see a passed pulse a whole wrap away (never, on a 64-bit DC)
+            // and the unit would stop. A tick that falls exactly on a piece end is such a
+            // case: the inversion in the old piece ends just before it, the new piece starts
+            // after it.
+            let stepped = u64::try_from(self.osc.local_wide() - local).unwrap_or(0);
+            let mut fired = false;
+            while let Some((sig, d)) = self.sync.next_due(&self.regs, sys) {
+                if d > stepped {
+                    break;
                 }
-                Some(_) => break,
-                None => {
-                    let pe = self.osc.piece_end();
-                    if pe > until {
-                        break;
-                    }
-                    self.osc.advance(pe);
-                }
+                self.fire(sig, to, edges);
+                fired = true;
+            }
+            if to == until && !fired {
+                break;
             }
         }
         self.osc.advance(until);

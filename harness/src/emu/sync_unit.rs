@@ -4,7 +4,9 @@
 //! REQ-ESC-070..REQ-ESC-079.
 //!
 //! Comparison rule (an inference, docs/background/esc-registers.md §3.5): a pulse fires when the local copy of system
-//! time *reaches* the programmed value, i.e. after the modular distance (X − now) mod 2^width.
+//! time *reaches* the programmed value, i.e. after the modular distance (X − now) mod 2^width;
+//! a step of the local copy that passes over X reaches it (the ESC fires every pulse a move of
+//! its clock passes over, `Esc::run_until_pulses`).
 //! A start time already in the past therefore fires only after the counter wraps round to it
 //! (≈ 4.3 s on a 32-bit DC, never on a 64-bit DC) unless the plausibility check (0x0981 bit 5)
 //! is enabled, which fires at once and sets 0x0984 bit 2.
