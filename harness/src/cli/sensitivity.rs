@@ -372,6 +372,12 @@ pub fn markdown_report(rep: &SensitivityReport) -> String {
             bad.join(", ")
         }
     ));
+    if !bad.is_empty() {
+        out.push_str(
+            "Why, cell by cell: [docs/bench.md](../../docs/bench.md), section \
+             \"`ecdc bench sensitivity`\".\n",
+        );
+    }
     out.push_str("\n![sensitivity: mean |skew| per scheme along each axis](sensitivity.svg)\n");
     out
 }
