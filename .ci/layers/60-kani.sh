@@ -3,7 +3,9 @@
 # setup` makes every later `cargo kani` fail at once. So: look for an installed driver first
 # (without running cargo-kani, which would try to set itself up), and only then run it.
 # Here it reports "skipped", never "passed"; users run .github/workflows/kani.yml.
-kani_harnesses=$(grep -rhoE 'kani::proof\b' proofs/src core/src 2>/dev/null | wc -l)
+# Count harness attributes (`#[kani::proof]` or `#[cfg_attr(kani, kani::proof)]` at the start of
+# a line), not every mention of the word in comments.
+kani_harnesses=$(grep -rhE '^[[:space:]]*#\[(cfg_attr\(kani, *)?kani::proof\)?\]' proofs/src core/src 2>/dev/null | wc -l)
 kani_driver=""
 for d in "$HOME"/.kani/kani-*/bin/kani-driver "$HOME"/.kani/kani-*/bin/kani-compiler; do
     [ -x "$d" ] && kani_driver="$d" && break
