@@ -798,6 +798,30 @@ pub unsafe extern "C" fn ecdc_poll_transmit_into(
     }
 }
 
+/// The getters with an optional result: `get`'s value into `*out` and true, or false (with
+/// `*out` untouched) when `out` is NULL, `m` is invalid or there is no value.
+///
+/// # Safety
+/// As [`ecdc_start`]; `out` is NULL or writable.
+unsafe fn optional_out<T>(
+    m: *const ecdc_machine,
+    out: *mut T,
+    get: impl FnOnce(&dyn Api) -> Option<T>,
+) -> bool {
+    if out.is_null() {
+        return false;
+    }
+    // SAFETY: forwarded contract.
+    match unsafe { with_ref(m, |_| None, get) } {
+        Some(v) => {
+            // SAFETY: non-null, writable (contract).
+            unsafe { out.write(v) };
+            true
+        }
+        None => false,
+    }
+}
+
 /// When `ecdc_handle_timeout` should be called next: true and `*deadline_ns` set, or false
 /// when nothing is scheduled (or `m` is invalid).
 ///
@@ -805,18 +829,8 @@ pub unsafe extern "C" fn ecdc_poll_transmit_into(
 /// As [`ecdc_start`]; `deadline_ns` is NULL or writable.
 #[no_mangle]
 pub unsafe extern "C" fn ecdc_poll_timeout(m: *const ecdc_machine, deadline_ns: *mut u64) -> bool {
-    if deadline_ns.is_null() {
-        return false;
-    }
     // SAFETY: forwarded contract.
-    match unsafe { with_ref(m, |_| None, |a| a.poll_timeout()) } {
-        Some(t) => {
-            // SAFETY: non-null, writable (contract).
-            unsafe { deadline_ns.write(t) };
-            true
-        }
-        None => false,
-    }
+    unsafe { optional_out(m, deadline_ns, |a| a.poll_timeout()) }
 }
 
 /// Next event into `*out`: true, or false (and `out->kind = ECDC_EVENT_NONE`) when the queue
@@ -937,18 +951,8 @@ pub unsafe extern "C" fn ecdc_is_awaiting_reply(m: *const ecdc_machine) -> bool 
 /// As [`ecdc_start`]; `out` is NULL or writable.
 #[no_mangle]
 pub unsafe extern "C" fn ecdc_diff_bound_ns(m: *const ecdc_machine, out: *mut u32) -> bool {
-    if out.is_null() {
-        return false;
-    }
     // SAFETY: forwarded contract.
-    match unsafe { with_ref(m, |_| None, |a| a.diff_bound_ns()) } {
-        Some(v) => {
-            // SAFETY: non-null, writable (contract).
-            unsafe { out.write(v) };
-            true
-        }
-        None => false,
-    }
+    unsafe { optional_out(m, out, |a| a.diff_bound_ns()) }
 }
 
 /// Reference system time returned by the last cyclic FRMW (ns since 2000-01-01): true and
@@ -958,18 +962,8 @@ pub unsafe extern "C" fn ecdc_diff_bound_ns(m: *const ecdc_machine, out: *mut u3
 /// As [`ecdc_start`]; `out` is NULL or writable.
 #[no_mangle]
 pub unsafe extern "C" fn ecdc_reference_time(m: *const ecdc_machine, out: *mut u64) -> bool {
-    if out.is_null() {
-        return false;
-    }
     // SAFETY: forwarded contract.
-    match unsafe { with_ref(m, |_| None, |a| a.reference_time()) } {
-        Some(v) => {
-            // SAFETY: non-null, writable (contract).
-            unsafe { out.write(v) };
-            true
-        }
-        None => false,
-    }
+    unsafe { optional_out(m, out, |a| a.reference_time()) }
 }
 
 /// Copies the counters into `*out`.
