@@ -22,38 +22,10 @@ if [ "${1:-}" = "--bench" ]; then
     shift
 fi
 
-skip() { echo "SKIP: $*"; exit 77; }
-fail() { echo "FAIL: $*"; exit 1; }
-
-[ "$(id -u)" = 0 ] || skip "needs root to create network namespaces (run: sudo $0)"
-command -v ip >/dev/null 2>&1 || skip "iproute2 'ip' not installed"
+# shellcheck source=scripts/netns-pair.sh
+source scripts/netns-pair.sh
 command -v jq >/dev/null 2>&1 || skip "jq not installed (needed to check the JSON summaries)"
-
-SUFFIX="$$"
-NS_M="ecdc-m-$SUFFIX"
-NS_S="ecdc-s-$SUFFIX"
-WORK="$(mktemp -d /tmp/ecdc-netns.XXXXXX)"
-PIDS=()
-
-cleanup() {
-    for p in "${PIDS[@]:-}"; do
-        [ -n "$p" ] && kill -TERM "$p" 2>/dev/null
-    done
-    for p in "${PIDS[@]:-}"; do
-        [ -n "$p" ] && wait "$p" 2>/dev/null
-    done
-    ip netns del "$NS_M" 2>/dev/null
-    ip netns del "$NS_S" 2>/dev/null
-    rm -rf "$WORK"
-}
-trap cleanup EXIT
-trap 'exit 130' INT TERM
-
-ip netns add "$NS_M" 2>/dev/null || skip "cannot create network namespaces (no netns support or not permitted)"
-ip netns add "$NS_S" || fail "creating namespace $NS_S"
-ip link add ecm0 netns "$NS_M" type veth peer name ecs0 netns "$NS_S" 2>/dev/null \
-    || skip "cannot create a veth pair (veth module missing?)"
-ip -n "$NS_S" link set ecs0 up || fail "bringing ecs0 up"
+netns_pair ""
 # ecm0 is deliberately left down: `ecdc` must bring it up itself (the usable-state check).
 
 ECDC="${1:-}"
