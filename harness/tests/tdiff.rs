@@ -336,3 +336,44 @@ fn restart_while_closed_restores_the_port_first() {
         .iter()
         .any(|(_, e)| matches!(e, Event::SlavesFound { count: 5, .. })));
 }
+
+/// REQ-DC-121: one frame per latch round. On seed 000's 6-slave line (every read step fits one
+/// frame) the step is the TdiffRead frame, the first read with the first trigger, one frame per
+/// all-open round, and per target its close, its first trigger, one frame per closed round and
+/// its restore. A two-slave line has no target and stops after the first all-open latch.
+#[test]
+fn one_frame_per_round() {
+    // verifies: REQ-DC-121
+    let frames = |sc: &Scenario| {
+        let cfg = nothing_told();
+        let mut s = sim::<16>(sc, cfg);
+        let mut start = None;
+        loop {
+            let st = s.machine.state();
+            if start.is_none() && st == ecdc_core::dc::State::TdiffRead {
+                start = Some(s.stats().sent);
+            }
+            if st == ecdc_core::dc::State::LatchReadBefore {
+                break;
+            }
+            assert!(s.step().unwrap(), "machine stopped");
+        }
+        let targets = s
+            .machine
+            .slaves()
+            .iter()
+            .filter(|x| x.t_diff_source == TdiffSource::Measured)
+            .count() as u64;
+        (s.stats().sent - start.unwrap(), targets, cfg.tdiff)
+    };
+    let (sent, targets, t) = frames(&Scenario::line(6));
+    assert_eq!(targets, 4);
+    let want = 2 + u64::from(t.base_rounds) + targets * (u64::from(t.rounds) + 3);
+    assert_eq!(sent, want, "frames of the t_Diff step on line(6)");
+    let (sent, targets, _) = frames(&Scenario::line(2));
+    assert_eq!(
+        (sent, targets),
+        (3, 0),
+        "line(2): read, first latch, its read"
+    );
+}

@@ -333,15 +333,17 @@ pub struct TdiffType {
 pub struct TdiffConfig {
     /// What is measured. Default [`TdiffMode::PerSlave`].
     pub mode: TdiffMode,
-    /// Latches averaged with the target's downstream ports closed, per measured slave (2
-    /// frames each, plus the close and the restore). ecdc choice: 64. The result combines
+    /// Latches averaged with the target's downstream ports closed, per measured slave (one
+    /// frame each: a latch's read shares its frame with the next latch's trigger; plus the
+    /// close, the first trigger and the restore). ecdc choice: 64. The result combines
     /// three differences of 10 ns-quantised stamps with PHY jitter (about 4–5 ns standard
     /// deviation each for one latch). On the emulated 512-slave line (seed 7) 16 closed
     /// rounds left 10 of 510 slaves 6–7 ns off, 32 left one at −6 ns, 64 kept all within
-    /// ±3 ns (harness/tests/tdiff.rs, target ±5 ns). Cost: 130 frames per measured slave, so
+    /// ±3 ns (harness/tests/tdiff.rs, target ±5 ns). Cost: 67 frames per measured slave, so
     /// on long lines [`TdiffMode::PerEscType`] is much cheaper.
     pub rounds: u8,
-    /// All-open latches, shared by every measured slave (2 frames each). ecdc choice: 64: they
+    /// All-open latches, shared by every measured slave (one read step each, its last frame
+    /// carrying the next trigger). ecdc choice: 64: they
     /// are paid once per bring-up, so they are made long enough that their share of the
     /// noise is no larger than that of the closed rounds.
     pub base_rounds: u8,

@@ -7,7 +7,9 @@
 //!                      │      TdiffRead ─(mode Off, or a slave running)────────────┐
 //!                      │          ▼                                                │
 //!                      │     TdiffLatch ◀─▶ TdiffTrigger ◀── TdiffClose ◀─┐        │
-//!                      │  (all-open rounds, then per target closed rounds) │        │
+//!                      │  (all-open rounds, then per target closed rounds; │        │
+//!                      │   TdiffLatch ⟲ while its last frame carries the   │        │
+//!                      │   next round's trigger)                           │        │
 //!                      │          ▼                                        │        │
 //!                      │     TdiffRestore ──(next target)──────────────────┘        │
 //!                      │          │ (no target left; TdiffLatch too if none at all) │
@@ -49,7 +51,8 @@ pub enum State {
     /// t_Diff target (REQ-DC-120, REQ-DC-123).
     TdiffRead,
     /// FPRD 0x0900..0x090F: the port times of a t_Diff latch (every DC slave with all ports
-    /// open; only the upstream DC slave while a target is closed).
+    /// open; only the upstream DC slave while a target is closed), followed by the BWR of
+    /// the next latch when one of the same kind follows (one frame per round).
     TdiffLatch,
     /// BWR 0x0900 of a t_Diff latch; slaves behind a closed port do not count (REQ-DC-125).
     TdiffTrigger,
@@ -143,6 +146,7 @@ impl State {
                 | (ProbeSystemTime, TdiffRead)
                 | (TdiffRead, TdiffLatch)
                 | (TdiffRead, LatchReadBefore)
+                | (TdiffLatch, TdiffLatch)
                 | (TdiffLatch, TdiffTrigger)
                 | (TdiffLatch, TdiffClose)
                 | (TdiffLatch, TdiffRestore)

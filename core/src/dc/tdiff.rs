@@ -271,7 +271,7 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn tdiff_count(&self) -> u16 {
         match self.state {
             State::TdiffRead => self.count.saturating_mul(3),
-            State::TdiffLatch => self.count,
+            State::TdiffLatch => self.count.saturating_add(u16::from(self.tdiff_chained())),
             State::TdiffTrigger | State::TdiffClose | State::TdiffRestore => 1,
             _ => 0,
         }
@@ -291,6 +291,7 @@ impl<const N: usize> Machine<N> {
                         .then_some(Work::ReadDlControl(pos)),
                 }
             }
+            State::TdiffLatch if i == self.count => self.tdiff_chained().then_some(Work::Trigger),
             State::TdiffLatch => {
                 let s = self.slave(i)?;
                 match self.tdiff.phase {
@@ -349,6 +350,24 @@ impl<const N: usize> Machine<N> {
             }
         };
         Item::Send(op)
+    }
+
+    /// Whether the read step of the current latch also carries the trigger of the next one
+    /// (last in the step, so in its last frame): the next latch is of the same kind (all ports
+    /// open, or the same target closed). Every read of a frame comes before its trigger, and a
+    /// read sees the registers as the previous latch left them: an ESC stamps port 0 and its
+    /// EPU at the start of the frame but shows them only once the write to 0x0900 has been
+    /// processed, and the other ports only when the frame comes back through them (Beckhoff
+    /// ESC datasheet section I, propagation delay measurement). So one frame per round instead
+    /// of two; the check that every stamp changed (REQ-DC-124) still catches a latch that did
+    /// not happen.
+    fn tdiff_chained(&self) -> bool {
+        let c = self.tdiff_cfg();
+        match self.tdiff.phase {
+            Phase::Pre => true,
+            Phase::Base { round } => round.saturating_add(1) < c.base_rounds,
+            Phase::Closed { round, .. } => round.saturating_add(1) < c.rounds,
+        }
     }
 
     /// Slaves (all, latching) that the current trigger can reach.
@@ -521,11 +540,17 @@ impl<const N: usize> Machine<N> {
             Phase::Pre => {
                 self.tdiff.prev = self.tdiff.cur;
                 self.tdiff.phase = Phase::Base { round: 0 };
-                Ok(State::TdiffTrigger)
+                // The read step carried the first trigger (`tdiff_chained`).
+                Ok(State::TdiffLatch)
             }
             Phase::Base { round } => {
                 if round == 0 {
                     self.tdiff_plan()?;
+                    if self.tdiff.next_target(0).is_none() {
+                        // Nothing to measure (e.g. a two-slave line: the first DC slave and a
+                        // line end): the remaining all-open rounds would serve no target.
+                        return Ok(self.tdiff_finish());
+                    }
                 }
                 for b in self.positions() {
                     let Plan::Measure {
@@ -568,7 +593,7 @@ impl<const N: usize> Machine<N> {
                 let next = round.saturating_add(1);
                 if next < base_rounds {
                     self.tdiff.phase = Phase::Base { round: next };
-                    return Ok(State::TdiffTrigger);
+                    return Ok(State::TdiffLatch);
                 }
                 self.tdiff_rate_correct();
                 Ok(self.tdiff_next(0))
@@ -594,7 +619,7 @@ impl<const N: usize> Machine<N> {
                         target,
                         round: next,
                     };
-                    return Ok(State::TdiffTrigger);
+                    return Ok(State::TdiffLatch);
                 }
                 Ok(State::TdiffRestore)
             }
