@@ -601,11 +601,11 @@ typedef struct ecdc_config {
    */
   uint8_t tdiff_mode;
   /**
-   * Latches per closed-port measurement. Default 64.
+   * Latches per closed-port measurement. Default 48.
    */
   uint8_t tdiff_rounds;
   /**
-   * Latches with every port open, the measurement's baseline. Default 64.
+   * Latches with every port open, the measurement's baseline. Default 128.
    */
   uint8_t tdiff_base_rounds;
   /**

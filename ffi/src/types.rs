@@ -199,9 +199,9 @@ pub struct ecdc_config {
     pub restart_delay_ns: u64,
     /// t_Diff measurement mode (`ecdc_tdiff_mode`). Default per slave.
     pub tdiff_mode: u8,
-    /// Latches per closed-port measurement. Default 64.
+    /// Latches per closed-port measurement. Default 48.
     pub tdiff_rounds: u8,
-    /// Latches with every port open, the measurement's baseline. Default 64.
+    /// Latches with every port open, the measurement's baseline. Default 128.
     pub tdiff_base_rounds: u8,
     /// Reserved, keep 0.
     pub tdiff_reserved: u8,
