@@ -485,7 +485,7 @@ typedef struct ecdc_config {
    */
   uint16_t filter_depths;
   /**
-   * Value written to 0x0930 (speed counter start). Default 0x1000.
+   * Value written to 0x0930 (speed counter start). Default 0x0C00.
    */
   uint16_t speed_counter_start;
   /**

@@ -141,7 +141,7 @@ pub struct ecdc_config {
     pub max_delay_ns: u32,
     /// Value written to 0x0934 (filter depths). Default 0x0C00.
     pub filter_depths: u16,
-    /// Value written to 0x0930 (speed counter start). Default 0x1000.
+    /// Value written to 0x0930 (speed counter start). Default 0x0C00.
     pub speed_counter_start: u16,
     /// Static drift: FRMW frames per burst. Default 20.
     pub drift_burst_frames: u16,

@@ -351,7 +351,7 @@ fn frequency_step_loses_and_regains_lock() {
 
 #[test]
 fn out_of_range_crystal_fails_the_gate_with_a_report() {
-    // 2 000 ppm is beyond what the ESC loop can compensate (~760 ppm at 0x0930 = 0x1000).
+    // 2 000 ppm is beyond what the ESC loop can compensate (~760 ppm at 0x0930 = 0x0C00 or 0x1000).
     let mut sc = Scenario::line(4);
     sc.slaves = vec![
         ecdc_harness::emu::SlaveSpec {

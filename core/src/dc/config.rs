@@ -199,8 +199,17 @@ pub struct Config {
     /// Value written to 0x0934 (2 bytes: 0x0934 system-time-difference filter depth, 0x0935
     /// speed-counter filter depth) before the loop reset. 0x0C00 as SOEM, ethercrab, KickCAT.
     pub filter_depths: u16,
-    /// Value written to 0x0930 (speed counter start) to reset the loop; 0x1000 is the reset
-    /// value (DS S2-76) and what IgH writes after an offset change.
+    /// Value written to 0x0930 (speed counter start) to reset the loop. ecdc choice: 0x0C00,
+    /// below the reset value 0x1000 (DS S2-76) that IgH writes. The loop's output is the
+    /// speed counter diff D (0x0932), and the rate one D step buys grows as 1/S² (DS-II
+    /// Tab.105), so with the same loop law a smaller S is a wider bandwidth, as the datasheet
+    /// describes 0x0930: a ±50 ppm crystal needs D ≈ 1667 of 2945 at 0x0C00 against 2560 of
+    /// 3969 at 0x1000, and the loop gets there sooner. The price is the resolution, 0.021
+    /// instead of 0.012 ppm per LSB (21 ps per ms), far below the 10 ns tick; the compensable
+    /// range stays ≈ ±760 ppm (docs/background/esc-registers.md §4.2a). On the emulator
+    /// (whose loop law is a model choice) seed 000's line locks about 3× sooner with the same
+    /// skew; docs/simulate.md has the per-seed figures, including the scenarios where it is
+    /// slower. Write 0x1000 to keep the reset value.
     pub speed_counter_start: u16,
     /// Static drift compensation.
     pub drift: DriftConfig,
@@ -230,7 +239,7 @@ impl Default for Config {
             t_diff_ns: 0,
             max_delay_ns: 1_000_000,
             filter_depths: 0x0C00,
-            speed_counter_start: 0x1000,
+            speed_counter_start: 0x0C00,
             drift: DriftConfig::default(),
             drift_command: DriftCommand::Frmw,
             sync: Some(SyncConfig::default()),
