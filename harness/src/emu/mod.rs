@@ -58,6 +58,7 @@ pub mod registers;
 pub mod scenario;
 pub mod sync_unit;
 pub mod topology;
+pub mod yardstick;
 
 pub use control_loop::LoopGains;
 pub use esc::SyncEdge;
