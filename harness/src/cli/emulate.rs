@@ -48,7 +48,7 @@ pub struct Args {
     /// Stop after this many seconds, > 0 (default: until Ctrl-C / SIGTERM).
     #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
-    /// Print a line per second with frame counters.
+    /// Print a line per second with frame counters and the DC yardstick so far.
     #[arg(long)]
     pub stats: bool,
     /// Print the summary as JSON on stdout.
