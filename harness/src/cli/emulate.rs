@@ -172,7 +172,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             summary.turnaround
         );
         if let Some(sync) = &report.sync {
-            println!("emulate:{}", sync_line(sync));
+            println!("emulate: {}", sync_line(sync).trim_start_matches("; "));
         }
     }
     Ok(())
