@@ -486,6 +486,8 @@ pub struct Yardstick {
     block_ns: u64,
     blocks: Vec<Block>,
     sys: Vec<Option<u64>>,
+    /// Scratch for the pairs one edge completes (kept to avoid an allocation per edge).
+    pairs: Vec<Pair>,
 }
 
 impl Yardstick {
@@ -518,6 +520,7 @@ impl Yardstick {
             block_ns: opts.first_block_ns,
             blocks: Vec::new(),
             sys: vec![None; n],
+            pairs: Vec::new(),
             opts,
         }
     }
@@ -598,12 +601,13 @@ impl Yardstick {
             {
                 acc.sync0_edges = acc.sync0_edges.saturating_add(1);
             }
-            let mut pairs: Vec<Pair> = Vec::new();
+            let mut pairs = core::mem::take(&mut self.pairs);
+            pairs.clear();
             self.matcher
                 .push(reference, e.slave, e.system_time, e.true_time, &mut |p| {
                     pairs.push(p)
                 });
-            for p in pairs {
+            for &p in &pairs {
                 if let Some(b) = self.block(p.reference_time) {
                     b.skew.record(p.skew_ns);
                     if let Some(acc) = b.slaves.get_mut(p.slave) {
@@ -611,6 +615,7 @@ impl Yardstick {
                     }
                 }
             }
+            self.pairs = pairs;
             self.end = Some(self.end.map_or(e.true_time, |x| x.max(e.true_time)));
         }
     }
