@@ -63,7 +63,9 @@ measure() {
 }
 
 measure ethercrab env RUST_LOG=warn "$CRAB" ecm0 "$SECONDS_RUN" 1000
-measure ecdc "$ECDC" run --iface ecm0 --cycle-us 1000 --duration "$SECONDS_RUN"
+measure ecdc "$ECDC" run --iface ecm0 --cycle-us 1000 --duration "$SECONDS_RUN" --json
+jq -r '"ecdc run: restarts \(.restarts), frames sent \(.frames.sent) lost \(.frames.lost), cyclic overruns \(.cyclic.overruns), wake max \(.cyclic.wake.max / 1000 | round) us"' \
+    "$WORK/ecdc.out"
 
 echo "== the emulator's yardstick ($SECONDS_RUN s cyclic, 1 ms; emulate ${EMU_ARGS[*]:-(3 slaves, seed 0)}; load average $(cut -d' ' -f1 /proc/loadavg))"
 printf '%-10s %7s %7s %9s %8s %8s %12s %10s %s\n' master firing pairs "mean|.|" "p99|.|" "max|.|" "signed mean" "lock ms" "AL states"
