@@ -1,6 +1,7 @@
 //! The DC yardstick of `ecdc emulate` watching a master in simulated time: on the same run it
 //! must agree with `ecdc simulate`'s measurement (same pulses, same skews, same lock rule),
-//! whoever the master is. Two masters: ecdc's machine and the seed 000 reproduction.
+//! whoever the master is. Masters: ecdc's machine, the seed 000 reproduction, and the
+//! uncompensated baseline that never locks.
 
 use ecdc_harness::emu::yardstick::{Yardstick, YardstickOpts};
 use ecdc_harness::emu::{Network, Scenario};
@@ -158,4 +159,39 @@ fn yardstick_agrees_with_simulate_on_the_seed000_master() {
     let net = Network::new(&sc).unwrap();
     let mut s = Seed000::new(net, 10, CYCLE);
     agree(&mut s, opts(2000));
+}
+
+/// A master that never distributes time: clocks drift apart, neither measurement locks, and
+/// the microsecond skews go through the histogram's log bins (p99 within 1/128).
+#[test]
+fn yardstick_agrees_with_simulate_on_a_master_that_never_locks() {
+    let sc = Scenario::seed000_line();
+    let net = Network::new(&sc).unwrap();
+    let mut s = ecdc_harness::schemes::uncompensated::Uncompensated::new(net, CYCLE);
+    let n = s.net().slave_count();
+    let (y, rec) = watch(&mut s, opts(1500));
+    let sum = summarize(&rec);
+    let rep = y.report();
+    assert_eq!(rep.slaves_firing, n);
+    assert_eq!(sum.lock_ms, None);
+    assert_eq!(rep.lock_ms, None);
+    assert_eq!(y.lock_time(), None);
+    let (start, _) = y.window().expect("window");
+    let mut sorted: Vec<u64> = window_skews_from(&rec, Some(start))
+        .iter()
+        .map(|p| p.1.unsigned_abs())
+        .collect();
+    sorted.sort_unstable();
+    let exact = ecdc_harness::emu::yardstick::percentile(&sorted, 99.0).unwrap();
+    let p99 = rep.skew_p99_ns.unwrap();
+    assert!(
+        exact > 4096,
+        "the skews should be microseconds, p99 {exact}"
+    );
+    assert!(
+        p99 >= exact && p99 - exact <= exact / 128,
+        "{p99} vs {exact}"
+    );
+    assert_eq!(rep.skew_max_ns, sorted.last().copied());
+    assert_eq!(rep.pairs, sorted.len() as u64);
 }
