@@ -768,13 +768,15 @@ impl Yardstick {
     }
 }
 
-/// 0x0981 has bit 0 (cyclic operation) and bit 1 (SYNC0) set.
+/// 0x0981 has bit 0 (cyclic operation) and bit 1 (SYNC0) set
+/// (docs/background/esc-registers.md §3.6).
 pub fn sync0_active(net: &Network, i: usize) -> bool {
     net.esc(i)
         .is_some_and(|e| e.regs().get_u8(addr::SYNC_ACTIVATION) & 0x03 == 0x03)
 }
 
-/// Name of an AL status byte (state in bits 0..3, error indication in bit 4).
+/// Name of an AL status byte (state in bits 0..3, error indication in bit 4;
+/// docs/background/esc-registers.md §3.6).
 pub fn al_state_name(status: u8) -> String {
     let state = match status & 0x0F {
         1 => "INIT".to_string(),
