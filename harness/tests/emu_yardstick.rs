@@ -195,3 +195,41 @@ fn yardstick_agrees_with_simulate_on_a_master_that_never_locks() {
     assert_eq!(rep.skew_max_ns, sorted.last().copied());
     assert_eq!(rep.pairs, sorted.len() as u64);
 }
+
+/// A tree with a 32-bit DC slave, a slave without DC and one with receive times only: pulses
+/// are matched on the low 32 bits, only the slaves with a system time fire, and the yardstick
+/// still measures exactly the pairs simulate's grouping gives over its window.
+#[test]
+fn yardstick_on_a_mixed_tree_counts_only_the_slaves_that_fire() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/tree_mixed.toml");
+    let sc = Scenario::load(path.as_ref()).unwrap();
+    let net = Network::new(&sc).unwrap();
+    let with_system_time = (0..net.slave_count())
+        .filter(|&i| net.slave_info(i).unwrap().kind.has_system_time())
+        .count();
+    let mut s = Ecdc::new(net, ecdc::config(0, CYCLE)).unwrap();
+    let (y, rec) = watch(&mut s, opts(3000));
+    assert!(rec.has_32bit);
+    let rep = y.report();
+    eprintln!("tree_mixed: yardstick {rep:?}");
+    let fired: std::collections::BTreeSet<usize> = rec.sync0.iter().map(|e| e.slave).collect();
+    assert_eq!(rep.slaves_firing, fired.len());
+    assert_eq!(rep.slaves_firing, with_system_time);
+    let (start, _) = y.window().expect("window");
+    let mut sorted: Vec<u64> = window_skews_from(&rec, Some(start))
+        .iter()
+        .map(|p| p.1.unsigned_abs())
+        .collect();
+    sorted.sort_unstable();
+    assert!(!sorted.is_empty());
+    assert_eq!(rep.pairs, sorted.len() as u64);
+    assert_eq!(rep.skew_max_ns, sorted.last().copied());
+    assert_eq!(
+        rep.skew_p99_ns,
+        ecdc_harness::emu::yardstick::percentile(&sorted, 99.0)
+    );
+    let slaves = y.slaves(s.net());
+    for (i, sl) in slaves.iter().enumerate() {
+        assert_eq!(sl.sync0_edges > 0, fired.contains(&i), "slave {i}");
+    }
+}
