@@ -106,6 +106,13 @@ if [ -n "$RECV" ] && [ "$RECV" -le "$SENT" ] && [ $((RECV * 20)) -ge $((SENT * 1
 else
     bad "master received ${RECV:-?} of ${SENT:-?} replies"
 fi
+# The emulator's true-time DC yardstick on the C master (docs/emulator.md "DC yardstick").
+jq -c '.sync' "$WORK/emu.json"
+if jq -e '.sync.slaves_firing == 3 and .sync.lock_ms != null and .sync.skew_max_ns < 100' "$WORK/emu.json" >/dev/null; then
+    ok "emulator yardstick: 3 slaves fire SYNC0, locked, max |skew| $(jq .sync.skew_max_ns "$WORK/emu.json") ns"
+else
+    bad "emulator yardstick: $(jq -c .sync "$WORK/emu.json")"
+fi
 MED=$(field "$WORK/p1.out" rtt_us_median)
 [ -n "$MED" ] && [ "$MED" != "0.0" ] && ok "round trip median $MED us" || bad "no round trip measured"
 

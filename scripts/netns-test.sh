@@ -7,7 +7,8 @@
 #
 # Part 1 (transport): `emulate --engine reflect` + `rtt`: every frame answered, accounting exact.
 # Part 2 (DC): `emulate` (ESC emulator) + `run --duration`: lock reached, frame accounting,
-#   the --pcap capture read back by tshark; 2b: `scan` of a tree scenario.
+#   the --pcap capture read back by tshark, the emulator's true-time DC yardstick (every DC
+#   slave firing, locked, max skew < 100 ns); 2b: `scan` of a tree scenario.
 # Part 3: the errors a user can act on.
 #
 # Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
@@ -154,6 +155,15 @@ if start_emulator esc; then
         check "emulator received and answered every frame the master sent" \
             '.frames.received == $run[0].frames.sent and .frames.answered == $run[0].frames.sent' "$E" --slurpfile run "$R"
         check "pcap holds every frame sent and received" '.pcap_frames == (.frames.sent + .frames.received)' "$R"
+        # The emulator's DC yardstick (docs/emulator.md "DC yardstick"), in true time.
+        jq -c '.sync' "$E"
+        jq -c '[.slaves[] | {station, al_state, sync0_active, skew_max_ns, clock_error_max_abs_ns}]' "$E"
+        check "yardstick: every DC slave fires SYNC0 in the window (all $(jq .slaves "$R") are DC)" \
+            '.sync.slaves_firing == $run[0].slaves and ([.slaves[] | select(.sync0_active)] | length) == $run[0].slaves' \
+            "$E" --slurpfile run "$R"
+        check "yardstick: locked (every firing slave within 100 ns until the end)" '.sync.lock_ms != null' "$E"
+        check "yardstick: SYNC0 skew pairs measured, max |skew| below 100 ns" \
+            '.sync.pairs > 0 and .sync.skew_max_ns != null and .sync.skew_max_ns < 100' "$E"
         if command -v tshark >/dev/null 2>&1; then
             n_pcap=$(tshark -r "$WORK/run.pcap" 2>/dev/null | wc -l)
             n_bad=$(tshark -r "$WORK/run.pcap" -Y '_ws.malformed || !ecat' 2>/dev/null | wc -l)

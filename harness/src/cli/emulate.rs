@@ -7,6 +7,7 @@ use anyhow::Context;
 use super::link_args::{LinkArgs, RtArgs};
 use super::validate;
 use crate::emu::scenario::MAX_SLAVES;
+use crate::emu::yardstick::{SlaveReport, SyncReport, Yardstick, YardstickOpts};
 use crate::emu::{Delivery, Network, Scenario};
 use crate::runtime::clock;
 use crate::runtime::serve::{self, Reflector, Responder, ServeSummary};
@@ -47,7 +48,7 @@ pub struct Args {
     /// Stop after this many seconds, > 0 (default: until Ctrl-C / SIGTERM).
     #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
-    /// Print a line per second with frame counters.
+    /// Print a line per second with frame counters and the DC yardstick so far.
     #[arg(long)]
     pub stats: bool,
     /// Print the summary as JSON on stdout.
@@ -87,22 +88,34 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     // The emulated wire time is a few us: a sleep that short costs a whole wake-up (tens of
     // us on a VM), so spin for it instead.
     let spin = 200_000;
-    let print = |c: &serve::ServeCounters| {
+    let print = |c: &serve::ServeCounters, sync: Option<&SyncReport>| {
         if args.stats {
             eprintln!(
-                "emulate: received {} answered {} already-processed {} dropped {} send-errors {}",
-                c.received, c.answered, c.already_processed, c.dropped, c.send_errors
+                "emulate: received {} answered {} already-processed {} dropped {} send-errors {}{}",
+                c.received,
+                c.answered,
+                c.already_processed,
+                c.dropped,
+                c.send_errors,
+                sync.map(sync_line).unwrap_or_default()
             );
         }
     };
-    let summary: ServeSummary = match args.engine {
+    let report: Report = match args.engine {
         Engine::Reflect => {
             eprintln!(
                 "ecdc emulate: serving 1 reflecting slave on {} ({}); Ctrl-C to stop",
                 args.link.iface,
                 rt.describe()
             );
-            serve::serve(&mut sock, &mut Reflector, stop, until, spin, print)?
+            let s = serve::serve(&mut sock, &mut Reflector, stop, until, spin, |c, _| {
+                print(c, None)
+            })?;
+            Report {
+                serve: s,
+                sync: None,
+                slaves: None,
+            }
         }
         Engine::Esc => {
             let scenario =
@@ -110,27 +123,40 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let net =
                 Network::new(&scenario).map_err(|e| anyhow::anyhow!("emulator scenario: {e}"))?;
             let n = net.slave_count();
+            let yardstick = Yardstick::new(&net, YardstickOpts::default());
             let mut esc = EscResponder {
                 net,
                 mono_start: clock::now_ns(),
                 sync_edges: 0,
+                yardstick,
+                error: None,
             };
             eprintln!(
                 "ecdc emulate: serving {n} emulated ESCs on {} ({}); Ctrl-C to stop",
                 args.link.iface,
                 rt.describe()
             );
-            let s = serve::serve(&mut sock, &mut esc, stop, until, spin, print)?;
+            let s = serve::serve(&mut sock, &mut esc, stop, until, spin, |c, r| {
+                print(c, Some(&r.yardstick.report()))
+            })?;
+            if let Some(e) = &esc.error {
+                eprintln!("emulate: yardstick stopped sampling: {e}");
+            }
             let st = esc.net.stats();
             eprintln!(
                 "emulate: emulator frames {} returned {} lost {}; SYNC edges {}",
                 st.frames, st.returned, st.lost, esc.sync_edges
             );
-            s
+            Report {
+                serve: s,
+                sync: Some(esc.yardstick.report()),
+                slaves: Some(esc.yardstick.slaves(&esc.net)),
+            }
         }
     };
+    let summary = &report.serve;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         let f = &summary.frames;
         println!(
@@ -145,8 +171,41 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             f.send_errors,
             summary.turnaround
         );
+        if let Some(sync) = &report.sync {
+            println!("emulate: {}", sync_line(sync).trim_start_matches("; "));
+        }
     }
     Ok(())
+}
+
+/// What `ecdc emulate` reports: the frame accounting, and with the ESC engine the yardstick
+/// (docs/emulator.md "DC yardstick").
+#[derive(Debug, serde::Serialize)]
+struct Report {
+    #[serde(flatten)]
+    serve: ServeSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sync: Option<SyncReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    slaves: Option<Vec<SlaveReport>>,
+}
+
+/// The yardstick's figures for a `--stats` or summary line.
+fn sync_line(s: &SyncReport) -> String {
+    let ns = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
+    let int = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
+    let lock = match s.lock_ms {
+        Some(ms) => format!("locked {ms:.1} ms after the first SYNC0"),
+        None => "not locked".to_string(),
+    };
+    format!(
+        "; SYNC0 firing {} pairs {} skew mean {} p99 {} max {} ns; {lock}",
+        s.slaves_firing,
+        s.pairs,
+        ns(s.skew_mean_ns),
+        int(s.skew_p99_ns),
+        int(s.skew_max_ns)
+    )
 }
 
 fn load_scenario(args: &Args) -> anyhow::Result<Scenario> {
@@ -174,11 +233,15 @@ fn load_scenario(args: &Args) -> anyhow::Result<Scenario> {
     Ok(sc)
 }
 
-/// The ESC emulator as a [`Responder`]: true time = host monotonic time since start.
+/// The ESC emulator as a [`Responder`]: true time = host monotonic time since start; the
+/// yardstick watches every frame's effects.
 struct EscResponder {
     net: Network,
     mono_start: u64,
     sync_edges: u64,
+    yardstick: Yardstick,
+    /// The first error of the yardstick's clock sampling (it then stops sampling).
+    error: Option<String>,
 }
 
 impl Responder for EscResponder {
@@ -187,7 +250,13 @@ impl Responder for EscResponder {
         let frame = buf.get(..len)?;
         let delivery = self.net.transact(frame, t).ok()?;
         // SYNC edges are logged by the emulator; drain them so a long run does not grow memory.
-        self.sync_edges += self.net.take_sync_edges().len() as u64;
+        let edges = self.net.take_sync_edges();
+        self.sync_edges += edges.len() as u64;
+        if self.error.is_none() {
+            if let Err(e) = self.yardstick.observe(&mut self.net, &edges) {
+                self.error = Some(e.to_string());
+            }
+        }
         match delivery {
             Delivery::Returned(r) => {
                 let out = buf.get_mut(..r.frame.len())?;

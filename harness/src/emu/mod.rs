@@ -41,6 +41,8 @@
 //! - `topology.rs`: tree, cables, time-indexed link and power state.
 //! - `network.rs`: the frame path (0→EPU→3→1→2→0), faults, observers.
 //! - `scenario.rs`, `fault.rs`: the serde description of a run.
+//! - `yardstick.rs`: true-time DC measurement from the observers (skew, lock, clock error),
+//!   shared by `ecdc simulate` and `ecdc emulate`.
 //!
 //! # What is not modelled
 //! See docs/emulator.md §"Not modelled": the latch unit inputs (0x09A8.. registers exist with
@@ -58,6 +60,7 @@ pub mod registers;
 pub mod scenario;
 pub mod sync_unit;
 pub mod topology;
+pub mod yardstick;
 
 pub use control_loop::LoopGains;
 pub use esc::SyncEdge;

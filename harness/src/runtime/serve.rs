@@ -78,14 +78,14 @@ pub struct ServeSummary {
 }
 
 /// Serves until `stop` is raised or `until_ns` (monotonic) passes. `on_second` gets the
-/// counters once a second (for a progress line).
+/// counters and the responder once a second (for a progress line).
 pub fn serve<L: Link, R: Responder>(
     link: &mut L,
     responder: &mut R,
     stop: &AtomicBool,
     until_ns: Option<u64>,
     spin_ns: u64,
-    mut on_second: impl FnMut(&ServeCounters),
+    mut on_second: impl FnMut(&ServeCounters, &R),
 ) -> io::Result<ServeSummary> {
     let mut buf = vec![0u8; 2048];
     let mut turnaround = Histogram::new();
@@ -100,7 +100,7 @@ pub fn serve<L: Link, R: Responder>(
             break;
         }
         if now >= next_line {
-            on_second(&c);
+            on_second(&c, responder);
             next_line = next_line.saturating_add(clock::NS_PER_S);
         }
         // Wake at least every 100 ms to notice the stop flag and the duration.

@@ -87,13 +87,7 @@ impl<const N: usize> EcdcN<N> {
     }
 }
 
-/// Latest instant up to which some slave of `net` has been evaluated.
-pub fn max_anchor(net: &Network) -> TrueTime {
-    (0..net.slave_count())
-        .filter_map(|i| net.esc(i).map(|e| e.anchor()))
-        .max()
-        .unwrap_or(0)
-}
+pub use crate::emu::yardstick::max_anchor;
 
 impl<const N: usize> Scheme for EcdcN<N> {
     fn t_diff_used(&self) -> Option<Vec<(i64, String)>> {

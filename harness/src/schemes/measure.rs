@@ -12,13 +12,15 @@
 //!   master started.
 //! - per slave, over the cycle samples inside the window: 0x092C mean/max/min and the signed
 //!   mean (and max |·|) of the true clock error.
-
-use std::collections::BTreeMap;
+//!
+//! Pulse matching, the skew statistics and the lock rule are [`crate::emu::yardstick`]'s, the
+//! same code `ecdc emulate` measures any master with; this module applies them to a finished
+//! run, whose end (and so the exact window) is known.
 
 use super::run::Record;
+use crate::emu::yardstick::{LockTracker, Moments, PulseMatcher, SkewStats};
 
-/// Lock threshold on the true clock error, ns.
-pub const LOCK_NS: u64 = 100;
+pub use crate::emu::yardstick::{percentile, LOCK_NS};
 
 /// One row of the per-slave table (seed 000 Table 2 layout, one row per slave here).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -89,22 +91,13 @@ pub struct TdiffRow {
     pub source: String,
 }
 
-/// Nearest-rank percentile of sorted values (`p` in 0..=100).
-pub fn percentile(sorted: &[u64], p: f64) -> Option<u64> {
-    if sorted.is_empty() {
-        return None;
-    }
-    let rank = ((p / 100.0) * sorted.len() as f64).ceil() as usize;
-    sorted.get(rank.clamp(1, sorted.len()) - 1).copied()
-}
-
 /// Lock sample index: first index after the last sample that was not within `LOCK_NS`.
 pub fn lock_index(track: &[(u64, u64, Option<u64>)]) -> Option<usize> {
-    let last_bad = track
-        .iter()
-        .rposition(|(_, _, m)| m.is_none_or(|m| m >= LOCK_NS));
-    let idx = last_bad.map_or(0, |b| b + 1);
-    (idx < track.len()).then_some(idx)
+    let mut lock = LockTracker::default();
+    for (i, (_, _, m)) in track.iter().enumerate() {
+        lock.sample(m.is_some_and(|m| m < LOCK_NS), i);
+    }
+    lock.lock()
 }
 
 fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
@@ -118,39 +111,23 @@ pub fn window_start(r: &Record) -> Option<u64> {
     cyclic_start.map(|c| c + (r.end.saturating_sub(c)) / 2)
 }
 
-/// Every (slave, signed skew in ns) pair of the steady-state window, in pulse order (the pairs
-/// the skew statistics are computed over).
+/// Every (slave, signed skew in ns) pair of the steady-state window, in the order the pairs
+/// complete (the pairs the skew statistics are computed over).
 pub fn window_skews(r: &Record) -> Vec<(usize, i64)> {
-    let win_start = window_start(r);
+    window_skews_from(r, window_start(r))
+}
+
+/// The skew pairs whose reference edge lies in `[win_start, end]` (none without a start).
+pub fn window_skews_from(r: &Record, win_start: Option<u64>) -> Vec<(usize, i64)> {
     let in_win = |t: u64| win_start.is_some_and(|w| t >= w && t <= r.end);
-    // With 32-bit slaves a pulse is identified by the low 32 bits of its programmed time
-    // (unique for 2^32 / gcd(cycle, 2^32) cycles: 67 s at 1 ms).
-    let key_mask = if r.has_32bit {
-        u64::from(u32::MAX)
-    } else {
-        u64::MAX
-    };
-    let mut pulses: BTreeMap<u64, Vec<(usize, u64)>> = BTreeMap::new();
-    for e in &r.sync0 {
-        pulses
-            .entry(e.system_time & key_mask)
-            .or_default()
-            .push((e.slave, e.true_time));
-    }
+    let mut matcher = PulseMatcher::new(r.has_32bit);
     let mut out = Vec::new();
-    for edges in pulses.values() {
-        let Some(&(_, tref)) = edges.iter().find(|(s, _)| *s == r.reference) else {
-            continue;
-        };
-        if !in_win(tref) {
-            continue;
-        }
-        for &(s, t) in edges {
-            if s == r.reference {
-                continue;
+    for e in &r.sync0 {
+        matcher.push(r.reference, e.slave, e.system_time, e.true_time, &mut |p| {
+            if in_win(p.reference_time) {
+                out.push((p.slave, p.skew_ns));
             }
-            out.push((s, t as i64 - tref as i64));
-        }
+        });
     }
     out
 }
@@ -162,19 +139,14 @@ pub fn summarize(r: &Record) -> Summary {
     let in_win = |t: u64| win_start.is_some_and(|w| t >= w && t <= r.end);
 
     // Skew per pulse.
-    let mut all: Vec<u64> = Vec::new();
-    let mut signed_sum = 0f64;
-    let mut per_slave: Vec<Vec<u64>> = vec![Vec::new(); r.slaves];
+    let mut all = SkewStats::default();
+    let mut per_slave = vec![Moments::default(); r.slaves];
     for (s, d) in window_skews(r) {
-        signed_sum += d as f64;
-        all.push(d.unsigned_abs());
+        all.record(d);
         if let Some(v) = per_slave.get_mut(s) {
-            v.push(d.unsigned_abs());
+            v.record(d);
         }
     }
-    let skew_mean = mean(all.iter().map(|&x| x as f64));
-    let skew_signed = (!all.is_empty()).then(|| signed_sum / all.len() as f64);
-    all.sort_unstable();
 
     let lock = lock_index(&r.track).and_then(|i| r.track.get(i));
     let distributes = r.dist_frames > 0;
@@ -194,7 +166,7 @@ pub fn summarize(r: &Record) -> Summary {
                 .iter()
                 .filter_map(|&k| r.cyc_err.get(i).and_then(|v| v.get(k)).copied().flatten())
                 .collect();
-            let sk = per_slave.get(i).cloned().unwrap_or_default();
+            let sk = per_slave.get(i).copied().unwrap_or_default();
             SlaveRow {
                 slave: i + 1,
                 reference: i == r.reference,
@@ -205,8 +177,8 @@ pub fn summarize(r: &Record) -> Summary {
                 drift_min_ns: diffs.iter().copied().min(),
                 clock_error_mean_ns: mean(errs.iter().map(|&e| e as f64)),
                 clock_error_max_abs_ns: errs.iter().map(|e| e.unsigned_abs()).max(),
-                skew_mean_ns: mean(sk.iter().map(|&x| x as f64)),
-                skew_max_ns: sk.iter().copied().max(),
+                skew_mean_ns: sk.mean_abs(),
+                skew_max_ns: sk.max_abs(),
             }
         })
         .collect();
@@ -221,11 +193,11 @@ pub fn summarize(r: &Record) -> Summary {
         cyclic_start_ns: cyclic_start,
         window_start_ns: win_start,
         window_end_ns: r.end,
-        skew_samples: all.len(),
-        skew_mean_ns: skew_mean,
-        skew_p99_ns: percentile(&all, 99.0),
-        skew_max_ns: all.last().copied(),
-        skew_signed_mean_ns: skew_signed,
+        skew_samples: usize::try_from(all.count()).unwrap_or(usize::MAX),
+        skew_mean_ns: all.mean_abs(),
+        skew_p99_ns: all.percentile(99.0),
+        skew_max_ns: all.max_abs(),
+        skew_signed_mean_ns: all.signed_mean(),
         slaves,
         t_diff_ns: None,
     }

@@ -10,7 +10,7 @@
 use ecdc_core::wire::register::{reg, SystemTimeDifference};
 
 use super::{Given, Scheme, Written};
-use crate::emu::{SyncSignal, TrueTime};
+use crate::emu::{yardstick, SyncSignal, TrueTime};
 
 /// Timing of a recorded run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -76,15 +76,7 @@ pub struct Record {
     pub given: Given,
 }
 
-/// Clock error `a − b` of two system times: wrapping on 64 bits when both slaves are 64-bit,
-/// otherwise on the low 32 bits (the width a 32-bit slave and its loop work with).
-pub fn clock_error(a: u64, b: u64, both_64bit: bool) -> i64 {
-    if both_64bit {
-        a.wrapping_sub(b) as i64
-    } else {
-        i64::from((a as u32).wrapping_sub(b as u32) as i32)
-    }
-}
+pub use crate::emu::yardstick::clock_error;
 
 /// Drives `s` for `opts.duration_ns`, calling `progress(t)` after each sample.
 pub fn run_scheme(
@@ -92,14 +84,23 @@ pub fn run_scheme(
     opts: RunOpts,
     progress: &mut dyn FnMut(TrueTime),
 ) -> anyhow::Result<Record> {
+    run_scheme_observed(s, opts, progress, &mut |_, _| Ok(()))
+}
+
+/// [`run_scheme`], also handing the network and the SYNC edges of every sample step to
+/// `observe` (after the recorder's own sample), e.g. for a [`crate::emu::yardstick::Yardstick`]
+/// watching the same run.
+pub fn run_scheme_observed(
+    s: &mut dyn Scheme,
+    opts: RunOpts,
+    progress: &mut dyn FnMut(TrueTime),
+    observe: &mut dyn FnMut(
+        &mut crate::emu::Network,
+        &[crate::emu::SyncEdge],
+    ) -> anyhow::Result<()>,
+) -> anyhow::Result<Record> {
     let n = s.net().slave_count();
-    let wide: Vec<bool> = (0..n)
-        .map(|i| {
-            s.net()
-                .slave_info(i)
-                .is_none_or(|x| !x.kind.has_system_time() || x.kind.is_64bit())
-        })
-        .collect();
+    let wide = yardstick::wide_slaves(s.net());
     let mut r = Record {
         name: s.name(),
         given: s.given(),
@@ -122,20 +123,12 @@ pub fn run_scheme(
         }
         let reference = s.reference();
         let net = s.net();
-        let ts = t.max(net.now()).max(super::ecdc::max_anchor(net));
+        let ts = t.max(net.now()).max(yardstick::max_anchor(net));
         for (i, v) in sys.iter_mut().enumerate() {
             *v = net.clock(i, ts)?.system_time;
         }
         let rsys = sys.get(reference).copied().flatten();
-        let rwide = wide.get(reference).copied().unwrap_or(true);
-        let errs: Vec<Option<i64>> = sys
-            .iter()
-            .zip(&wide)
-            .map(|(v, &w)| match (v, rsys) {
-                (Some(a), Some(b)) => Some(clock_error(*a, b, w && rwide)),
-                _ => None,
-            })
-            .collect();
+        let errs = yardstick::clock_errors(&sys, &wide, reference);
         let max_abs = rsys.map(|_| {
             errs.iter()
                 .flatten()
@@ -161,7 +154,8 @@ pub fn run_scheme(
                 r.cyc_diff[i].push(d);
             }
         }
-        for e in s.net().take_sync_edges() {
+        let edges = s.net().take_sync_edges();
+        for e in &edges {
             if e.signal == SyncSignal::Sync0 {
                 r.sync0.push(Edge {
                     system_time: e.system_time,
@@ -170,6 +164,7 @@ pub fn run_scheme(
                 });
             }
         }
+        observe(s.net(), &edges)?;
         r.end = ts;
         progress(t);
     }
@@ -180,19 +175,4 @@ pub fn run_scheme(
     r.dist_frames = s.dist_frames();
     r.frames_lost = s.frames_lost();
     Ok(r)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::clock_error;
-
-    #[test]
-    fn clock_error_is_taken_on_the_narrower_width() {
-        assert_eq!(clock_error(5, 7, true), -2);
-        assert_eq!(clock_error(1 << 40, 0, true), 1 << 40);
-        // A 64-bit slave against a 32-bit reference: only the low halves count.
-        assert_eq!(clock_error((7 << 32) | 10, 4, false), 6);
-        // Across the 32-bit wrap.
-        assert_eq!(clock_error(3, u64::from(u32::MAX) - 2, false), 6);
-    }
 }

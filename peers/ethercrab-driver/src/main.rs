@@ -1,0 +1,144 @@
+//! Drives emulated (or real) slaves with the real ethercrab MainDevice, Distributed Clocks set
+//! up exactly as ethercrab's own documentation of `SubDeviceGroup::configure_dc_sync` and
+//! `tx_rx_dc` shows: `MainDeviceConfig::default()` (10 000 static drift-compensation sync
+//! iterations during init), `set_dc_sync(DcSync::Sync0)` on every SubDevice,
+//! `into_pre_op_pdi`, `configure_dc_sync` (SYNC0 starts 100 ms ahead, period = cycle, process
+//! data half way through the cycle), `request_into_op`, then the DC-aware cyclic call
+//! `tx_rx_dc` waiting `next_cycle_wait` each cycle.
+//!
+//! It measures nothing itself: run it against `ecdc emulate --json`, whose yardstick reports
+//! what the SYNC0 pulses did (scripts/peers-bench.sh).
+//!
+//! Usage: ethercrab-driver IFACE [SECONDS] [CYCLE_US]   (defaults: 10 s, 1000 us)
+
+use std::time::{Duration, Instant};
+
+use ethercrab::{
+    std::ethercat_now,
+    subdevice_group::{CycleInfo, DcConfiguration, TxRxResponse},
+    DcSync, MainDevice, MainDeviceConfig, PduStorage, Timeouts,
+};
+
+const MAX_SUBDEVICES: usize = 16;
+const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
+const MAX_FRAMES: usize = 32;
+const PDI_LEN: usize = 64;
+
+static PDU_STORAGE: PduStorage<MAX_FRAMES, MAX_PDU_DATA> = PduStorage::new();
+
+fn arg<T: std::str::FromStr>(i: usize, default: T) -> Result<T, String> {
+    match std::env::args().nth(i) {
+        None => Ok(default),
+        Some(s) => s
+            .parse()
+            .map_err(|_| format!("argument {i}: cannot parse {s:?}")),
+    }
+}
+
+fn main() {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
+    if let Err(e) = run() {
+        eprintln!("ethercrab-driver: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), String> {
+    let iface: String = std::env::args()
+        .nth(1)
+        .ok_or("usage: ethercrab-driver IFACE [SECONDS] [CYCLE_US]")?;
+    let seconds: f64 = arg(2, 10.0)?;
+    let cycle_us: u64 = arg(3, 1000)?;
+    let cycle_time = Duration::from_micros(cycle_us);
+
+    let (tx, rx, pdu_loop) = PDU_STORAGE
+        .try_split()
+        .map_err(|_| "PDU storage already split")?;
+    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    let task =
+        ethercrab::std::tx_rx_task(&iface, tx, rx).map_err(|e| format!("opening {iface}: {e}"))?;
+    smol::spawn(task).detach();
+
+    smol::block_on(async {
+        let started = Instant::now();
+        let mut group = maindevice
+            .init_single_group::<MAX_SUBDEVICES, PDI_LEN>(ethercat_now)
+            .await
+            .map_err(|e| format!("init: {e}"))?;
+        eprintln!(
+            "ethercrab-driver: {} SubDevices after init ({} ms)",
+            group.len(),
+            started.elapsed().as_millis()
+        );
+        for mut subdevice in group.iter_mut(&maindevice) {
+            subdevice.set_dc_sync(DcSync::Sync0);
+        }
+        let group = group
+            .into_pre_op_pdi(&maindevice)
+            .await
+            .map_err(|e| format!("PRE-OP -> PRE-OP with PDI: {e}"))?
+            .configure_dc_sync(
+                &maindevice,
+                DcConfiguration {
+                    start_delay: Duration::from_millis(100),
+                    sync0_period: cycle_time,
+                    sync0_shift: cycle_time / 2,
+                },
+            )
+            .await
+            .map_err(|e| format!("DC configuration: {e}"))?
+            .request_into_op(&maindevice)
+            .await
+            .map_err(|e| format!("PRE-OP -> SAFE-OP -> OP: {e}"))?;
+
+        // Until every SubDevice is in OP, sending process data so DC can start.
+        let op_request = Instant::now();
+        loop {
+            let now = Instant::now();
+            let response @ TxRxResponse {
+                extra: CycleInfo {
+                    next_cycle_wait, ..
+                },
+                ..
+            } = group
+                .tx_rx_dc(&maindevice)
+                .await
+                .map_err(|e| format!("TX/RX: {e}"))?;
+            if response.all_op() {
+                break;
+            }
+            if op_request.elapsed() > Duration::from_secs(10) {
+                return Err(format!(
+                    "SubDevices not in OP after 10 s: {:?}",
+                    response.group_state()
+                ));
+            }
+            smol::Timer::at(now + next_cycle_wait).await;
+        }
+        eprintln!(
+            "ethercrab-driver: all SubDevices in OP after {} ms ({} ms since start)",
+            op_request.elapsed().as_millis(),
+            started.elapsed().as_millis()
+        );
+
+        // The application cycle.
+        let until = Instant::now() + Duration::from_secs_f64(seconds.max(0.0));
+        let mut cycles = 0u64;
+        while Instant::now() < until {
+            let now = Instant::now();
+            let TxRxResponse {
+                extra: CycleInfo {
+                    next_cycle_wait, ..
+                },
+                ..
+            } = group
+                .tx_rx_dc(&maindevice)
+                .await
+                .map_err(|e| format!("TX/RX: {e}"))?;
+            cycles += 1;
+            smol::Timer::at(now + next_cycle_wait).await;
+        }
+        eprintln!("ethercrab-driver: {cycles} cycles done");
+        Ok(())
+    })
+}
