@@ -519,3 +519,56 @@ fn reload_and_power_cycle_effects() {
     assert_eq!(r.wkc, 1, "station address reset to 0 by the power cycle");
     assert_eq!(u16_of(&r.data), 0x0777);
 }
+
+/// Scenario syntax: device kinds, identity fields, SII timing, image files relative to the
+/// scenario file, and the checks `validate` adds.
+#[test]
+fn scenario_fields_and_validation() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/io_servo.toml");
+    let sc = Scenario::load(&path).unwrap();
+    sc.validate(None).unwrap();
+    let net = Network::new(&sc).unwrap();
+    let ids: Vec<_> = (0..7).map(|i| net.identity(i).unwrap()).collect();
+    assert_eq!(ids[0].name.as_deref(), Some("coupler"));
+    assert_eq!(ids[0].alias, 100);
+    assert_eq!(
+        ids[1..5].iter().map(|i| i.serial).collect::<Vec<_>>(),
+        [1001, 1002, 1003, 1004]
+    );
+    assert!(ids[1..5].iter().all(|i| i.product == 8));
+    assert!(ids[5..]
+        .iter()
+        .all(|i| i.product == 0x402 && i.vendor == 0xECDC));
+    assert_eq!(ids[6].serial, 7, "default serial: position + 1");
+    assert_eq!(
+        net.sii_image(5).unwrap().word(0x19),
+        128,
+        "servo mailbox size"
+    );
+    assert_eq!(net.peek(1, 0x0502, 2).unwrap()[0] & 0x40, 0, "4-byte reads");
+    assert_eq!(net.al_state(3), Some(1));
+
+    // An image file named relative to the scenario file.
+    let img = temp_file("rel.bin", &built_io8_bytes(0x0042));
+    let dir = img.parent().unwrap();
+    std::fs::write(
+        dir.join("rel.toml"),
+        "[[slaves]]\nsii_file = \"rel.bin\"\n[[slaves]]\ndevice = \"io8\"\n",
+    )
+    .unwrap();
+    let sc = Scenario::load(&dir.join("rel.toml")).unwrap();
+    sc.validate(None).unwrap();
+    let net = Network::new(&sc).unwrap();
+    assert_eq!(net.identity(0).unwrap().alias, 0x0042);
+    assert_eq!(net.peek(0, 0x0012, 2).unwrap(), [0x42, 0]);
+
+    let bad = Scenario::from_toml_str("[defaults.sii]\nread_bytes = 6\n[[slaves]]\n").unwrap();
+    assert!(bad
+        .validate(None)
+        .unwrap_err()
+        .to_string()
+        .contains("read_bytes"));
+    assert!(Network::new(&bad).is_err());
+    assert!(Scenario::from_toml_str("[[slaves]]\ndevice = \"robot\"\n").is_err());
+    assert!(Scenario::from_toml_str("[[slaves]]\nsii_typo = 1\n").is_err());
+}
