@@ -75,7 +75,7 @@ fn check(regs: &RegisterFile, sms: &[SmEntry], types: &[(u8, u16)]) -> Option<u1
 }
 
 /// Keeps the SyncManagers the SII lists deactivated from the PDI side unless the state
-/// uses them: mailboxes from PREOP on, process data from SAFEOP on.
+/// uses them: mailboxes from PREOP on, process data from SAFEOP on. REQ-ESC-026.
 pub fn apply_pdi_control(regs: &mut RegisterFile, sms: &[SmEntry], state: u16) {
     for (n, e) in sms.iter().enumerate() {
         let on = match e.typ {
@@ -89,8 +89,8 @@ pub fn apply_pdi_control(regs: &mut RegisterFile, sms: &[SmEntry], state: u16) {
     }
 }
 
-/// Handles a write to AL control. `sms` is the SII's SyncManager category. Returns the new
-/// state. Rules (ETG.1000.6): any state → INIT; INIT → PREOP/BOOT; PREOP → SAFEOP; SAFEOP →
+/// Handles a write to AL control (REQ-ESC-020, SyncManager checks REQ-ESC-025). `sms` is the
+/// SII's SyncManager category. Returns the new state. Rules (ETG.1000.6): any state → INIT; INIT → PREOP/BOOT; PREOP → SAFEOP; SAFEOP →
 /// OP; back from OP/SAFEOP to lower states; BOOT → INIT; requesting the current state is
 /// fine. While the error flag is set, only an acknowledge or a request for a lower state is
 /// acted on: a higher state needs the acknowledge first.

@@ -180,7 +180,7 @@ impl BuildSpec {
         v
     }
 
-    /// The SII image (ETG.2010 layout), CRC included.
+    /// The SII image (ETG.2010 layout), CRC included. REQ-ESC-024.
     pub fn build(&self) -> SiiImage {
         let mut w = vec![0u16; CATEGORY_START_WORD];
         // Word 0: PDI control (0x0140) 0x05 = 32-bit digital I/O (ecdc choice: a PDI with

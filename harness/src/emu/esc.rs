@@ -867,7 +867,7 @@ impl Esc {
     }
 
     /// The application writes its inputs into the input buffer (SAFEOP and OP: inputs are
-    /// valid there, ETG.1000.6).
+    /// valid there, ETG.1000.6). REQ-ESC-027.
     fn present_inputs(&mut self) {
         if !matches!(self.al_state(), al::SAFEOP | al::OP) {
             return;
@@ -879,7 +879,8 @@ impl Esc {
         }
     }
 
-    /// The application takes the outputs the master wrote (OP) or holds the safe state.
+    /// The application takes the outputs the master wrote (OP) or holds the safe state
+    /// (REQ-ESC-027).
     fn take_outputs(&mut self) {
         let out = match (self.al_state(), self.sm_area(sm_type::PD_OUT)) {
             (al::OP, Some((start, len))) => Some(

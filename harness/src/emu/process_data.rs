@@ -17,7 +17,7 @@ use super::al::sm_base;
 use super::registers::RegisterFile;
 use serde::{Deserialize, Serialize};
 
-/// ECAT access rights of process RAM bytes, from the SyncManager registers.
+/// ECAT access rights of process RAM bytes, from the SyncManager registers (REQ-ESC-026).
 #[derive(Debug, Clone, Default)]
 pub struct SmGate {
     /// (first byte, end, ECAT may read, ECAT may write).

@@ -370,7 +370,8 @@ impl Sii {
         v
     }
 
-    /// Power-up (or a reset): the interface is idle, the ESC loads the configuration area.
+    /// Power-up (or a reset): the interface is idle, the ESC loads the configuration area
+    /// (REQ-ESC-023).
     /// Returns it when the CRC is right (else 0x0502 shows the checksum error and "not
     /// loaded", and the registers keep their reset values).
     pub fn power_up(&mut self, regs: &mut RegisterFile) -> Option<ConfigArea> {
@@ -412,7 +413,7 @@ impl Sii {
     }
 
     /// Start of a frame at this ESC: the write-enable bit clears itself (datasheet: "self
-    /// clearing at the SOF of the next frame").
+    /// clearing at the SOF of the next frame"; REQ-ESC-022).
     pub fn on_sof(&mut self, regs: &mut RegisterFile) {
         let c = regs.get_u16(addr::SII_CONTROL);
         if c & ctl::WRITE_ENABLE != 0 {
@@ -422,7 +423,7 @@ impl Sii {
 
     /// Applies the ECAT writes of one datagram to 0x0500..0x050F (`staged[k]` = the byte
     /// written to 0x0500 + k, if any). Returns how long a command started now keeps the
-    /// interface busy; the ESC calls [`Sii::complete`] after that time.
+    /// interface busy; the ESC calls [`Sii::complete`] after that time. REQ-ESC-021/022.
     pub fn ecat_write(
         &mut self,
         staged: &[Option<u8>; 16],
@@ -480,7 +481,7 @@ impl Sii {
     }
 
     /// The running command finishes: data, image or configuration area change, busy and
-    /// the command bits clear.
+    /// the command bits clear (REQ-ESC-022; a reload per REQ-ESC-023).
     pub fn complete(&mut self, regs: &mut RegisterFile) -> Option<Completed> {
         let cmd = self.running.take()?;
         let a = regs.get_u32(addr::SII_ADDRESS);
