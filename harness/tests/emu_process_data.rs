@@ -301,3 +301,42 @@ fn logical_at(net: &mut Network, t: &mut u64, at: u32, len: usize) -> u16 {
     *t = a + 1_000;
     r.wkc
 }
+
+/// REQ-ESC-025 for an image file: the checks follow the file's SyncManager category, including
+/// a buffer in register space where the SII puts it (as digital-output terminals do at
+/// 0x0F00).
+#[test]
+fn checks_follow_an_image_file() {
+    let (net, _) = net_of(&[Device::Io8], false);
+    let mut b = net.sii_image(0).unwrap().to_bytes();
+    // Walk the categories (written here) to the SyncManager one and move SM0 to 0x0F00.
+    let mut i = 0x80;
+    loop {
+        let typ = u16_of(&b[i..]);
+        let len = 2 * usize::from(u16_of(&b[i + 2..]));
+        assert_ne!(typ, 0xFFFF, "no SyncManager category");
+        if typ == 41 {
+            b[i + 4..i + 6].copy_from_slice(&0x0F00u16.to_le_bytes());
+            break;
+        }
+        i += 4 + len;
+    }
+    let dir = std::env::temp_dir().join(format!("ecdc-emu-pd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("io8_0f00.bin");
+    std::fs::write(&path, &b).unwrap();
+    let sc = Scenario::default().ideal().with_slave(SlaveSpec {
+        sii_file: Some(path),
+        ..SlaveSpec::default()
+    });
+    let mut net = Network::new(&sc).unwrap();
+    let mut t = address_all(&mut net, 0);
+    let st = 0x1000;
+    request(&mut net, &mut t, st, 2);
+    sm(&mut net, &mut t, st, 1, 0x1180, 1, 0x20);
+    // Register space other than where the file puts the buffer: refused.
+    sm(&mut net, &mut t, st, 0, 0x0E00, 1, 0x64);
+    assert_eq!(request(&mut net, &mut t, st, 4), (0x12, 0x001D));
+    sm(&mut net, &mut t, st, 0, 0x0F00, 1, 0x64);
+    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x04, 0));
+}

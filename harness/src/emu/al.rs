@@ -36,8 +36,9 @@ pub fn sm_base(n: usize) -> u16 {
 }
 
 /// Why the SyncManager `n` the SII describes as `want` is not configured as the firmware
-/// needs: not activated, another length, mode or direction, or a buffer outside process
-/// RAM. `None` = fine.
+/// needs: not activated, another length, mode or direction, or a buffer neither where the
+/// SII puts it nor inside process RAM (some devices place theirs in register space, e.g.
+/// 0x0F00, and a master may move a buffer within process RAM). `None` = fine.
 fn sm_mismatch(regs: &RegisterFile, n: usize, want: &SmEntry) -> Option<&'static str> {
     let b = sm_base(n);
     let start = regs.get_u16(b);
@@ -54,7 +55,8 @@ fn sm_mismatch(regs: &RegisterFile, n: usize, want: &SmEntry) -> Option<&'static
         return Some("mode or direction");
     }
     let end = u32::from(start) + u32::from(len);
-    if start < addr::PROCESS_RAM || end > regs.len() as u32 {
+    let in_ram = start >= addr::PROCESS_RAM && end <= regs.len() as u32;
+    if start != want.start && !in_ram {
         return Some("outside process RAM");
     }
     None
@@ -62,7 +64,8 @@ fn sm_mismatch(regs: &RegisterFile, n: usize, want: &SmEntry) -> Option<&'static
 
 fn check(regs: &RegisterFile, sms: &[SmEntry], types: &[(u8, u16)]) -> Option<u16> {
     for (n, e) in sms.iter().enumerate() {
-        if e.len == 0 {
+        // SyncManagers the SII lists as disabled or empty are not used.
+        if e.len == 0 || e.enable & 0x01 == 0 {
             continue;
         }
         if let Some(&(_, c)) = types.iter().find(|(t, _)| *t == e.typ) {

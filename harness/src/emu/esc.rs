@@ -866,6 +866,11 @@ impl Esc {
         self.regs.get_u16(addr::AL_STATUS) & 0x0F
     }
 
+    /// AL state (0x0130 bits 3:0).
+    pub fn al(&self) -> u8 {
+        self.al_state() as u8
+    }
+
     /// The application writes its inputs into the input buffer (SAFEOP and OP: inputs are
     /// valid there, ETG.1000.6). REQ-ESC-027.
     fn present_inputs(&mut self) {

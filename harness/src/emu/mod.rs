@@ -21,7 +21,9 @@
 //!   - [`Network::clock`]`(slave, t)` — local time and local copy of system time at `t`;
 //!   - [`Network::take_sync_edges`]`()` — every SYNC0/SYNC1 edge up to now, in true time;
 //!   - [`Network::schedule_fault`]`(t, fault)` — inject a [`Fault`] at a true time;
-//!   - observers: `slave_info`, `oscillator_ppb`, `peek`, `esc`, `epu_arrival_times`, `stats`.
+//!   - observers: `slave_info`, `oscillator_ppb`, `peek`, `esc`, `epu_arrival_times`, `stats`;
+//!     per slave [`Network::identity`] (from its SII EEPROM), [`Network::al_state`],
+//!     [`Network::process_image`], [`Network::sii_image`].
 //!
 //! ```
 //! use ecdc_harness::emu::{Network, Scenario};

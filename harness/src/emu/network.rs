@@ -637,7 +637,7 @@ impl Network {
     /// AL state of slave `i` (0x0130 bits 3:0: 1 INIT, 2 PREOP, 3 BOOT, 4 SAFEOP, 8 OP) at
     /// the slave's current time (call `advance_to` first for effects of returned frames).
     pub fn al_state(&self, i: usize) -> Option<u8> {
-        self.escs.get(i).map(|e| e.process_image().al_state)
+        self.escs.get(i).map(Esc::al)
     }
 
     /// AL state, driven outputs and presented inputs of slave `i`'s application.
