@@ -457,7 +457,13 @@ fn writes_need_enable_and_ecat_access() {
     assert_eq!(c & 0x6000, 0);
     // The PDI takes the interface: ECAT commands are ignored until 0x0500 bit 1 forces it
     // back.
-    net.set_sii_pdi_access(0, true).unwrap();
+    assert!(
+        !net.set_sii_pdi_access(0, true).unwrap(),
+        "not offered to the PDI"
+    );
+    assert_eq!(fprd(&mut net, &mut t, 0x1000, 0x0501, 1).data, [0]);
+    fpwr(&mut net, &mut t, 0x1000, 0x0500, &[0x01]);
+    assert!(net.set_sii_pdi_access(0, true).unwrap());
     assert_eq!(fprd(&mut net, &mut t, 0x1000, 0x0501, 1).data, [1]);
     let (busy, c) = command(&mut net, &mut t, 0x1000, 0x0100, 0x08, 10_000);
     assert_eq!((busy, c & 0x0700), (0, 0), "ignored while the PDI owns it");

@@ -915,8 +915,8 @@ impl Esc {
 
     /// The PDI takes or releases the EEPROM interface (0x0501 bit 0). No PDI is emulated;
     /// this is the hook a test uses to show ECAT locked out.
-    pub fn set_sii_pdi_access(&mut self, on: bool) {
-        self.sii.set_pdi_access(&mut self.regs, on);
+    pub fn set_sii_pdi_access(&mut self, on: bool) -> bool {
+        self.sii.set_pdi_access(&mut self.regs, on)
     }
 
     /// AL state and what the application drives and presents.

@@ -651,11 +651,12 @@ impl Network {
     }
 
     /// Lets slave `i`'s PDI take (or release) its EEPROM interface, 0x0501 bit 0. The
-    /// emulator has no PDI side; this stands in for a slave controller that takes it.
-    pub fn set_sii_pdi_access(&mut self, i: usize, on: bool) -> Result<(), EmuError> {
+    /// emulator has no PDI side; this stands in for a slave controller that takes it. The PDI
+    /// gets it only while ECAT offers it (0x0500 bit 0) and the interface is idle; returns
+    /// whether the PDI holds it afterwards.
+    pub fn set_sii_pdi_access(&mut self, i: usize, on: bool) -> Result<bool, EmuError> {
         self.check_slave(i)?;
-        self.escs[i].set_sii_pdi_access(on);
-        Ok(())
+        Ok(self.escs[i].set_sii_pdi_access(on))
     }
 
     /// Current oscillator frequency error of slave `i` (configured + wander + steps), ppb.

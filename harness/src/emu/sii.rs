@@ -406,10 +406,16 @@ impl Sii {
         regs.get_u16(addr::SII_CONTROL) & ctl::NOT_LOADED == 0
     }
 
-    /// The PDI takes (true) or releases (false) the interface (0x0501 bit 0).
-    pub fn set_pdi_access(&mut self, regs: &mut RegisterFile, on: bool) {
-        self.pdi_owns = on;
-        regs.set_u8(addr::SII_PDI_ACCESS, u8::from(on));
+    /// The PDI takes (true) or releases (false) the interface (0x0501 bit 0). It can take it
+    /// only while ECAT offers it (0x0500 bit 0) and no command runs. Returns whether the PDI
+    /// holds the interface afterwards.
+    pub fn set_pdi_access(&mut self, regs: &mut RegisterFile, on: bool) -> bool {
+        let offered = regs.get_u8(addr::SII_CONFIG) & 0x01 != 0;
+        if !on || (offered && self.running.is_none()) {
+            self.pdi_owns = on;
+            regs.set_u8(addr::SII_PDI_ACCESS, u8::from(on));
+        }
+        self.pdi_owns
     }
 
     /// Start of a frame at this ESC: the write-enable bit clears itself (datasheet: "self
