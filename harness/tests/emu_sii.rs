@@ -533,6 +533,8 @@ fn scenario_fields_and_validation() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/io_servo.toml");
     let sc = Scenario::load(&path).unwrap();
     sc.validate(None).unwrap();
+    let back = Scenario::from_toml_str(&sc.to_toml_string().unwrap()).unwrap();
+    assert_eq!(back, sc, "TOML round trip keeps the SII fields");
     let net = Network::new(&sc).unwrap();
     let ids: Vec<_> = (0..7).map(|i| net.identity(i).unwrap()).collect();
     assert_eq!(ids[0].name.as_deref(), Some("coupler"));

@@ -166,7 +166,7 @@ impl Default for SlaveDefaults {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SlaveSpec {
-    /// Free text for reports.
+    /// Free text for reports; also the device name string of a built SII image.
     pub name: Option<String>,
     /// Instantiate this many copies, each attached to the previous one (port 1).
     pub repeat: usize,
