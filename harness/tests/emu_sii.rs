@@ -580,3 +580,33 @@ fn scenario_fields_and_validation() {
     assert!(Scenario::from_toml_str("[[slaves]]\ndevice = \"robot\"\n").is_err());
     assert!(Scenario::from_toml_str("[[slaves]]\nsii_typo = 1\n").is_err());
 }
+
+/// REQ-ESC-021: other masters' access shapes work too: a 4-byte write of control (with the
+/// read-only bit 7 set) and a 16-bit address, then one 10-byte read of status, address and
+/// data; and position addressing (before station addresses exist).
+#[test]
+fn other_access_shapes() {
+    let mut net = Network::new(&io8_scenario(SiiTiming::default())).unwrap();
+    let mut t = 0;
+    let (r, a) = one(
+        &mut net,
+        t,
+        Command::Apwr,
+        Address::position(0, 0x0502),
+        &[0x80, 0x01, 0x0A, 0x00],
+    );
+    assert_eq!(r.wkc, 1);
+    t = a + 200_000;
+    let (r, _) = one(
+        &mut net,
+        t,
+        Command::Aprd,
+        Address::position(0, 0x0502),
+        &[0; 10],
+    );
+    let c = u16_of(&r.data);
+    assert_eq!(c & (BUSY | 0x6000 | 0x0700), 0, "{c:#06x}");
+    assert_eq!(c & 0x0080, 0, "bit 7 is read-only (a 2 KiB EEPROM)");
+    assert_eq!(u32_of(&r.data[2..]), 0x0A);
+    assert_eq!(u32_of(&r.data[6..]), 8, "words 0x0A, 0x0B: product code");
+}
