@@ -610,3 +610,23 @@ fn other_access_shapes() {
     assert_eq!(u32_of(&r.data[2..]), 0x0A);
     assert_eq!(u32_of(&r.data[6..]), 8, "words 0x0A, 0x0B: product code");
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+    /// Arbitrary image bytes never panic: not when parsed, not when a network is built on
+    /// them and a master reads them through the interface.
+    #[test]
+    fn arbitrary_images_never_panic(
+        bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 1..600),
+        word in 0u32..2048,
+    ) {
+        let img = sii::SiiImage::from_bytes(&bytes).unwrap();
+        let _ = (img.identity(), img.categories(), img.config_ok());
+        let p = temp_file(&format!("arb-{}.bin", bytes.len()), &bytes);
+        let (mut net, mut t) = file_net(&p);
+        let (_, c) = command(&mut net, &mut t, 0x1000, 0x0100, word, 10_000);
+        proptest::prop_assert_eq!(c & 0x1800 == 0, img.config_ok());
+        let _ = net.identity(0);
+        fpwr(&mut net, &mut t, 0x1000, 0x0120, &8u16.to_le_bytes());
+    }
+}
