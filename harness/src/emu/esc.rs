@@ -7,10 +7,14 @@
 //! a frame's data path be computed at once while its timed side effects land when they
 //! physically happen (e.g. a port-1 stamp after the next frame already passed port 0).
 
+use super::al;
 use super::control_loop::{ControlLoop, LoopGains};
 use super::datagram::{cmd, DgSpan};
+use super::device::{sm_type, sync_managers_of, Application, Device, SmEntry};
 use super::oscillator::{correction_rate, Oscillator, Wander};
+use super::process_data::{ProcessImage, SmGate};
 use super::registers::{addr, EscKind, RegisterFile};
+use super::sii::{Completed, Identity, Sii, SiiImage, SiiTiming};
 use super::sync_unit::{SyncSignal, SyncUnit};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -37,7 +41,11 @@ pub struct EscConfig {
     pub t_p_ns: u64,
     pub t_f_ns: u64,
     pub ppb: f64,
-    pub alias: u16,
+    /// The EEPROM content at the start of the run (word 4 holds the station alias).
+    pub sii: SiiImage,
+    pub sii_timing: SiiTiming,
+    /// The application behind the ESC (built images; `Bare` for image files).
+    pub device: Device,
     pub initial_station: u16,
     pub esc_type: u8,
     pub ram_bytes: u16,
@@ -67,6 +75,8 @@ enum Pending {
     CommitSof { local: u64 },
     /// Apply a loop sample at end of frame.
     Sample { dt: i32 },
+    /// The running SII command finishes (its busy period ends).
+    SiiDone,
 }
 
 /// Per-visit context the network hands to the EPU.
@@ -109,6 +119,15 @@ pub struct Esc {
     quiet_until: u64,
     /// Last (S, D) → `correction_rate(S, D)`.
     dev_cache: Option<((u16, i16), i128)>,
+    /// The EEPROM and its interface.
+    sii: Sii,
+    /// SyncManagers the firmware expects (the SII's SyncManager category at power-up).
+    sms: Vec<SmEntry>,
+    /// The configuration area loaded: process RAM is accessible and the firmware runs (it
+    /// answers AL control). Section I, "SII EEPROM Errors": "the process memory is not
+    /// accessible until the ESC Configuration Area is loaded successfully".
+    firmware: bool,
+    app: Application,
 }
 
 fn fresh_regs(cfg: &EscConfig) -> RegisterFile {
@@ -142,12 +161,12 @@ impl Esc {
             osc_rng,
         );
         let mut regs = fresh_regs(&cfg);
+        let mut sii = Sii::new(cfg.sii.clone(), cfg.sii_timing);
+        let (sms, firmware) = power_up_sii(&mut sii, &mut regs, cfg.kind);
         regs.set_u16(addr::STATION_ADDRESS, cfg.initial_station);
-        regs.set_u16(addr::STATION_ALIAS, cfg.alias);
         Esc {
             index,
             lp: ControlLoop::new(cfg.gains),
-            cfg,
             regs,
             osc,
             sync: SyncUnit::default(),
@@ -160,6 +179,11 @@ impl Esc {
             loop_ctl: 0,
             quiet_until: 0,
             dev_cache: None,
+            sii,
+            sms,
+            firmware,
+            app: Application::new(cfg.device),
+            cfg,
         }
     }
 
@@ -393,8 +417,12 @@ impl Esc {
                     self.cfg.wander.clone(),
                     osc_rng,
                 );
+                // The EEPROM keeps its content (including SII writes) over the power cycle.
                 self.regs = fresh_regs(&self.cfg);
-                self.regs.set_u16(addr::STATION_ALIAS, self.cfg.alias);
+                let (sms, firmware) = power_up_sii(&mut self.sii, &mut self.regs, self.cfg.kind);
+                self.sms = sms;
+                self.firmware = firmware;
+                self.app = Application::new(self.cfg.device);
                 self.lp = ControlLoop::new(self.cfg.gains);
                 self.sync = SyncUnit::default();
                 self.loop_ctl = 0;
@@ -443,6 +471,27 @@ impl Esc {
                 self.regs
                     .set_u16(addr::SPEED_COUNTER_DIFF, self.lp.speed_diff() as u16);
             }
+            Pending::SiiDone => {
+                if let Some(Completed::Reload(Some(area))) = self.sii.complete(&mut self.regs) {
+                    // A reload takes over the configuration area again, except the station
+                    // alias and 0x0141 bits 1, 4..7, which only the first load after
+                    // power-on or reset transfers.
+                    if self.cfg.kind.has_system_time() {
+                        self.regs.set_u16(addr::SYNC_PULSE_LENGTH, area.pulse_len);
+                    }
+                    let keep = self.regs.get_u8(addr::PDI_CONTROL + 1) & RELOAD_KEEPS_0141;
+                    let [lo, hi] = area.pdi_control.to_le_bytes();
+                    self.regs.set_u8(addr::PDI_CONTROL, lo);
+                    self.regs
+                        .set_u8(addr::PDI_CONTROL + 1, (hi & !RELOAD_KEEPS_0141) | keep);
+                    if !self.firmware {
+                        // The PDI becomes operational: the firmware starts.
+                        self.sms = sync_managers_of(self.sii.image());
+                        al::apply_pdi_control(&mut self.regs, &self.sms, al::INIT);
+                        self.firmware = true;
+                    }
+                }
+            }
         }
     }
 
@@ -463,6 +512,10 @@ impl Esc {
         let mut res = EpuResult::default();
         if !self.powered {
             return res;
+        }
+        self.sii.on_sof(&mut self.regs);
+        if self.cfg.device != Device::Bare {
+            self.present_inputs();
         }
         let local_sof = self.osc.local();
         let sys_sof = if self.cfg.kind.has_system_time() {
@@ -501,6 +554,9 @@ impl Esc {
                     system_time: sys_sof,
                 });
             }
+        }
+        if self.cfg.device != Device::Bare {
+            self.take_outputs();
         }
         if let Some(dt) = st.sample {
             // REQ-ESC-050: compared at end of frame.
@@ -615,12 +671,14 @@ impl Esc {
         let a0 = usize::from(ado);
         let end = a0 + data.len();
         let computed = (a0 <= 0x0111 && end > 0x0110) || (a0 <= 0x0917 && end > 0x0910);
-        if !computed && !data.is_empty() {
+        let gate = self.ram_gate(end);
+        if !computed && !data.is_empty() && gate.is_open() {
             let last = u16::try_from(end - 1).ok();
             if let Some(last) = last {
                 if self.regs.implemented(ado)
                     && self.regs.implemented(last)
                     && (end <= 0x0900 || a0 > 0x09FF)
+                    && (self.firmware || end <= usize::from(addr::PROCESS_RAM))
                 {
                     let src = &self.regs.bytes()[a0..end];
                     if or {
@@ -637,7 +695,7 @@ impl Esc {
             let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
                 break;
             };
-            if !self.regs.implemented(a) {
+            if !self.accessible(a) || !gate.access(a).0 {
                 continue;
             }
             any = true;
@@ -674,16 +732,22 @@ impl Esc {
         let mut any = false;
         let mut touched = Touched::default();
         let mut recv = (st.sys_read as u32).to_le_bytes();
+        let mut sii_staged = [None; 16];
+        let gate = self.ram_gate(usize::from(ado) + data.len());
         for (i, b) in data.iter().enumerate() {
             let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
                 break;
             };
-            if !self.regs.implemented(a) {
+            if !self.accessible(a) || !gate.access(a).1 {
                 continue;
             }
             any = true;
             match a {
                 0x0900 => touched.latch = true,
+                0x0500..=0x050F => {
+                    sii_staged[usize::from(a - 0x0500)] = Some(*b);
+                    touched.sii = true;
+                }
                 0x0910..=0x0913 if kind.has_system_time() => {
                     recv[usize::from(a - 0x0910)] = *b;
                     if a == 0x0910 {
@@ -750,6 +814,12 @@ impl Esc {
                 st.debug_pulse |= debug;
             }
         }
+        if touched.sii {
+            if let Some(d) = self.sii.ecat_write(&sii_staged, &mut self.regs) {
+                // REQ-ESC-021: busy from this frame for the command's duration.
+                self.push_pending(st.ctx.t_sof.saturating_add(d), Pending::SiiDone);
+            }
+        }
         if touched.al_control {
             self.al_control();
         }
@@ -757,39 +827,105 @@ impl Esc {
         any
     }
 
-    /// AL state machine as a slave's firmware would drive it: valid requests are reflected in
-    /// 0x0130 at once; invalid ones set the error flag and code 0x0011 (REQ-ESC-020).
+    /// AL control written: the firmware acts on it (emu/al.rs, REQ-ESC-020/022). Without a
+    /// loaded configuration area the firmware does not run and the request stays unanswered.
     fn al_control(&mut self) {
-        let ctrl = self.regs.get_u16(addr::AL_CONTROL);
-        let status = self.regs.get_u16(addr::AL_STATUS);
-        let cur = status & 0x0F;
-        let mut err = status & 0x10 != 0;
-        if ctrl & 0x10 != 0 {
-            err = false;
+        if self.firmware {
+            al::control(&mut self.regs, &self.sms);
         }
-        let req = ctrl & 0x0F;
-        let valid_state = matches!(req, 1 | 2 | 3 | 4 | 8);
-        let ok = match (cur, req) {
-            (_, 1) => true,
-            (a, b) if a == b => true,
-            (1, 2) | (1, 3) | (2, 4) | (4, 8) | (4, 2) | (8, 4) | (8, 2) => true,
-            _ => false,
-        };
-        let (new, code) = if !valid_state {
-            (cur, Some(0x0012))
-        } else if ok {
-            (req, None)
-        } else {
-            (cur, Some(0x0011))
-        };
-        if let Some(code) = code {
-            err = true;
-            self.regs.set_u16(addr::AL_STATUS_CODE, code);
-        } else if !err {
-            self.regs.set_u16(addr::AL_STATUS_CODE, 0);
+    }
+
+    /// Whether ECAT reaches byte `a`: it exists, and it is a register or the configuration
+    /// area has loaded.
+    #[inline]
+    fn accessible(&self, a: u16) -> bool {
+        self.regs.implemented(a) && (self.firmware || a < addr::PROCESS_RAM)
+    }
+
+    /// The SyncManager access rules for a physical access ending before `end` (only process
+    /// RAM is guarded; register accesses skip the table).
+    #[inline]
+    fn ram_gate(&self, end: usize) -> SmGate {
+        if end <= usize::from(addr::PROCESS_RAM) {
+            return SmGate::default();
         }
-        self.regs
-            .set_u16(addr::AL_STATUS, new | if err { 0x10 } else { 0 });
+        SmGate::from_regs(
+            &self.regs,
+            usize::from(self.regs.get_u8(addr::SYNC_MANAGERS_SUPPORTED)),
+        )
+    }
+
+    /// SyncManager `n` of type `t` in the SII: its configured (start, length) now.
+    fn sm_area(&self, t: u8) -> Option<(u16, u16)> {
+        let n = self.sms.iter().position(|e| e.typ == t)?;
+        let b = al::sm_base(n);
+        Some((self.regs.get_u16(b), self.regs.get_u16(b + 2)))
+    }
+
+    fn al_state(&self) -> u16 {
+        self.regs.get_u16(addr::AL_STATUS) & 0x0F
+    }
+
+    /// AL state (0x0130 bits 3:0).
+    pub fn al(&self) -> u8 {
+        self.al_state() as u8
+    }
+
+    /// The application writes its inputs into the input buffer (SAFEOP and OP: inputs are
+    /// valid there, ETG.1000.6). REQ-ESC-027.
+    fn present_inputs(&mut self) {
+        if !matches!(self.al_state(), al::SAFEOP | al::OP) {
+            return;
+        }
+        if let Some((start, len)) = self.sm_area(sm_type::PD_IN) {
+            for (k, b) in self.app.inputs().iter().take(usize::from(len)).enumerate() {
+                self.regs.set_u8(start.wrapping_add(k as u16), *b);
+            }
+        }
+    }
+
+    /// The application takes the outputs the master wrote (OP) or holds the safe state
+    /// (REQ-ESC-027).
+    fn take_outputs(&mut self) {
+        let out = match (self.al_state(), self.sm_area(sm_type::PD_OUT)) {
+            (al::OP, Some((start, len))) => Some(
+                (0..len)
+                    .map(|k| self.regs.get_u8(start.wrapping_add(k)))
+                    .collect::<Vec<u8>>(),
+            ),
+            _ => None,
+        };
+        self.app.take_outputs(out.as_deref());
+    }
+
+    /// The slave's identity as its EEPROM holds it now.
+    pub fn identity(&self) -> Identity {
+        self.sii.image().identity()
+    }
+
+    /// The EEPROM content now (SII writes included).
+    pub fn sii_image(&self) -> &SiiImage {
+        self.sii.image()
+    }
+
+    /// Whether the configuration area loaded (DL status bit 0).
+    pub fn sii_loaded(&self) -> bool {
+        self.sii.loaded(&self.regs)
+    }
+
+    /// The PDI takes or releases the EEPROM interface (0x0501 bit 0). No PDI is emulated;
+    /// this is the hook a test uses to show ECAT locked out.
+    pub fn set_sii_pdi_access(&mut self, on: bool) -> bool {
+        self.sii.set_pdi_access(&mut self.regs, on)
+    }
+
+    /// AL state and what the application drives and presents.
+    pub fn process_image(&self) -> ProcessImage {
+        ProcessImage {
+            al_state: self.al_state() as u8,
+            outputs: self.app.applied().to_vec(),
+            inputs: self.app.inputs(),
+        }
     }
 
     /// LRD/LWR/LRW through the FMMU table (byte granularity; start/stop bits ignored).
@@ -802,6 +938,10 @@ impl Esc {
             return 0;
         }
         let nf = usize::from(self.regs.get_u8(addr::FMMUS_SUPPORTED).min(16));
+        let gate = SmGate::from_regs(
+            &self.regs,
+            usize::from(self.regs.get_u8(addr::SYNC_MANAGERS_SUPPORTED)),
+        );
         for f in 0..nf {
             let base = addr::FMMU0 + 16 * f as u16;
             if self.regs.get_u8(base + 12) & 0x01 == 0 {
@@ -821,13 +961,18 @@ impl Esc {
                 let Ok(pa) = u16::try_from(phys + (j - ls)) else {
                     break;
                 };
-                if self.regs.implemented(pa) {
+                let (may_read, may_write) = if gate.is_open() {
+                    (true, true)
+                } else {
+                    gate.access(pa)
+                };
+                if self.accessible(pa) {
                     let inb = data[k];
-                    if do_read {
+                    if do_read && may_read {
                         data[k] = self.regs.get_u8(pa);
                         read = true;
                     }
-                    if do_write {
+                    if do_write && may_write {
                         if self.regs.ecat_writable(pa) {
                             self.regs.set_u8(pa, inb);
                             if pa < addr::PROCESS_RAM {
@@ -883,6 +1028,27 @@ struct Touched {
     start_low: bool,
     start_high: bool,
     al_control: bool,
+    sii: bool,
+}
+
+/// 0x0141 bits a reload leaves alone (enhanced link detection; Section I, "SII EEPROM").
+const RELOAD_KEEPS_0141: u8 = 0xF2;
+
+/// Power-up of the EEPROM side: the interface loads the configuration area; with a correct
+/// CRC the ESC takes over the station alias (word 4), the SYNC pulse length (word 2) and PDI
+/// control (word 0) and the firmware starts, with the SyncManagers of the SII's category.
+fn power_up_sii(sii: &mut Sii, regs: &mut RegisterFile, kind: EscKind) -> (Vec<SmEntry>, bool) {
+    let Some(area) = sii.power_up(regs) else {
+        return (Vec::new(), false);
+    };
+    regs.set_u16(addr::STATION_ALIAS, area.alias);
+    regs.set_u16(addr::PDI_CONTROL, area.pdi_control);
+    if kind.has_system_time() {
+        regs.set_u16(addr::SYNC_PULSE_LENGTH, area.pulse_len);
+    }
+    let sms = sync_managers_of(sii.image());
+    al::apply_pdi_control(regs, &sms, al::INIT);
+    (sms, true)
 }
 
 /// Per-visit state while one frame passes this ESC's EPU.

@@ -21,7 +21,9 @@
 //!   - [`Network::clock`]`(slave, t)` — local time and local copy of system time at `t`;
 //!   - [`Network::take_sync_edges`]`()` — every SYNC0/SYNC1 edge up to now, in true time;
 //!   - [`Network::schedule_fault`]`(t, fault)` — inject a [`Fault`] at a true time;
-//!   - observers: `slave_info`, `oscillator_ppb`, `peek`, `esc`, `epu_arrival_times`, `stats`.
+//!   - observers: `slave_info`, `oscillator_ppb`, `peek`, `esc`, `epu_arrival_times`, `stats`;
+//!     per slave [`Network::identity`] (from its SII EEPROM), [`Network::al_state`],
+//!     [`Network::process_image`], [`Network::sii_image`].
 //!
 //! ```
 //! use ecdc_harness::emu::{Network, Scenario};
@@ -38,6 +40,11 @@
 //! - `sync_unit.rs`: SYNC0/SYNC1 activation, start time, cycles.
 //! - `datagram.rs`: how the hardware walks the datagrams of a frame.
 //! - `esc.rs`: one ESC: EPU command semantics, WKC/ADP, latches, lazy per-ESC time.
+//! - `sii.rs`: the SII EEPROM image (CRC, categories, identity) and its 0x0500 interface.
+//! - `device.rs`: the device behind the ESC (`bare`, `io8`, `servo`): built SII images,
+//!   SyncManager layout, the application's data path.
+//! - `al.rs`: AL control/status/status code, SyncManager checks at the transitions.
+//! - `process_data.rs`: SyncManager gating of logical access, the process image.
 //! - `topology.rs`: tree, cables, time-indexed link and power state.
 //! - `network.rs`: the frame path (0→EPU→3→1→2→0), faults, observers.
 //! - `scenario.rs`, `fault.rs`: the serde description of a run.
@@ -46,31 +53,39 @@
 //!
 //! # What is not modelled
 //! See docs/emulator.md §"Not modelled": the latch unit inputs (0x09A8.. registers exist with
-//! reset values only), SyncManagers and mailboxes, EtherCAT-over-UDP, redundancy (a second
+//! reset values only), mailbox traffic (a mailbox can be configured, nothing answers
+//! on it), SyncManager three-buffer exchange, EtherCAT-over-UDP, redundancy (a second
 //! master port), ET1200 "arm then stamp" receive-time behaviour, 0x0936 reverse mode, FMMU
 //! bit granularity, PDI access.
 
+pub mod al;
 pub mod control_loop;
 pub mod datagram;
+pub mod device;
 pub mod esc;
 pub mod fault;
 pub mod network;
 pub mod oscillator;
+pub mod process_data;
 pub mod registers;
 pub mod scenario;
+pub mod sii;
 pub mod sync_unit;
 pub mod topology;
 pub mod yardstick;
 
 pub use control_loop::LoopGains;
+pub use device::Device;
 pub use esc::SyncEdge;
 pub use fault::{Fault, FaultSpec};
 pub use network::{ClockSample, Delivery, LossReason, Network, Returned, SlaveInfo, Stats};
+pub use process_data::ProcessImage;
 pub use registers::EscKind;
 pub use scenario::{
     PpmSpec, Scenario, SlaveDefaults, SlaveSpec, Timing, SEED000_TABLE2_DELAYS_NS, SEED000_T_F_NS,
     SEED000_T_P_NS,
 };
+pub use sii::{Identity, SiiError, SiiImage, SiiTiming};
 pub use sync_unit::SyncSignal;
 
 /// True (analyzer) time: nanoseconds since the start of the run.
@@ -90,6 +105,8 @@ pub enum EmuError {
     NotSchedulable,
     /// The scenario is invalid (message says why).
     Scenario(String),
+    /// A slave's SII image file cannot be used.
+    Sii { slave: usize, error: SiiError },
 }
 
 impl core::fmt::Display for EmuError {
@@ -106,6 +123,7 @@ impl core::fmt::Display for EmuError {
                 write!(f, "this fault can only be given in the scenario")
             }
             EmuError::Scenario(m) => write!(f, "invalid scenario: {m}"),
+            EmuError::Sii { slave, error } => write!(f, "invalid scenario: slave {slave}: {error}"),
         }
     }
 }

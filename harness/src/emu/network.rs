@@ -7,8 +7,10 @@ use super::datagram::{self, DgSpan, ForwardReason, FrameClass, CIRCULATING, IFG_
 use super::esc::{EpuCtx, Esc, EscConfig, Scheduled, SyncEdge};
 use super::fault::Fault;
 use super::oscillator::Wander;
+use super::process_data::ProcessImage;
 use super::registers::EscKind;
 use super::scenario::{PpmSpec, Scenario};
+use super::sii::{Identity, SiiImage};
 use super::topology::Topology;
 use super::{EmuError, TrueTime};
 use rand::{Rng, RngCore, SeedableRng};
@@ -340,7 +342,12 @@ impl Network {
                 t_p_ns: s.t_p_ns,
                 t_f_ns: s.t_f_ns,
                 ppb: ppm * 1000.0,
-                alias: s.alias,
+                sii: s
+                    .sii
+                    .image()
+                    .map_err(|error| EmuError::Sii { slave: i, error })?,
+                sii_timing: sc.defaults.sii,
+                device: s.device,
                 initial_station: s.station,
                 esc_type: s.esc_type.unwrap_or(s.kind.default_type()),
                 ram_bytes: sc.defaults.ram_bytes,
@@ -627,6 +634,37 @@ impl Network {
         Ok(self.escs[i].peek(addr, len))
     }
 
+    /// Identity of slave `i` as its EEPROM holds it now (vendor, product, revision, serial,
+    /// SII word 4 alias, device name).
+    pub fn identity(&self, i: usize) -> Option<Identity> {
+        self.escs.get(i).map(Esc::identity)
+    }
+
+    /// AL state of slave `i` (0x0130 bits 3:0: 1 INIT, 2 PREOP, 3 BOOT, 4 SAFEOP, 8 OP) at
+    /// the slave's current time (call `advance_to` first for effects of returned frames).
+    pub fn al_state(&self, i: usize) -> Option<u8> {
+        self.escs.get(i).map(Esc::al)
+    }
+
+    /// AL state, driven outputs and presented inputs of slave `i`'s application.
+    pub fn process_image(&self, i: usize) -> Option<ProcessImage> {
+        self.escs.get(i).map(Esc::process_image)
+    }
+
+    /// Slave `i`'s EEPROM content now (SII writes included).
+    pub fn sii_image(&self, i: usize) -> Option<&SiiImage> {
+        self.escs.get(i).map(Esc::sii_image)
+    }
+
+    /// Lets slave `i`'s PDI take (or release) its EEPROM interface, 0x0501 bit 0. The
+    /// emulator has no PDI side; this stands in for a slave controller that takes it. The PDI
+    /// gets it only while ECAT offers it (0x0500 bit 0) and the interface is idle; returns
+    /// whether the PDI holds it afterwards.
+    pub fn set_sii_pdi_access(&mut self, i: usize, on: bool) -> Result<bool, EmuError> {
+        self.check_slave(i)?;
+        Ok(self.escs[i].set_sii_pdi_access(on))
+    }
+
     /// Current oscillator frequency error of slave `i` (configured + wander + steps), ppb.
     pub fn oscillator_ppb(&self, i: usize) -> Result<f64, EmuError> {
         self.check_slave(i)?;
@@ -680,7 +718,8 @@ impl Network {
     /// DL status (0x0110) of `s` at `t`: bit 0 PDI operational, bits 4..7 link on port 0..3,
     /// bit 8+2p loop closed, bit 9+2p communication. REQ-ESC-015.
     fn dl_status(&self, s: usize, t: u64) -> u16 {
-        let mut v: u16 = 0x0001;
+        // Bit 0: PDI operational / EEPROM loaded correctly.
+        let mut v = u16::from(self.escs[s].sii_loaded());
         for p in 0..4u8 {
             let physical = p < self.info[s].ports
                 && match p {

@@ -23,6 +23,16 @@ pub mod addr {
     pub const AL_CONTROL: u16 = 0x0120;
     pub const AL_STATUS: u16 = 0x0130;
     pub const AL_STATUS_CODE: u16 = 0x0134;
+    pub const PDI_CONTROL: u16 = 0x0140;
+    /// SII EEPROM interface (0x0500..0x050F): configuration, PDI access state,
+    /// control/status, word address, data.
+    pub const SII_CONFIG: u16 = 0x0500;
+    pub const SII_PDI_ACCESS: u16 = 0x0501;
+    pub const SII_CONTROL: u16 = 0x0502;
+    pub const SII_ADDRESS: u16 = 0x0504;
+    pub const SII_DATA: u16 = 0x0508;
+    /// SyncManager 0; SyncManager n at SM0 + 8n.
+    pub const SM0: u16 = 0x0800;
     pub const FMMU0: u16 = 0x0600;
     pub const RECEIVE_TIME_PORT0: u16 = 0x0900;
     pub const SYSTEM_TIME: u16 = 0x0910;
@@ -211,6 +221,13 @@ impl RegisterFile {
             return false;
         }
         if reserved_dc(a) {
+            return false;
+        }
+        // SII interface: written through its own rules (emu/sii.rs), never stored directly.
+        // SyncManager status (+5) and PDI control (+7) are read-only from ECAT.
+        if (0x0500..=0x050F).contains(&a)
+            || ((0x0800..=0x087F).contains(&a) && matches!(a & 7, 5 | 7))
+        {
             return false;
         }
         !matches!(a,

@@ -16,8 +16,10 @@
 //! ```
 
 use super::control_loop::LoopGains;
+use super::device::{BuildSpec, Device, DEFAULT_VENDOR};
 use super::fault::{Fault, FaultSpec};
 use super::registers::EscKind;
+use super::sii::{SiiImage, SiiTiming};
 use super::EmuError;
 use serde::{Deserialize, Serialize};
 
@@ -125,6 +127,17 @@ pub struct SlaveDefaults {
     /// (docs/emulator.md "Closed ports"); a non-zero value shows how the t_Diff measurement,
     /// which closes ports, depends on that assumption.
     pub forced_loop_ns: u64,
+    /// The device behind the ESC (`bare`, `io8`, `servo`): its SII image and process data.
+    pub device: Device,
+    /// A standard mailbox (SM0/SM1 in the SII); nothing is served on it.
+    pub mailbox: bool,
+    /// Identity words of built images (default: ecdc's vendor ID and the device's product
+    /// code, revision 1).
+    pub vendor: Option<u32>,
+    pub product: Option<u32>,
+    pub revision: Option<u32>,
+    /// EEPROM interface: bytes per read (4 or 8) and busy times (model choices).
+    pub sii: SiiTiming,
 }
 
 impl Default for SlaveDefaults {
@@ -139,6 +152,12 @@ impl Default for SlaveDefaults {
             ram_bytes: 4096,
             pulse_len: 100,
             forced_loop_ns: 0,
+            device: Device::Bare,
+            mailbox: false,
+            vendor: None,
+            product: None,
+            revision: None,
+            sii: SiiTiming::default(),
         }
     }
 }
@@ -147,7 +166,7 @@ impl Default for SlaveDefaults {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SlaveSpec {
-    /// Free text for reports.
+    /// Free text for reports; also the device name string of a built SII image.
     pub name: Option<String>,
     /// Instantiate this many copies, each attached to the previous one (port 1).
     pub repeat: usize,
@@ -174,6 +193,18 @@ pub struct SlaveSpec {
     pub esc_type: Option<u8>,
     /// [`SlaveDefaults::forced_loop_ns`] of this slave.
     pub forced_loop_ns: Option<u64>,
+    /// [`SlaveDefaults::device`] of this slave.
+    pub device: Option<Device>,
+    pub vendor: Option<u32>,
+    pub product: Option<u32>,
+    pub revision: Option<u32>,
+    /// Serial number (default: position + 1; with `repeat`, consecutive numbers).
+    pub serial: Option<u32>,
+    pub mailbox: Option<bool>,
+    /// An SII image file (the binary layout SOEM's eepromtool and `ethercat sii_read`
+    /// write) instead of a built image. Relative paths are relative to the scenario file.
+    /// The identity, alias and SyncManagers then come from the file.
+    pub sii_file: Option<std::path::PathBuf>,
 }
 
 impl Default for SlaveSpec {
@@ -194,6 +225,13 @@ impl Default for SlaveSpec {
             initial_local_ns: None,
             esc_type: None,
             forced_loop_ns: None,
+            device: None,
+            vendor: None,
+            product: None,
+            revision: None,
+            serial: None,
+            mailbox: None,
+            sii_file: None,
         }
     }
 }
@@ -246,6 +284,27 @@ pub struct ResolvedSlave {
     pub initial_local_ns: Option<u64>,
     pub esc_type: Option<u8>,
     pub forced_loop_ns: u64,
+    /// Where the EEPROM content comes from.
+    pub sii: SiiSource,
+    /// The application behind the ESC (`Bare` for image files).
+    pub device: Device,
+}
+
+/// The EEPROM content of a resolved slave.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SiiSource {
+    Built(BuildSpec),
+    File(std::path::PathBuf),
+}
+
+impl SiiSource {
+    /// The image (reads the file for `File`).
+    pub fn image(&self) -> Result<SiiImage, super::sii::SiiError> {
+        match self {
+            SiiSource::Built(b) => Ok(b.build()),
+            SiiSource::File(p) => SiiImage::load(p),
+        }
+    }
 }
 
 impl Scenario {
@@ -308,11 +367,22 @@ impl Scenario {
     pub fn load(path: &std::path::Path) -> Result<Self, EmuError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| EmuError::Scenario(format!("{}: {e}", path.display())))?;
-        if path.extension().is_some_and(|e| e == "json") {
-            Self::from_json_str(&text)
+        let mut sc = if path.extension().is_some_and(|e| e == "json") {
+            Self::from_json_str(&text)?
         } else {
-            Self::from_toml_str(&text)
+            Self::from_toml_str(&text)?
+        };
+        // Image files are named relative to the scenario file.
+        if let Some(dir) = path.parent() {
+            for s in &mut sc.slaves {
+                if let Some(f) = s.sii_file.as_mut() {
+                    if f.is_relative() {
+                        *f = dir.join(&*f);
+                    }
+                }
+            }
         }
+        Ok(sc)
     }
 
     /// Serialises to TOML.
@@ -372,9 +442,35 @@ impl Scenario {
                         "slave 0 is cabled to the master and has no parent".into(),
                     ));
                 }
+                let kind = spec.kind.unwrap_or(d.kind);
+                let device = spec.device.unwrap_or(d.device);
+                let (sii, device) = match &spec.sii_file {
+                    Some(f) => (SiiSource::File(f.clone()), Device::Bare),
+                    None => (
+                        SiiSource::Built(BuildSpec {
+                            device,
+                            vendor: spec.vendor.or(d.vendor).unwrap_or(DEFAULT_VENDOR),
+                            product: spec
+                                .product
+                                .or(d.product)
+                                .unwrap_or(device.default_product()),
+                            revision: spec.revision.or(d.revision).unwrap_or(1),
+                            serial: spec
+                                .serial
+                                .map(|x| x.wrapping_add(r as u32))
+                                .unwrap_or((i as u32).wrapping_add(1)),
+                            alias: spec.alias,
+                            name: spec.name.clone(),
+                            pulse_len: d.pulse_len,
+                            mailbox: spec.mailbox.unwrap_or(d.mailbox),
+                            dc: kind.has_system_time(),
+                        }),
+                        device,
+                    ),
+                };
                 out.push(ResolvedSlave {
                     name: spec.name.clone(),
-                    kind: spec.kind.unwrap_or(d.kind),
+                    kind,
                     ports,
                     parent,
                     cable_m: spec.cable_m.unwrap_or(d.cable_m),
@@ -386,6 +482,8 @@ impl Scenario {
                     initial_local_ns: spec.initial_local_ns,
                     esc_type: spec.esc_type,
                     forced_loop_ns: spec.forced_loop_ns.unwrap_or(d.forced_loop_ns),
+                    sii,
+                    device,
                 });
                 let mut u = [false; 4];
                 u[0] = true;
@@ -399,6 +497,11 @@ impl Scenario {
         }
         if self.timing.tick_ns == 0 {
             return Err(EmuError::Scenario("tick_ns must be ≥ 1".into()));
+        }
+        if !matches!(d.sii.read_bytes, 4 | 8) {
+            return Err(EmuError::Scenario(
+                "defaults.sii.read_bytes must be 4 or 8".into(),
+            ));
         }
         Ok(out)
     }
@@ -469,6 +572,29 @@ impl Scenario {
                     ));
                 }
             }
+            if let Some(f) = &spec.sii_file {
+                let given = [
+                    ("device", spec.device.is_some()),
+                    ("vendor", spec.vendor.is_some()),
+                    ("product", spec.product.is_some()),
+                    ("revision", spec.revision.is_some()),
+                    ("serial", spec.serial.is_some()),
+                    ("mailbox", spec.mailbox.is_some()),
+                    ("alias", spec.alias != 0),
+                ];
+                if let Some((what, _)) = given.iter().find(|(_, g)| *g) {
+                    return bad(format!(
+                        "slave {first}: {what} is given together with sii_file; the image \
+                         file holds the identity, alias and SyncManagers"
+                    ));
+                }
+                if let Err(error) = SiiImage::load(f) {
+                    return Err(EmuError::Sii {
+                        slave: first,
+                        error,
+                    });
+                }
+            }
             for (what, v) in [("cable_m", spec.cable_m), ("ppm", spec.ppm)] {
                 if let Some(v) = v {
                     check_number(&format!("slave {first}: {what}"), v, what == "ppm")?;
@@ -480,6 +606,12 @@ impl Scenario {
             return bad("no slaves: add at least one [[slaves]] entry".to_string());
         }
         check_number("defaults.cable_m", d.cable_m, false)?;
+        if !matches!(d.sii.read_bytes, 4 | 8) {
+            return bad(format!(
+                "defaults.sii.read_bytes = {}; an ESC reads 4 or 8 bytes per command",
+                d.sii.read_bytes
+            ));
+        }
         check_ppm_spec("defaults.ppm", &d.ppm)?;
         let t = &self.timing;
         for (what, v) in [

@@ -1,0 +1,163 @@
+//! The application layer state machine as a slave's firmware drives it through AL control
+//! (0x0120), AL status (0x0130) and the AL status code (0x0134): Beckhoff ESC datasheet
+//! Section II, "AL Control", "AL Status", "AL Status Code"; transitions and codes from
+//! ETG.1000.6 (docs/background/sii-al.md §3).
+//!
+//! The firmware checks the mailbox SyncManagers at INIT→PREOP and the process-data
+//! SyncManagers at PREOP→SAFEOP against the SII's SyncManager category, and keeps the
+//! SyncManagers it does not use in the current state deactivated from the PDI side (0x0807
+//! bit 0), so process data only flows in SAFEOP and OP. A slave whose SII lists no
+//! SyncManagers (`bare`) has nothing to check.
+
+use super::device::{sm_type, SmEntry};
+use super::registers::{addr, RegisterFile};
+
+pub const INIT: u16 = 0x1;
+pub const PREOP: u16 = 0x2;
+pub const BOOT: u16 = 0x3;
+pub const SAFEOP: u16 = 0x4;
+pub const OP: u16 = 0x8;
+/// AL status bit 4: error indication; AL control bit 4: error acknowledge.
+pub const ERROR: u16 = 0x10;
+
+/// AL status codes (ETG.1000.6, "AL Status Codes").
+pub mod code {
+    pub const INVALID_TRANSITION: u16 = 0x0011;
+    pub const UNKNOWN_STATE: u16 = 0x0012;
+    pub const INVALID_MAILBOX_CONFIG: u16 = 0x0016;
+    pub const INVALID_OUTPUT_CONFIG: u16 = 0x001D;
+    pub const INVALID_INPUT_CONFIG: u16 = 0x001E;
+}
+
+/// Registers of SyncManager `n` (datasheet 0x0800 + 8n: start, length, control, status,
+/// activate, PDI control).
+pub fn sm_base(n: usize) -> u16 {
+    addr::SM0 + 8 * (n.min(15) as u16)
+}
+
+/// Why the SyncManager `n` the SII describes as `want` is not configured as the firmware
+/// needs: not activated, another length, mode or direction, or a buffer neither where the
+/// SII puts it nor inside process RAM (some devices place theirs in register space, e.g.
+/// 0x0F00, and a master may move a buffer within process RAM). `None` = fine.
+fn sm_mismatch(regs: &RegisterFile, n: usize, want: &SmEntry) -> Option<&'static str> {
+    let b = sm_base(n);
+    let start = regs.get_u16(b);
+    let len = regs.get_u16(b + 2);
+    let ctrl = regs.get_u8(b + 4);
+    let act = regs.get_u8(b + 6);
+    if act & 0x01 == 0 {
+        return Some("not activated");
+    }
+    if len != want.len {
+        return Some("length");
+    }
+    if ctrl & 0x0F != want.control & 0x0F {
+        return Some("mode or direction");
+    }
+    let end = u32::from(start) + u32::from(len);
+    let in_ram = start >= addr::PROCESS_RAM && end <= regs.len() as u32;
+    if start != want.start && !in_ram {
+        return Some("outside process RAM");
+    }
+    None
+}
+
+fn check(regs: &RegisterFile, sms: &[SmEntry], types: &[(u8, u16)]) -> Option<u16> {
+    for (n, e) in sms.iter().enumerate() {
+        // SyncManagers the SII lists as disabled or empty are not used.
+        if e.len == 0 || e.enable & 0x01 == 0 {
+            continue;
+        }
+        if let Some(&(_, c)) = types.iter().find(|(t, _)| *t == e.typ) {
+            if sm_mismatch(regs, n, e).is_some() {
+                return Some(c);
+            }
+        }
+    }
+    None
+}
+
+/// Keeps the SyncManagers the SII lists deactivated from the PDI side unless the state
+/// uses them: mailboxes from PREOP on, process data from SAFEOP on. REQ-ESC-026.
+pub fn apply_pdi_control(regs: &mut RegisterFile, sms: &[SmEntry], state: u16) {
+    for (n, e) in sms.iter().enumerate() {
+        let on = match e.typ {
+            sm_type::MBX_OUT | sm_type::MBX_IN => matches!(state, PREOP | SAFEOP | OP | BOOT),
+            sm_type::PD_OUT | sm_type::PD_IN => matches!(state, SAFEOP | OP),
+            _ => true,
+        };
+        let a = sm_base(n) + 7;
+        let v = regs.get_u8(a);
+        regs.set_u8(a, if on { v & !0x01 } else { v | 0x01 });
+    }
+}
+
+/// Handles a write to AL control (REQ-ESC-020, SyncManager checks REQ-ESC-025). `sms` is the
+/// SII's SyncManager category. Returns the new state. Rules (ETG.1000.6): any state → INIT; INIT → PREOP/BOOT; PREOP → SAFEOP; SAFEOP →
+/// OP; back from OP/SAFEOP to lower states; BOOT → INIT; requesting the current state is
+/// fine. While the error flag is set, only an acknowledge or a request for a lower state is
+/// acted on: a higher state needs the acknowledge first.
+pub fn control(regs: &mut RegisterFile, sms: &[SmEntry]) -> u16 {
+    let ctrl = regs.get_u16(addr::AL_CONTROL);
+    let status = regs.get_u16(addr::AL_STATUS);
+    let cur = status & 0x0F;
+    let ack = ctrl & ERROR != 0;
+    let mut err = status & ERROR != 0 && !ack;
+    let req = ctrl & 0x0F;
+    let rank = |s: u16| match s {
+        INIT => 0,
+        PREOP | BOOT => 1,
+        SAFEOP => 2,
+        OP => 3,
+        _ => 0,
+    };
+    let known = matches!(req, INIT | PREOP | BOOT | SAFEOP | OP);
+    let allowed = match (cur, req) {
+        (_, INIT) => true,
+        (a, b) if a == b => true,
+        (INIT, PREOP) | (INIT, BOOT) | (PREOP, SAFEOP) | (SAFEOP, OP) => true,
+        (SAFEOP, PREOP) | (OP, SAFEOP) | (OP, PREOP) => true,
+        _ => false,
+    };
+    let (new, code) = if err && known && rank(req) > rank(cur) {
+        // Waits for the acknowledge; status and code stay as they are.
+        (cur, None)
+    } else if !known {
+        (cur, Some(code::UNKNOWN_STATE))
+    } else if !allowed {
+        (cur, Some(code::INVALID_TRANSITION))
+    } else {
+        let failed = match (cur, req) {
+            (INIT, PREOP) => check(
+                regs,
+                sms,
+                &[
+                    (sm_type::MBX_OUT, code::INVALID_MAILBOX_CONFIG),
+                    (sm_type::MBX_IN, code::INVALID_MAILBOX_CONFIG),
+                ],
+            ),
+            (PREOP, SAFEOP) => check(
+                regs,
+                sms,
+                &[
+                    (sm_type::PD_OUT, code::INVALID_OUTPUT_CONFIG),
+                    (sm_type::PD_IN, code::INVALID_INPUT_CONFIG),
+                ],
+            ),
+            _ => None,
+        };
+        match failed {
+            Some(c) => (cur, Some(c)),
+            None => (req, None),
+        }
+    };
+    if let Some(c) = code {
+        err = true;
+        regs.set_u16(addr::AL_STATUS_CODE, c);
+    } else if !err {
+        regs.set_u16(addr::AL_STATUS_CODE, 0);
+    }
+    regs.set_u16(addr::AL_STATUS, new | if err { ERROR } else { 0 });
+    apply_pdi_control(regs, sms, new);
+    new
+}
