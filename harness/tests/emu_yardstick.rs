@@ -141,7 +141,14 @@ fn agree(s: &mut dyn Scheme, run: RunOpts) {
         );
         // The station address the master configured is reported.
         assert_ne!(mine.station, 0, "{name}: slave {}", row.slave);
-        assert_eq!(mine.identity, None);
+        // The identity is the one the slave's SII image holds.
+        let id = mine.identity.as_ref().expect("identity from the SII image");
+        assert_eq!(
+            Some(id),
+            s.net().identity(mine.position).as_ref(),
+            "{name}: slave {}",
+            row.slave
+        );
     }
 }
 

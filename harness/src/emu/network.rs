@@ -443,12 +443,6 @@ impl Network {
         self.info.get(i)
     }
 
-    /// Slave `i`'s identity (vendor id, product code, revision, serial number). The emulator
-    /// has no SII EEPROM yet, so there is none to report: always `None` until one is modelled.
-    pub fn identity(&self, _i: usize) -> Option<super::yardstick::Identity> {
-        None
-    }
-
     /// The ESC model of slave `i` (register file, loop state), read-only.
     pub fn esc(&self, i: usize) -> Option<&Esc> {
         self.escs.get(i)

@@ -363,15 +363,6 @@ impl<T: Copy> LockTracker<T> {
     }
 }
 
-/// A slave's identity (the SII's vendor id, product code, revision, serial number).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub struct Identity {
-    pub vendor_id: u32,
-    pub product_code: u32,
-    pub revision: u32,
-    pub serial: u32,
-}
-
 /// Timing of a [`Yardstick`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct YardstickOpts {
@@ -457,7 +448,7 @@ pub struct SlaveReport {
     /// Configured station address (0x0010).
     pub station: u16,
     /// Vendor / product / revision / serial, `null` where the emulator has none.
-    pub identity: Option<Identity>,
+    pub identity: Option<super::sii::Identity>,
     /// AL status (0x0130): INIT, PREOP, BOOT, SAFEOP, OP, with `+ERR` when the error bit is set.
     pub al_state: String,
     /// 0x0981 has cyclic operation and SYNC0 enabled.
