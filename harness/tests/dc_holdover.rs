@@ -235,6 +235,90 @@ fn silence_beyond_limit_reinitialises() {
     assert!(restarts >= 2, "{restarts}");
 }
 
+/// Each re-initialisation without a lock in between waits twice as long as the one before
+/// (10 ms, 20 ms, 40 ms, … up to 1 s); every one follows the error that caused it.
+// verifies: REQ-DC-130
+#[test]
+fn restarts_back_off() {
+    let mut s = locked();
+    let mark = s.events().len();
+    let at = s.now() + 10_000_000;
+    s.net
+        .schedule_fault(
+            at,
+            Fault::WireSilence {
+                duration_ns: 3_000_000_000,
+            },
+        )
+        .unwrap();
+    s.run_until(at + 3_000_000_000).unwrap();
+    let ev = &s.events()[mark..];
+    let restarts: Vec<u64> = ev
+        .iter()
+        .filter(|(_, e)| *e == Event::Restarting)
+        .map(|(t, _)| *t)
+        .collect();
+    for w in ev.windows(2) {
+        if w[1].1 == Event::Restarting {
+            assert!(matches!(w[0].1, Event::Error(_)), "{:?}", w[0]);
+        }
+    }
+    // Between two `Restarting`: the pause, then one CountSlaves attempt (its retries time out
+    // the same way every time). The differences of successive gaps are the pauses' growth.
+    let gaps: Vec<u64> = restarts.windows(2).map(|w| w[1] - w[0]).collect();
+    println!(
+        "restart gaps (ms): {:?}",
+        gaps.iter().map(|g| g / 1_000_000).collect::<Vec<_>>()
+    );
+    assert!(gaps.len() >= 5, "{gaps:?}");
+    let pause0 = s.machine.config().restart_delay_ns;
+    for (k, w) in gaps.windows(2).enumerate() {
+        // Gap k holds pause k = 10 ms · 2^k (the first follows the hold-over's end); the
+        // next pause is twice it, up to 1 s.
+        let p = (pause0 << k).min(1_000_000_000);
+        let next = (pause0 << (k + 1)).min(1_000_000_000);
+        assert_eq!(
+            w[1] as i64 - w[0] as i64,
+            next as i64 - p as i64,
+            "{gaps:?}"
+        );
+    }
+}
+
+/// `holdover_ns = 0` keeps the fault after `max_lost_cycles`.
+// verifies: REQ-DC-129
+#[test]
+fn holdover_off_faults_after_lost_cycles() {
+    let cfg = Config {
+        holdover_ns: 0,
+        ..seed000_config()
+    };
+    let mut s = sim::<8>(&Scenario::seed000_line(), cfg);
+    lock(&mut s, 3_000_000_000);
+    let mark = s.events().len();
+    let at = s.now() + 10_000_000;
+    s.net
+        .schedule_fault(
+            at,
+            Fault::WireSilence {
+                duration_ns: 300_000_000,
+            },
+        )
+        .unwrap();
+    s.run_until(at + 100_000_000).unwrap();
+    let ev: Vec<Event> = s.events()[mark..].iter().map(|x| x.1).collect();
+    assert_eq!(
+        ev.first(),
+        Some(&Event::Error(Error::Timeout {
+            state: ecdc_core::dc::State::Cyclic
+        })),
+        "{ev:?}"
+    );
+    assert!(!ev
+        .iter()
+        .any(|e| matches!(e, Event::HoldoverStarted { .. })));
+}
+
 /// A slave power-cycled during a silence: the resume check fails and names why.
 // verifies: REQ-DC-128
 #[test]
