@@ -225,15 +225,15 @@ pub struct Config {
     /// one cycle period of grace for the resume cycle; 0 disables hold-over (re-initialise after
     /// `monitor.max_lost_cycles`). ecdc choice: 1 s (1 000 cycles at 1 ms), because the slaves'
     /// clocks keep their offsets and learnt rates through a silence, so only the residual
-    /// rate error accumulates (about 0.1 ns per ms at the 0.1 ppm static drift compensation
-    /// leaves), while a stopped peer or a stalled host of a few hundred ms is common on
-    /// machines without real-time scheduling.
+    /// rate error accumulates (docs/background/holdover.md §1: 38 → 128 ns worst SYNC0 skew
+    /// over 1 s on seed 000's emulated line), while a stopped peer or a stalled host of a few
+    /// hundred ms is common on machines without real-time scheduling.
     pub holdover_ns: u64,
     /// Largest BRD 0x092C bound the resume check after a hold-over accepts, ns (REQ-DC-128).
-    /// ecdc choice: 100 µs: a clock free-running with the ±100 ppm an Ethernet PHY clock may
-    /// deviate (IEEE 802.3 §24.2.3.4) drifts 100 µs in the default 1 s hold-over even with no
-    /// compensation at all, while an ESC that was reset has a difference spread over the
-    /// whole ±2.1 s of the 32-bit comparison. Raise it with `holdover_ns`.
+    /// ecdc choice: 100 µs: a clock free-running at the ±100 ppm 100BASE-TX tolerates drifts
+    /// 100 µs in the default 1 s hold-over even with no compensation at all, while an ESC that
+    /// was reset has a difference spread over the whole ±2.1 s of the 32-bit comparison
+    /// (docs/background/holdover.md §3). Raise it with `holdover_ns`.
     pub holdover_check_ns: u32,
     /// How the t_Diff of each ESC is learned (REQ-DC-120).
     pub tdiff: TdiffConfig,

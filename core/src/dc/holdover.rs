@@ -1,9 +1,8 @@
 //! Hold-over (REQ-DC-127..130): a silence of the wire or a stall of the master during cyclic
-//! operation is not a fault of the slaves' clocks. The ESC's time-control loop takes a sample
-//! only from a write covering 0x0910 (docs/background/esc-registers.md §3.2, from the ESC
-//! datasheet), so without FRMW nothing changes its speed correction and each clock keeps the
-//! rate it learnt (an inference: the update law is not published); the offsets in 0x0920,
-//! the delays in 0x0928 and the programmed SYNC0 start stay valid. What stops is the
+//! operation is not a fault of the slaves' clocks (docs/background/holdover.md §1): the ESC's
+//! time-control loop takes a sample only from a write covering 0x0910, so without FRMW each
+//! clock keeps the rate it learnt; the offsets in 0x0920, the delays in 0x0928 and the
+//! programmed SYNC0 start stay valid. What stops is the
 //! distribution of the reference time and the master's view of it.
 //!
 //! So instead of re-initialising after `max_lost_cycles`, the cyclic phase enters a hold-over
@@ -15,13 +14,13 @@
 //! - BRD 0x0130's working counter is the slave count of the bring-up (same topology);
 //! - the FRMW's and BRD 0x092C's working counters are the DC slave count (reference alive);
 //! - the OR of every AL status (BRD 0x0130 data) shows no INIT where there was none before: an
-//!   ESC that lost power restarts in INIT (0x0130 resets to 0x0001, ESC datasheet section II,
-//!   AL Status), while a slave fallen back to SAFEOP by its watchdog is no clock fault;
+//!   ESC that lost power restarts in INIT (docs/background/holdover.md §2), while a slave
+//!   fallen back to SAFEOP by its watchdog is no clock fault;
 //! - every round-robin FPRD answers at its station address (a power-cycled ESC lost it);
 //! - the BRD 0x092C bound, written by this very cycle's FRMW, is at most
 //!   `Config::holdover_check_ns`: a reset ESC's system time restarted at 0 with offset 0, so
 //!   its difference to the reference is essentially a random 32-bit value, not the residual
-//!   drift of a clock that kept its rate.
+//!   drift of a clock that kept its rate (docs/background/holdover.md §2, §3).
 //!
 //! A failed check is a typed fault ([`Error::ResumeCheckFailed`]) and the usual
 //! re-initialisation; a passed one resumes monitoring and lock detection where they were.
