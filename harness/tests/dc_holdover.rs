@@ -87,6 +87,14 @@ fn hold_over(fault: Fault, duration: u64) -> Outcome {
     let sync_start = s.machine.sync_start();
     let at = s.now() + 10_000_000;
     s.net.schedule_fault(at, fault.clone()).unwrap();
+    // Halfway through: holding over, not locked, still cyclic (the stalled master has not
+    // looked yet, so it sees the hold-over only once it runs again).
+    s.run_until(at + duration / 2).unwrap();
+    if !matches!(fault, Fault::MasterStall { .. }) {
+        assert!(s.machine.in_holdover());
+        assert!(!s.machine.is_locked());
+    }
+    assert_eq!(s.machine.state(), ecdc_core::dc::State::Cyclic);
     s.run_until(at + duration + 1_500_000_000).unwrap();
     let ev: Vec<(u64, Event)> = s.events()[mark..].to_vec();
     for (t, e) in &ev {
