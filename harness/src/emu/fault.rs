@@ -1,4 +1,4 @@
-//! Faults that a scenario (or a running test) can inject at given true times. REQ-ESC-090..094.
+//! Faults that a scenario (or a running test) can inject at given true times. REQ-ESC-090..096.
 
 use serde::{Deserialize, Serialize};
 
