@@ -196,9 +196,7 @@ fn describe(e: &Event) -> String {
             format!("delays re-measured (max change {max_change_ns} ns)")
         }
         Event::Error(err) => format!("DC error: {err:?}"),
-        Event::Restarting => {
-            "DC re-initialising (after a pause that doubles per attempt without lock)".to_owned()
-        }
+        Event::Restarting => "DC re-initialising".to_owned(),
         Event::HoldoverStarted { cause, .. } => {
             format!("DC holding over ({cause:?}): offsets and SYNC0 kept")
         }
@@ -209,6 +207,20 @@ fn describe(e: &Event) -> String {
             check.bound_ns
         ),
         other => format!("{other:?}"),
+    }
+}
+
+/// [`describe`], with the attempt number on a re-initialisation (its cause is the error
+/// printed just before).
+fn describe_attempt(e: &Event, attempts: &std::cell::Cell<u64>) -> String {
+    if *e == Event::Restarting {
+        attempts.set(attempts.get() + 1);
+        format!(
+            "DC re-initialising, attempt {} (the pause before it doubles per attempt without lock, up to 1 s)",
+            attempts.get()
+        )
+    } else {
+        describe(e)
     }
 }
 
@@ -293,6 +305,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut bringup_ms = 0.0;
     let mut drift: Option<(u32, u32)> = None;
     let mut reinits = 0u32;
+    // Re-initialisations the machine announced, over bring-up and cyclic phases.
+    let attempts = std::cell::Cell::new(0u64);
     let mut done_cycles = 0u64;
     let mut cyclic_summary: Option<LoopSummary> = None;
     let mut servo_drift = None;
@@ -325,7 +339,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 {
                     drift = Some((*frames, *max_diff_ns));
                 }
-                bar.borrow_mut().line(&describe(e));
+                bar.borrow_mut().line(&describe_attempt(e, &attempts));
             },
             |p| bar.borrow_mut().show(p),
         );
@@ -360,7 +374,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let quiet = args.quiet;
         let mut task = DcTask::new(&mut m, servo, dc, cycle_ns, |cycle, e| {
             if !quiet {
-                eprintln!("cycle {cycle}: {}", describe(e));
+                eprintln!("cycle {cycle}: {}", describe_attempt(e, &attempts));
             }
         });
         let summary = cyclic::run(&mut t, &mut task, &ccfg, stop, |line| {
