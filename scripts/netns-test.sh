@@ -8,7 +8,9 @@
 # Part 1 (transport): `emulate --engine reflect` + `rtt`: every frame answered, accounting exact.
 # Part 2 (DC): `emulate` (ESC emulator) + `run --duration`: lock reached, frame accounting,
 #   the --pcap capture read back by tshark, the emulator's true-time DC yardstick (every DC
-#   slave firing, locked, max skew < 100 ns); 2b: `scan` of a tree scenario.
+#   slave firing, locked, max skew < 100 ns); 2b: `scan` of a tree scenario; 2c: hold-over
+#   (emulator SIGSTOPped 300 ms, later the master 300 ms: no re-initialisation, locked);
+#   2d: emulator stopped 3 s: re-initialisation with backoff until it answers, locked.
 # Part 3: the errors a user can act on.
 #
 # Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
@@ -175,6 +177,79 @@ if start_emulator esc; then
     fi
 else
     echo "  FAIL emulator (esc) did not start:"
+    sed 's/^/    /' "$WORK/emu-esc.err"
+    FAILED=1
+fi
+
+echo "== part 2c: hold-over: the emulator stopped 300 ms, later the master stopped 300 ms"
+# The silence and the stall are shorter than the default 1 s hold-over limit: DC must neither
+# re-initialise nor give up; the resume check passes and the run ends locked.
+if start_emulator esc --slaves 6; then
+    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 8 --json \
+        >"$WORK/holdover.json" 2>"$WORK/holdover.err" &
+    RUN_PID=$!
+    PIDS+=("$RUN_PID")
+    for _ in $(seq 100); do
+        grep -q "DC locked" "$WORK/holdover.err" 2>/dev/null && break
+        kill -0 "$RUN_PID" 2>/dev/null || break
+        sleep 0.1
+    done
+    sleep 0.5
+    kill -STOP "$EMU_PID"; sleep 0.3; kill -CONT "$EMU_PID"
+    sleep 1.5
+    kill -STOP "$RUN_PID"; sleep 0.3; kill -CONT "$RUN_PID"
+    wait "$RUN_PID"
+    RUN_RC=$?
+    PIDS=("${PIDS[@]/$RUN_PID}")
+    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
+    grep -E "hold|re-init|error" "$WORK/holdover.err" | sed 's/^/    /'
+    if [ "$RUN_RC" -ne 0 ]; then
+        tail -n 20 "$WORK/holdover.err"
+        echo "  FAIL ecdc run exited with $RUN_RC"
+        FAILED=1
+    else
+        R="$WORK/holdover.json"
+        jq -c '{restarts, holdovers, locked_at_end: .cyclic.locked_at_end, lost_cycles: .machine_lost_cycles, frames: .frames}' "$R"
+        check "no DC re-initialisation through the silence and the stall" '.restarts == 0' "$R"
+        check "at least one hold-over ended with a passed resume check" '.holdovers >= 1' "$R"
+        check "DC locked at the end" '.cyclic.locked_at_end == true' "$R"
+    fi
+else
+    echo "  FAIL emulator (6 slaves) did not start:"
+    sed 's/^/    /' "$WORK/emu-esc.err"
+    FAILED=1
+fi
+
+echo "== part 2d: a 3 s silence (beyond the 1 s hold-over): re-initialise with backoff, never give up"
+if start_emulator esc --slaves 6; then
+    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 8 --json \
+        >"$WORK/reinit.json" 2>"$WORK/reinit.err" &
+    RUN_PID=$!
+    PIDS+=("$RUN_PID")
+    for _ in $(seq 100); do
+        grep -q "DC locked" "$WORK/reinit.err" 2>/dev/null && break
+        kill -0 "$RUN_PID" 2>/dev/null || break
+        sleep 0.1
+    done
+    sleep 0.5
+    kill -STOP "$EMU_PID"; sleep 3; kill -CONT "$EMU_PID"
+    wait "$RUN_PID"
+    RUN_RC=$?
+    PIDS=("${PIDS[@]/$RUN_PID}")
+    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
+    grep -E "HoldoverExpired|attempt" "$WORK/reinit.err" | sed 's/^/    /'
+    if [ "$RUN_RC" -ne 0 ]; then
+        tail -n 20 "$WORK/reinit.err"
+        echo "  FAIL ecdc run exited with $RUN_RC (it must keep retrying while the link is up)"
+        FAILED=1
+    else
+        R="$WORK/reinit.json"
+        jq -c '{restarts, holdovers, locked_at_end: .cyclic.locked_at_end}' "$R"
+        check "re-initialised after the hold-over limit, retried until the slaves answered" '.restarts >= 1' "$R"
+        check "DC locked at the end" '.cyclic.locked_at_end == true' "$R"
+    fi
+else
+    echo "  FAIL emulator (6 slaves) did not start:"
     sed 's/^/    /' "$WORK/emu-esc.err"
     FAILED=1
 fi

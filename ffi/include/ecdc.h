@@ -180,6 +180,14 @@ typedef enum ecdc_event_kind {
    */
   ECDC_EVENT_TDIFF_RESOLVED = 11,
   /**
+   * Cyclic operation holds over a silence or stall: `u.holdover_started`.
+   */
+  ECDC_EVENT_HOLDOVER_STARTED = 12,
+  /**
+   * A hold-over ended with a passed resume check: `u.holdover_ended`.
+   */
+  ECDC_EVENT_HOLDOVER_ENDED = 13,
+  /**
    * An event this header predates (a newer library); only `text` describes it.
    */
   ECDC_EVENT_OTHER = 255,
@@ -238,6 +246,17 @@ typedef enum ecdc_fault_kind {
    * The transmit buffer cannot hold one datagram.
    */
   ECDC_FAULT_BUFFER_TOO_SMALL = 12,
+  /**
+   * A hold-over outlasted `holdover_ns`: `count` = the silence in µs (saturated).
+   */
+  ECDC_FAULT_HOLDOVER_EXPIRED = 13,
+  /**
+   * The resume check after a hold-over failed; `command` holds an `ecdc_resume_failure`:
+   * SLAVE_COUNT (`expected`, `actual`), REFERENCE_WKC (`expected`, `actual`), SLAVE_LOST
+   * (`station`), SLAVE_RESET (`actual` = AL status OR now, `expected` = before), BOUND
+   * (`diff_ns`).
+   */
+  ECDC_FAULT_RESUME_CHECK_FAILED = 14,
   /**
    * A fault this header predates; only `ecdc_event.text` describes it.
    */
@@ -624,6 +643,23 @@ typedef struct ecdc_config {
    * User-supplied t_Diff per ESC type and revision (unused entries: `used` 0).
    */
   struct ecdc_tdiff_type tdiff_types[4];
+  /**
+   * Longest pause between re-initialisations (backoff cap). Default 1 s.
+   */
+  uint64_t restart_backoff_max_ns;
+  /**
+   * Longest silence held over in cyclic operation before re-initialising; 0 disables
+   * hold-over. Default 1 s.
+   */
+  uint64_t holdover_ns;
+  /**
+   * Largest BRD 0x092C bound the resume check after a hold-over accepts. Default 100 µs.
+   */
+  uint32_t holdover_check_ns;
+  /**
+   * Reserved, keep 0.
+   */
+  uint32_t holdover_reserved;
 } ecdc_config;
 
 /**
@@ -845,6 +881,42 @@ typedef struct ecdc_ev_tdiff_resolved {
 } ecdc_ev_tdiff_resolved;
 
 /**
+ * `HOLDOVER_STARTED` data.
+ */
+typedef struct ecdc_ev_holdover_started {
+  /**
+   * Master time of the first missed cycle, ns since 2000-01-01.
+   */
+  uint64_t since;
+  /**
+   * An `ecdc_holdover_cause` value.
+   */
+  uint8_t cause;
+} ecdc_ev_holdover_started;
+
+/**
+ * `HOLDOVER_ENDED` data.
+ */
+typedef struct ecdc_ev_holdover_ended {
+  /**
+   * Time from the first missed cycle to the end of the resume cycle, ns.
+   */
+  uint64_t after_ns;
+  /**
+   * Slaves answering in the resume cycle.
+   */
+  uint16_t slaves;
+  /**
+   * OR of every AL status in the resume cycle.
+   */
+  uint16_t al_status;
+  /**
+   * BRD 0x092C bound in the resume cycle, ns.
+   */
+  uint32_t bound_ns;
+} ecdc_ev_holdover_ended;
+
+/**
  * The data of an event; read the member named by `ecdc_event.kind`.
  */
 typedef union ecdc_event_data {
@@ -888,6 +960,14 @@ typedef union ecdc_event_data {
    * `ECDC_EVENT_TDIFF_RESOLVED`.
    */
   struct ecdc_ev_tdiff_resolved tdiff_resolved;
+  /**
+   * `ECDC_EVENT_HOLDOVER_STARTED`.
+   */
+  struct ecdc_ev_holdover_started holdover_started;
+  /**
+   * `ECDC_EVENT_HOLDOVER_ENDED`.
+   */
+  struct ecdc_ev_holdover_ended holdover_ended;
   /**
    * Sizes the union and zero-fills it before a member is written.
    */
@@ -964,6 +1044,10 @@ typedef struct ecdc_stats {
    * Whether the machine locked since its last start.
    */
   bool has_lock_frames;
+  /**
+   * Hold-overs that ended with a passed resume check.
+   */
+  uint64_t holdovers;
 } ecdc_stats;
 
 /**

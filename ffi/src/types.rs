@@ -11,7 +11,8 @@ use core::fmt::Write as _;
 
 use ecdc_core::dc::{
     Config, ConfigError, DcKind, DriftCheck, DriftCommand, DriftConfig, Error, Event,
-    MonitorConfig, SlaveInfo, State, Stats, SyncConfig, TdiffConfig, TdiffMode, TdiffType,
+    HoldoverCause, MonitorConfig, ResumeFailure, SlaveInfo, State, Stats, SyncConfig, TdiffConfig,
+    TdiffMode, TdiffType,
 };
 
 /// Result of every fallible call. `ECDC_OK` is 0; `ecdc_strerror` names each code.
@@ -211,6 +212,15 @@ pub struct ecdc_config {
     pub tdiff_max_ns: i32,
     /// User-supplied t_Diff per ESC type and revision (unused entries: `used` 0).
     pub tdiff_types: [ecdc_tdiff_type; 4],
+    /// Longest pause between re-initialisations (backoff cap). Default 1 s.
+    pub restart_backoff_max_ns: u64,
+    /// Longest silence held over in cyclic operation before re-initialising; 0 disables
+    /// hold-over. Default 1 s.
+    pub holdover_ns: u64,
+    /// Largest BRD 0x092C bound the resume check after a hold-over accepts. Default 100 µs.
+    pub holdover_check_ns: u32,
+    /// Reserved, keep 0.
+    pub holdover_reserved: u32,
 }
 
 /// The C view of a Rust [`Config`].
@@ -285,6 +295,10 @@ pub fn config_to_c(c: &Config) -> ecdc_config {
                 t_diff_ns: 0,
             },
         }),
+        restart_backoff_max_ns: c.restart_backoff_max_ns,
+        holdover_ns: c.holdover_ns,
+        holdover_check_ns: c.holdover_check_ns,
+        holdover_reserved: 0,
     }
 }
 
@@ -364,6 +378,9 @@ pub fn config_from_c(c: &ecdc_config) -> Result<Config, ecdc_status> {
         },
         auto_restart: c.auto_restart != 0,
         restart_delay_ns: c.restart_delay_ns,
+        restart_backoff_max_ns: c.restart_backoff_max_ns,
+        holdover_ns: c.holdover_ns,
+        holdover_check_ns: c.holdover_check_ns,
     })
 }
 
@@ -614,6 +631,10 @@ pub enum ecdc_event_kind {
     ECDC_EVENT_RESTARTING = 10,
     /// Every slave's t_Diff is known: `u.tdiff_resolved`.
     ECDC_EVENT_TDIFF_RESOLVED = 11,
+    /// Cyclic operation holds over a silence or stall: `u.holdover_started`.
+    ECDC_EVENT_HOLDOVER_STARTED = 12,
+    /// A hold-over ended with a passed resume check: `u.holdover_ended`.
+    ECDC_EVENT_HOLDOVER_ENDED = 13,
     /// An event this header predates (a newer library); only `text` describes it.
     ECDC_EVENT_OTHER = 255,
 }
@@ -647,8 +668,45 @@ pub enum ecdc_fault_kind {
     ECDC_FAULT_NO_REFERENCE_CLOCK = 11,
     /// The transmit buffer cannot hold one datagram.
     ECDC_FAULT_BUFFER_TOO_SMALL = 12,
+    /// A hold-over outlasted `holdover_ns`: `count` = the silence in µs (saturated).
+    ECDC_FAULT_HOLDOVER_EXPIRED = 13,
+    /// The resume check after a hold-over failed; `command` holds an `ecdc_resume_failure`:
+    /// SLAVE_COUNT (`expected`, `actual`), REFERENCE_WKC (`expected`, `actual`), SLAVE_LOST
+    /// (`station`), SLAVE_RESET (`actual` = AL status OR now, `expected` = before), BOUND
+    /// (`diff_ns`).
+    ECDC_FAULT_RESUME_CHECK_FAILED = 14,
     /// A fault this header predates; only `ecdc_event.text` describes it.
     ECDC_FAULT_OTHER = 255,
+}
+
+/// `ecdc_fault.command` of an `ECDC_FAULT_RESUME_CHECK_FAILED`. Never renumbered.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ecdc_resume_failure {
+    /// A different number of slaves answers.
+    ECDC_RESUME_SLAVE_COUNT = 1,
+    /// The FRMW's working counter is not the DC slave count.
+    ECDC_RESUME_REFERENCE_WKC = 2,
+    /// A slave lost its station address.
+    ECDC_RESUME_SLAVE_LOST = 3,
+    /// A slave is in INIT although none was before.
+    ECDC_RESUME_SLAVE_RESET = 4,
+    /// The 0x092C bound exceeds `holdover_check_ns`.
+    ECDC_RESUME_BOUND = 5,
+    /// A failure this header predates.
+    ECDC_RESUME_OTHER = 255,
+}
+
+/// `ecdc_ev_holdover_started.cause` values. Never renumbered.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ecdc_holdover_cause {
+    /// `max_lost_cycles` cycles in a row without a complete reply.
+    ECDC_HOLDOVER_SILENCE = 1,
+    /// No transmission for more than `max_lost_cycles` periods.
+    ECDC_HOLDOVER_STALL = 2,
+    /// A cause this header predates.
+    ECDC_HOLDOVER_OTHER = 255,
 }
 
 /// A fault, flattened: which fields mean something depends on `kind` (see `ecdc_fault_kind`);
@@ -749,6 +807,28 @@ pub struct ecdc_ev_lock_lost {
     /// BRD 0x092C bound, ns.
     pub bound_ns: u32,
 }
+/// `HOLDOVER_STARTED` data.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ecdc_ev_holdover_started {
+    /// Master time of the first missed cycle, ns since 2000-01-01.
+    pub since: u64,
+    /// An `ecdc_holdover_cause` value.
+    pub cause: u8,
+}
+/// `HOLDOVER_ENDED` data.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ecdc_ev_holdover_ended {
+    /// Time from the first missed cycle to the end of the resume cycle, ns.
+    pub after_ns: u64,
+    /// Slaves answering in the resume cycle.
+    pub slaves: u16,
+    /// OR of every AL status in the resume cycle.
+    pub al_status: u16,
+    /// BRD 0x092C bound in the resume cycle, ns.
+    pub bound_ns: u32,
+}
 /// `DELAYS_UPDATED` data.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -781,6 +861,10 @@ pub union ecdc_event_data {
     pub error: ecdc_fault,
     /// `ECDC_EVENT_TDIFF_RESOLVED`.
     pub tdiff_resolved: ecdc_ev_tdiff_resolved,
+    /// `ECDC_EVENT_HOLDOVER_STARTED`.
+    pub holdover_started: ecdc_ev_holdover_started,
+    /// `ECDC_EVENT_HOLDOVER_ENDED`.
+    pub holdover_ended: ecdc_ev_holdover_ended,
     /// Sizes the union and zero-fills it before a member is written.
     pub raw: [u64; 4],
 }
@@ -925,6 +1009,42 @@ pub fn fault_to_c(e: &Error) -> ecdc_fault {
         Error::NoSlaves => f.kind = K::ECDC_FAULT_NO_SLAVES,
         Error::NoReferenceClock => f.kind = K::ECDC_FAULT_NO_REFERENCE_CLOCK,
         Error::BufferTooSmall => f.kind = K::ECDC_FAULT_BUFFER_TOO_SMALL,
+        Error::HoldoverExpired { silent_ns } => {
+            f.kind = K::ECDC_FAULT_HOLDOVER_EXPIRED;
+            f.count = u32::try_from(silent_ns / 1000).unwrap_or(u32::MAX);
+        }
+        Error::ResumeCheckFailed { failure } => {
+            use ecdc_resume_failure as R;
+            f.kind = K::ECDC_FAULT_RESUME_CHECK_FAILED;
+            #[allow(unreachable_patterns)] // a failure added to ecdc-core maps to OTHER
+            let code = match failure {
+                ResumeFailure::SlaveCount { expected, found } => {
+                    f.expected = expected;
+                    f.actual = found;
+                    R::ECDC_RESUME_SLAVE_COUNT
+                }
+                ResumeFailure::ReferenceWkc { expected, actual } => {
+                    f.expected = expected;
+                    f.actual = actual;
+                    R::ECDC_RESUME_REFERENCE_WKC
+                }
+                ResumeFailure::SlaveLost { station } => {
+                    f.station = station;
+                    R::ECDC_RESUME_SLAVE_LOST
+                }
+                ResumeFailure::SlaveReset { al_status, before } => {
+                    f.actual = al_status;
+                    f.expected = before;
+                    R::ECDC_RESUME_SLAVE_RESET
+                }
+                ResumeFailure::Bound { bound_ns } => {
+                    f.diff_ns = bound_ns;
+                    R::ECDC_RESUME_BOUND
+                }
+                _ => R::ECDC_RESUME_OTHER,
+            };
+            f.command = code as u8;
+        }
         // `Error` is non-exhaustive: a newer core's fault keeps ECDC_FAULT_OTHER and its text.
         _ => {}
     }
@@ -1037,6 +1157,34 @@ pub fn event_to_c(e: &Event) -> ecdc_event {
             let _ = write!(w, "restarting the bring-up");
             K::ECDC_EVENT_RESTARTING
         }
+        Event::HoldoverStarted { since, cause } => {
+            #[allow(unreachable_patterns)] // a cause added to ecdc-core maps to OTHER
+            let (c, name) = match cause {
+                HoldoverCause::Silence => (ecdc_holdover_cause::ECDC_HOLDOVER_SILENCE, "silence"),
+                HoldoverCause::Stall => (ecdc_holdover_cause::ECDC_HOLDOVER_STALL, "stall"),
+                _ => (ecdc_holdover_cause::ECDC_HOLDOVER_OTHER, "other"),
+            };
+            let _ = write!(w, "hold-over ({name}) since {since} ns");
+            out.u.holdover_started = ecdc_ev_holdover_started {
+                since,
+                cause: c as u8,
+            };
+            K::ECDC_EVENT_HOLDOVER_STARTED
+        }
+        Event::HoldoverEnded { after_ns, check } => {
+            let _ = write!(
+                w,
+                "hold-over ended after {after_ns} ns: {} slaves, 0x092C bound {} ns",
+                check.slaves, check.bound_ns
+            );
+            out.u.holdover_ended = ecdc_ev_holdover_ended {
+                after_ns,
+                slaves: check.slaves,
+                al_status: check.al_status,
+                bound_ns: check.bound_ns,
+            };
+            K::ECDC_EVENT_HOLDOVER_ENDED
+        }
         // `Event` is non-exhaustive: a newer core's event arrives as OTHER with its Debug text.
         _ => {
             let _ = write!(w, "{e:?}");
@@ -1078,6 +1226,8 @@ pub struct ecdc_stats {
     pub lock_frames: u64,
     /// Whether the machine locked since its last start.
     pub has_lock_frames: bool,
+    /// Hold-overs that ended with a passed resume check.
+    pub holdovers: u64,
 }
 
 /// The C view of [`Stats`].
@@ -1095,6 +1245,7 @@ pub fn stats_to_c(s: &Stats) -> ecdc_stats {
         events_dropped: s.events_dropped,
         lock_frames: s.lock_frames.unwrap_or(0),
         has_lock_frames: s.lock_frames.is_some(),
+        holdovers: s.holdovers,
     }
 }
 

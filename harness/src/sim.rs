@@ -170,6 +170,11 @@ impl<const N: usize> Sim<N> {
     /// something is scheduled. Returns `Ok(false)` when nothing is scheduled any more.
     pub fn step(&mut self) -> Result<bool, SimError> {
         self.stats.steps += 1;
+        // A stalled master does nothing until the stall ends; replies wait for it.
+        if let Some(end) = self.net.master_stalled(self.now) {
+            self.now = end;
+            return Ok(true);
+        }
         let now = self.now;
         let m_now = self.master_time_at(now);
         // 1. Deliver every frame that has arrived, in arrival order.

@@ -1,4 +1,4 @@
-//! Faults, determinism and scenario files (REQ-ESC-090..REQ-ESC-094, REQ-ESC-100).
+//! Faults, determinism and scenario files (REQ-ESC-090..REQ-ESC-096, REQ-ESC-100).
 
 mod emu_support;
 
@@ -218,4 +218,57 @@ fn bad_scenarios_rejected() {
     net.advance_to(100).unwrap();
     assert!(net.transact(&[0u8; 60], 50).is_err());
     assert!(net.clock(9, 200).is_err());
+}
+
+/// REQ-ESC-095: a wire silence loses every frame sent in it, and the reply of a frame sent
+/// just before it (the slaves did process that frame); before and after, frames return.
+#[test]
+fn wire_silence_loses_both_ways() {
+    let mut net = Network::new(&Scenario::line(3)).unwrap();
+    net.schedule_fault(
+        10_000_000,
+        Fault::WireSilence {
+            duration_ns: 10_000_000,
+        },
+    )
+    .unwrap();
+    assert_eq!(brd_wkc(&mut net, 5_000_000), Some(3));
+    // Sent 2 µs before the silence: out before it, back (after > 5 µs on the wire) in it.
+    let set = frame(&[(Command::Apwr, Address::position(0, 0x0010), &[0x34, 0x12])]);
+    assert_eq!(
+        net.transact(&set, 9_998_000).unwrap(),
+        Delivery::Lost(LossReason::Silence)
+    );
+    for t in [10_000_000, 15_000_000, 19_999_999] {
+        let f = frame(&[(Command::Brd, Address::broadcast(0x0130), &[0; 2])]);
+        assert_eq!(
+            net.transact(&f, t).unwrap(),
+            Delivery::Lost(LossReason::Silence),
+            "{t}"
+        );
+    }
+    assert_eq!(brd_wkc(&mut net, 20_000_000), Some(3));
+    // The write whose reply was lost took effect.
+    let get = frame(&[(Command::Fprd, Address::configured(0x1234, 0x0010), &[0; 2])]);
+    let r = net.transact(&get, 21_000_000).unwrap().returned().unwrap();
+    assert_eq!(replies(&r.frame)[0].wkc, 1);
+}
+
+/// REQ-ESC-096: a master stall is a window the master's driver asks about; the network itself
+/// keeps answering (the stall is on the master's side).
+#[test]
+fn master_stall_window() {
+    let mut net = Network::new(&Scenario::line(2)).unwrap();
+    net.schedule_fault(
+        1_000_000,
+        Fault::MasterStall {
+            duration_ns: 3_000_000,
+        },
+    )
+    .unwrap();
+    assert_eq!(net.master_stalled(999_999), None);
+    assert_eq!(net.master_stalled(1_000_000), Some(4_000_000));
+    assert_eq!(net.master_stalled(3_999_999), Some(4_000_000));
+    assert_eq!(net.master_stalled(4_000_000), None);
+    assert_eq!(brd_wkc(&mut net, 2_000_000), Some(2));
 }

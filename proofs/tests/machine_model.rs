@@ -128,6 +128,8 @@ fn kind(e: &Event) -> Option<EventKind> {
         Event::Locked { .. } => EventKind::Locked,
         Event::Error(Error::Timeout { state }) => EventKind::Timeout(state),
         Event::Restarting => EventKind::Restarting,
+        Event::HoldoverStarted { .. } => EventKind::HoldoverStarted,
+        Event::HoldoverEnded { .. } => EventKind::HoldoverEnded,
         _ => return None,
     })
 }

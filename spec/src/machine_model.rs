@@ -27,7 +27,8 @@ pub struct ModelConfig {
     pub latch_rounds: u8,
     /// Retries of a request step after a timeout or error.
     pub retries: u8,
-    /// Consecutive lost cycles that end cyclic operation.
+    /// Consecutive lost cycles that start a hold-over (REQ-DC-127; the property runs never
+    /// reach its time limit, REQ-DC-129).
     pub max_lost_cycles: u16,
 }
 
@@ -52,6 +53,10 @@ pub enum EventKind {
     Timeout(State),
     /// Automatic restart scheduled.
     Restarting,
+    /// Cyclic operation went silent: hold-over (REQ-DC-127).
+    HoldoverStarted,
+    /// The first complete cycle after a hold-over passed the resume check (REQ-DC-128).
+    HoldoverEnded,
 }
 
 /// An abstract input.
@@ -150,6 +155,8 @@ pub struct RefMachine {
     pub lost: u16,
     /// Cyclic lock.
     pub locked: bool,
+    /// In hold-over (cyclic operation silent for `max_lost_cycles` cycles).
+    pub holdover: bool,
 }
 
 impl RefMachine {
@@ -164,12 +171,13 @@ impl RefMachine {
             rounds: 0,
             lost: 0,
             locked: false,
+            holdover: false,
         }
     }
 
     /// Whether cyclic operation is locked.
     pub fn locked(&self) -> bool {
-        self.state == State::Cyclic && self.locked
+        self.state == State::Cyclic && self.locked && !self.holdover
     }
 
     fn enter(&mut self, s: State) {
@@ -182,6 +190,7 @@ impl RefMachine {
             self.lost = 0;
             self.locked = false;
         }
+        self.holdover = false;
     }
 
     /// The state in which the next frame is built: a restart pause ends, and steps with
@@ -257,6 +266,12 @@ impl RefMachine {
             }
             Cyclic => {
                 self.lost = 0;
+                // Ideal slaves that kept running: the resume check passes, the lock (if
+                // reached before) is kept.
+                if self.holdover {
+                    self.holdover = false;
+                    ev.push(EventKind::HoldoverEnded);
+                }
                 if !self.locked {
                     // Ideal slaves: bound 0 ≤ lock threshold at the first cycle.
                     self.locked = true;
@@ -282,8 +297,9 @@ impl RefMachine {
         };
         if self.state == State::Cyclic {
             self.lost = self.lost.saturating_add(1);
-            if self.lost >= self.cfg.max_lost_cycles {
-                fault(self, ev);
+            if self.lost >= self.cfg.max_lost_cycles && !self.holdover {
+                self.holdover = true;
+                ev.push(EventKind::HoldoverStarted);
             }
         } else if self.tries < self.cfg.retries {
             let tries = self.tries.saturating_add(1);
@@ -368,6 +384,33 @@ mod tests {
                 && State::LatchReadBefore.can_go(w[1]);
             assert!(w[0] == w[1] || w[0].can_go(w[1]) || through, "{:?}", w);
         }
+    }
+
+    /// REQ-DC-127, 128: lost cycles in `Cyclic` start a hold-over, not a restart; the next
+    /// complete cycle ends it and the lock is back.
+    #[test]
+    fn silence_in_cyclic_holds_over() {
+        let cfg = ModelConfig {
+            latch_rounds: 1,
+            retries: 1,
+            max_lost_cycles: 2,
+        };
+        let mut m = RefMachine::new(cfg, 2, 2);
+        m.apply(Input::Start);
+        for _ in 0..100 {
+            if m.locked() {
+                break;
+            }
+            m.apply(Input::Exchange);
+        }
+        assert!(m.locked());
+        assert!(m.apply(Input::Lost).is_empty());
+        assert_eq!(m.apply(Input::Lost), vec![EventKind::HoldoverStarted]);
+        assert!(!m.locked());
+        assert!(m.apply(Input::Lost).is_empty());
+        assert_eq!(m.state, State::Cyclic);
+        assert_eq!(m.apply(Input::Exchange), vec![EventKind::HoldoverEnded]);
+        assert!(m.locked());
     }
 
     #[test]

@@ -222,7 +222,28 @@ pub struct Config {
     /// Re-initialise automatically after a fault (topology change, slave lost, timeout).
     pub auto_restart: bool,
     /// Pause before a re-initialisation. ecdc choice: 10 ms, lets a flapping link settle.
+    /// It doubles with every further re-initialisation that did not reach lock, up to
+    /// `restart_backoff_max_ns` (REQ-DC-130).
     pub restart_delay_ns: u64,
+    /// Longest pause between re-initialisations (the backoff's cap). ecdc choice: 1 s: a
+    /// network that stays away costs about one bring-up attempt (a few frames) per second,
+    /// and once it is back the next attempt starts at most a second later.
+    pub restart_backoff_max_ns: u64,
+    /// Longest silence (no complete cycle, or no transmission) the cyclic phase holds over
+    /// before it re-initialises (REQ-DC-127, 129), counted from the first missed cycle with
+    /// one cycle period of grace for the resume cycle; 0 disables hold-over (re-initialise after
+    /// `monitor.max_lost_cycles`). ecdc choice: 1 s (1 000 cycles at 1 ms), because the slaves'
+    /// clocks keep their offsets and learnt rates through a silence, so only the residual
+    /// rate error accumulates (docs/background/holdover.md §1: 38 → 128 ns worst SYNC0 skew
+    /// over 1 s on seed 000's emulated line), while a stopped peer or a stalled host of a few
+    /// hundred ms is common on machines without real-time scheduling.
+    pub holdover_ns: u64,
+    /// Largest BRD 0x092C bound the resume check after a hold-over accepts, ns (REQ-DC-128).
+    /// ecdc choice: 100 µs: a clock free-running at the ±100 ppm 100BASE-TX tolerates drifts
+    /// 100 µs in the default 1 s hold-over even with no compensation at all, while an ESC that
+    /// was reset has a difference spread over the whole ±2.1 s of the 32-bit comparison
+    /// (docs/background/holdover.md §3). Raise it with `holdover_ns`.
+    pub holdover_check_ns: u32,
     /// How the t_Diff of each ESC is learned (REQ-DC-120).
     pub tdiff: TdiffConfig,
 }
@@ -246,6 +267,9 @@ impl Default for Config {
             monitor: MonitorConfig::default(),
             auto_restart: true,
             restart_delay_ns: 10_000_000,
+            restart_backoff_max_ns: 1_000_000_000,
+            holdover_ns: 1_000_000_000,
+            holdover_check_ns: 100_000,
             tdiff: TdiffConfig::default(),
         }
     }

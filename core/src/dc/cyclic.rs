@@ -7,6 +7,7 @@
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;
+use crate::dc::holdover::{Holdover, HoldoverCause};
 use crate::dc::machine::Machine;
 use crate::dc::request::{le, Op, Pending, Tag};
 use crate::dc::slave::SlaveInfo;
@@ -58,6 +59,17 @@ pub(crate) struct CyclicState {
     pub(crate) rm_cursor: u16,
     pub(crate) rm_sent_to: u16,
     pub(crate) rm_error: Option<Error>,
+    // Hold-over (`dc/holdover.rs`).
+    /// The hold-over sub-state, when silent.
+    pub(crate) holdover: Option<Holdover>,
+    /// Master time of the last complete cycle's transmission (0: none yet).
+    pub(crate) last_good: u64,
+    /// OR of every AL status (BRD 0x0130 data) of the cycle in flight.
+    pub(crate) al_status: Option<u16>,
+    /// The same of the last complete cycle.
+    pub(crate) al_ok: Option<u16>,
+    /// BRD 0x092C bound read by the cycle in flight (`bound_ns` keeps the last one read).
+    pub(crate) cycle_bound_ns: Option<u32>,
 }
 
 impl<const N: usize> Machine<N> {
@@ -75,6 +87,16 @@ impl<const N: usize> Machine<N> {
         if !into_caller && now < self.cyc.next_due {
             return false;
         }
+        let period = self.cfg.monitor.cycle_ns;
+        // No transmission for more than `max_lost_cycles` periods: the master stalled.
+        let stall = period.saturating_mul(u64::from(self.cfg.monitor.max_lost_cycles));
+        if self.holdover_enabled()
+            && self.cyc.holdover.is_none()
+            && self.cyc.cycles > 0
+            && now.saturating_sub(self.cyc.sent_at) > stall
+        {
+            self.holdover_start(self.silence_since(), HoldoverCause::Stall);
+        }
         if self.busy {
             // The previous cycle's datagrams never came back.
             self.cyclic_lost(now);
@@ -82,7 +104,9 @@ impl<const N: usize> Machine<N> {
                 return false;
             }
         }
-        let period = self.cfg.monitor.cycle_ns;
+        if self.holdover_expired(now) {
+            return false;
+        }
         let next = self.cyc.next_due.saturating_add(period);
         self.cyc.next_due = if next <= now {
             now.saturating_add(period)
@@ -95,6 +119,8 @@ impl<const N: usize> Machine<N> {
         self.cyc.bound_wkc = None;
         self.cyc.topo_wkc = None;
         self.cyc.lost_station = None;
+        self.cyc.al_status = None;
+        self.cyc.cycle_bound_ns = None;
         let frmw = self.frmw_op(now);
         if !self.push_cycle_block(b, frmw) && !self.push_cycle_each(b, frmw) {
             if before == 0 {
@@ -183,7 +209,7 @@ impl<const N: usize> Machine<N> {
         match p.tag {
             Tag::Frmw => self.on_frmw_reply(now, p.len, wkc, data),
             Tag::CycBound => self.on_bound_reply(wkc, data),
-            Tag::CycTopology => self.cyc.topo_wkc = Some(wkc),
+            Tag::CycTopology => self.on_topology_reply(wkc, data),
             Tag::CycDiff(pos) => {
                 if let Some(&raw) = data.first_chunk::<4>().filter(|_| data.len() == 4) {
                     self.on_diff_reply(pos, p.station, wkc, raw);
@@ -221,8 +247,31 @@ impl<const N: usize> Machine<N> {
         self.cyc.bound_wkc = Some(wkc);
         if wkc == self.sys_count {
             if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
-                self.cyc.bound_ns = Some(SystemTimeDifference::from_raw(raw).magnitude());
+                let bound = SystemTimeDifference::from_raw(raw).magnitude();
+                self.cyc.bound_ns = Some(bound);
+                self.cyc.cycle_bound_ns = Some(bound);
             }
+        }
+    }
+
+    /// The cycle's BRD 0x0130 reply: its working counter is the slave count, its data the OR
+    /// of every AL status.
+    #[inline(always)]
+    pub(crate) fn on_topology_reply(&mut self, wkc: u16, data: &[u8]) {
+        self.cyc.topo_wkc = Some(wkc);
+        if wkc > 0 {
+            self.cyc.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
+        }
+    }
+
+    /// Master time the current silence is counted from: the cycle after the last complete
+    /// one (the first that did not come back or was not sent), or the first cycle's
+    /// transmission before any completed.
+    pub(crate) fn silence_since(&self) -> u64 {
+        if self.cyc.last_good != 0 {
+            self.cyc.last_good.saturating_add(self.cfg.monitor.cycle_ns)
+        } else {
+            self.cyc.sent_at
         }
     }
 
@@ -242,6 +291,13 @@ impl<const N: usize> Machine<N> {
 
     /// All of this cycle's datagrams came back: evaluate faults, then lock.
     pub(crate) fn cyclic_complete(&mut self, now: u64) {
+        if let Some(h) = self.cyc.holdover {
+            if self.holdover_expired(now) || !self.resume_check(now, h) {
+                return;
+            }
+        }
+        self.cyc.last_good = self.cyc.sent_at;
+        self.cyc.al_ok = self.cyc.al_status;
         self.cyc.lost_streak = 0;
         let max_wkc = self.cfg.monitor.max_wkc_errors;
         // Every slave counts the BRD of 0x0130, every slave with a system time the BRD of
@@ -332,6 +388,7 @@ impl<const N: usize> Machine<N> {
         }
         if !self.cyc.locked && self.cyc.good_streak >= m.lock_cycles {
             self.cyc.locked = true;
+            self.restart_streak = 0;
             let frames = self.stats.frames_sent.saturating_sub(self.frames_at_start);
             self.stats.lock_frames = Some(frames);
             self.push_event(Event::Locked {
@@ -369,13 +426,20 @@ impl<const N: usize> Machine<N> {
             self.cyc.rm_cursor = 0;
             self.cyc.rm_sent_to = 0;
         }
-        if self.cyc.lost_streak >= self.cfg.monitor.max_lost_cycles {
-            self.fault(
-                now,
-                Error::Timeout {
-                    state: State::Cyclic,
-                },
-            );
+        if self.cyc.holdover.is_some() {
+            let _ = self.holdover_expired(now);
+        } else if self.cyc.lost_streak >= self.cfg.monitor.max_lost_cycles {
+            if self.holdover_enabled() {
+                self.holdover_start(self.silence_since(), HoldoverCause::Silence);
+                let _ = self.holdover_expired(now);
+            } else {
+                self.fault(
+                    now,
+                    Error::Timeout {
+                        state: State::Cyclic,
+                    },
+                );
+            }
         }
     }
 }

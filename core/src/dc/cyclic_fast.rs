@@ -282,7 +282,8 @@ impl<const N: usize> Machine<N> {
         self.on_frmw_reply(now, len0, wkc, data);
         let (data, wkc) = data_wkc(d1);
         self.on_bound_reply(wkc, data);
-        self.cyc.topo_wkc = Some(data_wkc(d2).1);
+        let (data, wkc) = data_wkc(d2);
+        self.on_topology_reply(wkc, data);
         let Machine {
             inflight,
             slaves,

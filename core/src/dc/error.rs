@@ -1,6 +1,7 @@
 //! Typed faults of the DC machine. They reach the caller as [`crate::dc::Event::Error`], never
 //! as a panic or a return value of a `poll_*` (REQ-DC-111).
 
+use crate::dc::holdover::ResumeFailure;
 use crate::dc::state::State;
 use crate::wire::Command;
 
@@ -84,6 +85,16 @@ pub enum Error {
     NoReferenceClock,
     /// The caller's buffer cannot hold even one of the machine's datagrams.
     BufferTooSmall,
+    /// A hold-over lasted longer than `Config::holdover_ns` (REQ-DC-129).
+    HoldoverExpired {
+        /// Time since the last complete cycle, ns.
+        silent_ns: u64,
+    },
+    /// The check on the first complete cycle after a hold-over failed (REQ-DC-128).
+    ResumeCheckFailed {
+        /// What did not match.
+        failure: ResumeFailure,
+    },
 }
 
 impl Error {
@@ -132,6 +143,29 @@ impl core::fmt::Display for Error {
             Error::NoSlaves => f.write_str("no slave answered"),
             Error::NoReferenceClock => f.write_str("no DC slave with a system time"),
             Error::BufferTooSmall => f.write_str("transmit buffer too small"),
+            Error::HoldoverExpired { silent_ns } => {
+                write!(f, "no complete cycle for {silent_ns} ns, beyond the hold-over limit")
+            }
+            Error::ResumeCheckFailed { failure } => match failure {
+                ResumeFailure::SlaveCount { expected, found } => write!(
+                    f,
+                    "resume check: {found} slaves answer, {expected} before the hold-over"
+                ),
+                ResumeFailure::ReferenceWkc { expected, actual } => write!(
+                    f,
+                    "resume check: FRMW working counter {actual}, expected {expected}"
+                ),
+                ResumeFailure::SlaveLost { station } => {
+                    write!(f, "resume check: slave {station:#06x} lost its address")
+                }
+                ResumeFailure::SlaveReset { al_status, before } => write!(
+                    f,
+                    "resume check: a slave is in INIT (AL status OR {al_status:#06x}, before {before:#06x})"
+                ),
+                ResumeFailure::Bound { bound_ns } => {
+                    write!(f, "resume check: |0x092C| bound {bound_ns} ns")
+                }
+            },
         }
     }
 }

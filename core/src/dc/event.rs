@@ -2,6 +2,7 @@
 //! bounded queue that holds it.
 
 use crate::dc::error::Error;
+use crate::dc::holdover::{HoldoverCause, ResumeCheck};
 
 /// Something the caller may want to know or act on. Events are queued in order; when the queue
 /// is full the oldest event is dropped and counted in `Stats::events_dropped`.
@@ -72,8 +73,27 @@ pub enum Event {
     },
     /// A fault; see [`Error`]. With `auto_restart` a `Restarting` follows.
     Error(Error),
-    /// The machine re-initialises from `CountSlaves` after `restart_delay_ns`.
+    /// The machine re-initialises from `CountSlaves` after `restart_delay_ns`, doubled for
+    /// every re-initialisation without a lock in between up to `restart_backoff_max_ns`
+    /// ([`crate::dc::Machine::restart_at`] tells when).
     Restarting,
+    /// Cyclic operation went silent (no complete cycle) or the master stalled: the machine
+    /// holds over instead of re-initialising (REQ-DC-127).
+    HoldoverStarted {
+        /// Master time of the first missed cycle: one period after the last complete cycle's
+        /// transmission.
+        since: u64,
+        /// What was seen.
+        cause: HoldoverCause,
+    },
+    /// The first complete cycle after a hold-over passed the resume check (REQ-DC-128); the
+    /// reference time distribution and monitoring go on, nothing was rewritten.
+    HoldoverEnded {
+        /// Time from `since` to the end of the resume cycle, ns.
+        after_ns: u64,
+        /// What the check saw.
+        check: ResumeCheck,
+    },
 }
 
 /// Capacity of the event queue.

@@ -31,6 +31,8 @@ pub struct Stats {
     pub retries: u64,
     /// Re-initialisations after a fault.
     pub restarts: u64,
+    /// Hold-overs that ended with a passed resume check (REQ-DC-127).
+    pub holdovers: u64,
     /// Cyclic transmissions.
     pub cycles: u64,
     /// Cycles whose DC datagrams did not come back.
@@ -110,6 +112,8 @@ pub struct Machine<const N: usize> {
     pub(crate) monitor: MonitorList<N>,
     /// The t_Diff measurement's own data (`dc/tdiff.rs`).
     pub(crate) tdiff: Tdiff<N>,
+    /// Re-initialisations since the last lock (or `start`): the backoff's exponent.
+    pub(crate) restart_streak: u8,
 }
 
 impl<const N: usize> Machine<N> {
@@ -147,6 +151,7 @@ impl<const N: usize> Machine<N> {
             cyc: CyclicState::default(),
             monitor: MonitorList::new(),
             tdiff: Tdiff::new(),
+            restart_streak: 0,
         })
     }
 
@@ -155,6 +160,7 @@ impl<const N: usize> Machine<N> {
     /// Starts (or restarts) the bring-up from `CountSlaves`.
     pub fn start(&mut self, _now: SystemTime) {
         self.reset();
+        self.restart_streak = 0;
         self.frames_at_start = self.stats.frames_sent;
         self.enter(State::CountSlaves);
     }
@@ -227,7 +233,7 @@ impl<const N: usize> Machine<N> {
     }
     /// Whether cyclic operation is locked.
     pub fn is_locked(&self) -> bool {
-        self.state == State::Cyclic && self.cyc.locked
+        self.state == State::Cyclic && self.cyc.locked && self.cyc.holdover.is_none()
     }
     /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
     pub fn diff_bound_ns(&self) -> Option<u32> {
@@ -451,12 +457,24 @@ impl<const N: usize> Machine<N> {
         self.cyc = CyclicState::default();
         if self.cfg.auto_restart {
             self.stats.restarts = self.stats.restarts.saturating_add(1);
-            self.wake_at = now.saturating_add(self.cfg.restart_delay_ns);
+            self.wake_at = now.saturating_add(self.restart_delay());
+            self.restart_streak = self.restart_streak.saturating_add(1);
             self.enter(State::RestartWait);
             self.push_event(Event::Restarting);
         } else {
             self.enter(State::Failed);
         }
+    }
+
+    /// The pause before the next re-initialisation: `restart_delay_ns` doubled per
+    /// re-initialisation since the last lock, capped at `restart_backoff_max_ns` (REQ-DC-130).
+    fn restart_delay(&self) -> u64 {
+        let base = self.cfg.restart_delay_ns;
+        let factor = 1u64
+            .checked_shl(u32::from(self.restart_streak.min(40)))
+            .unwrap_or(u64::MAX);
+        base.saturating_mul(factor)
+            .min(self.cfg.restart_backoff_max_ns.max(base))
     }
 
     fn retry_or_fail(&mut self, now: u64, e: Error) {

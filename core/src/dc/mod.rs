@@ -22,6 +22,7 @@ mod discovery;
 mod drift;
 pub mod error;
 pub mod event;
+pub mod holdover;
 pub mod machine;
 mod measure;
 mod monitor;
@@ -40,6 +41,7 @@ pub use config::{
 };
 pub use error::Error;
 pub use event::Event;
+pub use holdover::{HoldoverCause, ResumeCheck, ResumeFailure};
 pub use machine::{Machine, Stats};
 pub use request::MAX_INFLIGHT;
 pub use slave::{DcKind, SlaveInfo};

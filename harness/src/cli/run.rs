@@ -58,6 +58,15 @@ pub struct Args {
     #[arg(long, default_value_t = 5, allow_negative_numbers = true,
           value_parser = validate::u16_in(1, u16::MAX))]
     pub max_lost_cycles: u16,
+    /// Re-initialisations of DC before giving up (default: retry with backoff for as long as
+    /// the interface has carrier).
+    #[arg(long, allow_negative_numbers = true, value_parser = validate::u32_in(0, u32::MAX))]
+    pub max_restarts: Option<u32>,
+    /// Longest silence of the wire (or stall of this process) held over in cyclic operation
+    /// without re-initialising DC, ms; 0 = re-initialise after --max-lost-cycles.
+    #[arg(long, default_value_t = 1000, allow_negative_numbers = true,
+          value_parser = validate::u64_in(0, 3_600_000))]
+    pub holdover_ms: u64,
     /// Sleep until this long before each deadline, then spin (us; 0 = pure sleep; less than
     /// the cycle).
     #[arg(long, default_value_t = 0, allow_negative_numbers = true,
@@ -78,7 +87,10 @@ struct RunSummary {
     bringup_ms: f64,
     drift_frames: Option<u32>,
     drift_max_diff_ns: Option<u32>,
-    restarts: u32,
+    /// DC re-initialisations (the machine's count: after faults in bring-up or cyclic phase).
+    restarts: u64,
+    /// Silences or stalls held over in cyclic operation that ended with a passed check.
+    holdovers: u64,
     /// Cyclic cycles over all segments (a re-initialisation starts a new segment).
     cyclic_cycles_total: u64,
     /// Statistics of the last cyclic segment (since the last re-initialisation).
@@ -185,7 +197,30 @@ fn describe(e: &Event) -> String {
         }
         Event::Error(err) => format!("DC error: {err:?}"),
         Event::Restarting => "DC re-initialising".to_owned(),
+        Event::HoldoverStarted { cause, .. } => {
+            format!("DC holding over ({cause:?}): offsets and SYNC0 kept")
+        }
+        Event::HoldoverEnded { after_ns, check } => format!(
+            "DC hold-over ended after {:.1} ms: {} slaves, |0x092C| bound {} ns; resumed",
+            *after_ns as f64 / 1e6,
+            check.slaves,
+            check.bound_ns
+        ),
         other => format!("{other:?}"),
+    }
+}
+
+/// [`describe`], with the attempt number on a re-initialisation (its cause is the error
+/// printed just before).
+fn describe_attempt(e: &Event, attempts: &std::cell::Cell<u64>) -> String {
+    if *e == Event::Restarting {
+        attempts.set(attempts.get() + 1);
+        format!(
+            "DC re-initialising, attempt {} (the pause before it doubles per attempt without lock, up to 1 s)",
+            attempts.get()
+        )
+    } else {
+        describe(e)
     }
 }
 
@@ -244,6 +279,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut cfg = Config::default();
     cfg.monitor.cycle_ns = cycle_ns;
     cfg.monitor.max_lost_cycles = args.max_lost_cycles;
+    cfg.holdover_ns = args.holdover_ms.saturating_mul(1_000_000);
     cfg.sync = if args.no_sync {
         None
     } else {
@@ -268,7 +304,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let started = clock::now_ns();
     let mut bringup_ms = 0.0;
     let mut drift: Option<(u32, u32)> = None;
-    let mut restarts = 0u32;
+    let mut reinits = 0u32;
+    // Re-initialisations the machine announced, over bring-up and cyclic phases.
+    let attempts = std::cell::Cell::new(0u64);
     let mut done_cycles = 0u64;
     let mut cyclic_summary: Option<LoopSummary> = None;
     let mut servo_drift = None;
@@ -283,7 +321,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             &dc,
             &args.link.iface,
             Until::Cyclic,
-            &Limits::default(),
+            &Limits {
+                timeout_ns: if args.max_restarts.is_some() {
+                    Limits::default().timeout_ns
+                } else {
+                    u64::MAX
+                },
+                max_restarts: args.max_restarts.map(|n| n.saturating_sub(reinits)),
+                ..Limits::default()
+            },
             stop,
             |e| {
                 if let Event::DriftConverged {
@@ -293,7 +339,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 {
                     drift = Some((*frames, *max_diff_ns));
                 }
-                bar.borrow_mut().line(&describe(e));
+                bar.borrow_mut().line(&describe_attempt(e, &attempts));
             },
             |p| bar.borrow_mut().show(p),
         );
@@ -328,7 +374,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let quiet = args.quiet;
         let mut task = DcTask::new(&mut m, servo, dc, cycle_ns, |cycle, e| {
             if !quiet {
-                eprintln!("cycle {cycle}: {}", describe(e));
+                eprintln!("cycle {cycle}: {}", describe_attempt(e, &attempts));
             }
         });
         let summary = cyclic::run(&mut t, &mut task, &ccfg, stop, |line| {
@@ -344,12 +390,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         if !stopped_by_task || interrupted {
             break;
         }
-        restarts += 1;
-        bar.borrow_mut()
-            .line("cyclic operation ended by the DC machine; bringing DC up again");
-        if restarts > 10 {
-            anyhow::bail!("DC re-initialised more than 10 times; giving up");
+        reinits += 1;
+        if args.max_restarts.is_some_and(|max| reinits > max) {
+            anyhow::bail!(
+                "DC re-initialised {reinits} times from cyclic operation (--max-restarts {}); giving up",
+                args.max_restarts.unwrap_or(0)
+            );
         }
+        if !bringup::has_carrier(&args.link.iface) && args.max_restarts.is_none() {
+            anyhow::bail!("interface {} lost carrier; giving up", args.link.iface);
+        }
+        bar.borrow_mut().line(&format!(
+            "cyclic operation ended by the DC machine; bringing DC up again (re-initialisation {reinits})"
+        ));
     }
 
     let pcap_frames = match &args.pcap {
@@ -372,7 +425,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bringup_ms,
         drift_frames: drift.map(|d| d.0),
         drift_max_diff_ns: drift.map(|d| d.1),
-        restarts,
+        restarts: stats.restarts,
+        holdovers: stats.holdovers,
         cyclic_cycles_total: done_cycles,
         cyclic: cyclic_summary,
         servo_drift_ns_per_cycle: servo_drift,
@@ -412,6 +466,12 @@ fn print_summary(s: &RunSummary, elapsed_ns: u64) {
             String::new()
         }
     );
+    if s.holdovers > 0 {
+        println!(
+            "  hold-overs (silence or stall bridged without re-initialising): {}",
+            s.holdovers
+        );
+    }
     println!(
         "  bring-up {:.0} ms; static drift: {}",
         s.bringup_ms,

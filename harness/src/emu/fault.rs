@@ -1,4 +1,4 @@
-//! Faults that a scenario (or a running test) can inject at given true times. REQ-ESC-090..094.
+//! Faults that a scenario (or a running test) can inject at given true times. REQ-ESC-090..096.
 
 use serde::{Deserialize, Serialize};
 
@@ -36,4 +36,14 @@ pub enum Fault {
     /// times) wraps exactly at this fault's time — e.g. in the middle of a delay measurement.
     /// Scenario-only (it sets the initial state); `None` = every slave.
     PortTimeWrap { slave: Option<usize> },
+    /// The wire goes silent for `duration_ns`: every frame the master sends in that window is
+    /// lost before the first slave, and every reply that would reach the master in it is lost
+    /// on the way back (the slaves did process that frame). A stopped peer process on a veth
+    /// pair, or a switch rebooting, looks like this. The slaves' clocks run on.
+    WireSilence { duration_ns: u64 },
+    /// The master stops for `duration_ns` (a stalled host or process): it neither sends nor
+    /// reads. Frames already sent still travel and wait for it; it resumes at the end with its
+    /// own clock advanced by the stall. Acted on by the driver that plays the master
+    /// ([`crate::sim::Sim`]), which asks [`crate::emu::Network::master_stalled`].
+    MasterStall { duration_ns: u64 },
 }

@@ -41,6 +41,8 @@ pub enum LossReason {
     Circulated,
     /// No link from the master to the first slave at send time.
     NoLink,
+    /// Sent, or due back, during a [`Fault::WireSilence`].
+    Silence,
 }
 
 /// Outcome of [`Network::transact`].
@@ -297,6 +299,10 @@ pub struct Network {
     walk_stack: Vec<(usize, usize, u8)>,
     latch: Vec<bool>,
     stats: Stats,
+    /// [`Fault::WireSilence`] windows, [start, end) in true time.
+    silences: Vec<(TrueTime, TrueTime)>,
+    /// [`Fault::MasterStall`] windows, [start, end) in true time.
+    stalls: Vec<(TrueTime, TrueTime)>,
 }
 
 impl Network {
@@ -402,6 +408,8 @@ impl Network {
             walk_stack: Vec::new(),
             latch: vec![false; n],
             stats: Stats::default(),
+            silences: Vec::new(),
+            stalls: Vec::new(),
         };
         net.hops = net
             .info
@@ -506,8 +514,29 @@ impl Network {
                 self.push_net_event(at, NetEvent::Cable { slave, ns });
             }
             Fault::PortTimeWrap { .. } => return Err(EmuError::NotSchedulable),
+            Fault::WireSilence { duration_ns } => {
+                self.silences.push((at, at.saturating_add(duration_ns)));
+            }
+            Fault::MasterStall { duration_ns } => {
+                self.stalls.push((at, at.saturating_add(duration_ns)));
+            }
         }
         Ok(())
+    }
+
+    /// Whether the wire is silent at true time `t` ([`Fault::WireSilence`]).
+    fn silent_at(&self, t: TrueTime) -> bool {
+        self.silences.iter().any(|&(a, b)| a <= t && t < b)
+    }
+
+    /// The end of the [`Fault::MasterStall`] that covers true time `t`, if one does: the
+    /// master must not act before it.
+    pub fn master_stalled(&self, t: TrueTime) -> Option<TrueTime> {
+        self.stalls
+            .iter()
+            .filter(|&&(a, b)| a <= t && t < b)
+            .map(|&(_, b)| b)
+            .max()
     }
 
     fn push_net_event(&mut self, at: u64, e: NetEvent) {
@@ -874,6 +903,10 @@ impl Network {
             self.stats.lost += 1;
             return Ok(Delivery::Lost(LossReason::NoLink));
         }
+        if self.silent_at(t0) {
+            self.stats.lost += 1;
+            return Ok(Delivery::Lost(LossReason::Silence));
+        }
         let mut buf = frame.to_vec();
         let mut spans = core::mem::take(&mut self.spans);
         let class = datagram::walk(&buf, &mut spans);
@@ -982,6 +1015,10 @@ impl Network {
             return Ok(Delivery::Lost(LossReason::Injected));
         }
         let first_bit = back + self.master_cable_ns + self.jitter(true);
+        if self.silent_at(first_bit) {
+            self.stats.lost += 1;
+            return Ok(Delivery::Lost(LossReason::Silence));
+        }
         self.stats.returned += 1;
         Ok(Delivery::Returned(Returned {
             frame: buf,

@@ -726,6 +726,8 @@ fn fault_name(f: &Fault) -> &'static str {
         Fault::FrequencyStep { .. } => "frequency_step",
         Fault::CableLength { .. } => "cable_length",
         Fault::PortTimeWrap { .. } => "port_time_wrap",
+        Fault::WireSilence { .. } => "wire_silence",
+        Fault::MasterStall { .. } => "master_stall",
     }
 }
 
@@ -741,6 +743,8 @@ fn fault_target(f: &Fault) -> (Option<usize>, Option<u8>) {
         | Fault::FrequencyStep { slave, .. }
         | Fault::CableLength { slave, .. } => (Some(slave), None),
         Fault::PortTimeWrap { slave } => (slave, None),
-        Fault::FrameLossRate { .. } => (None, None),
+        Fault::FrameLossRate { .. } | Fault::WireSilence { .. } | Fault::MasterStall { .. } => {
+            (None, None)
+        }
     }
 }

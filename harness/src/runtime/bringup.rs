@@ -102,10 +102,11 @@ impl From<RuntimeError> for BringupError {
 /// Limits of one bring-up.
 #[derive(Debug, Clone, Copy)]
 pub struct Limits {
-    /// Give up after this long (ns).
+    /// Give up after this long (ns); `u64::MAX`: never.
     pub timeout_ns: u64,
-    /// Give up after this many re-initialisations.
-    pub max_restarts: u32,
+    /// Give up after this many re-initialisations (`None`: retry, with the machine's
+    /// backoff, for as long as the interface has carrier).
+    pub max_restarts: Option<u32>,
     /// Frames without any reply before concluding nobody is there.
     pub no_reply_frames: u64,
 }
@@ -114,7 +115,7 @@ impl Default for Limits {
     fn default() -> Self {
         Limits {
             timeout_ns: 60 * clock::NS_PER_S,
-            max_restarts: 5,
+            max_restarts: Some(5),
             no_reply_frames: 5,
         }
     }
@@ -149,13 +150,17 @@ pub fn bring_up<L: Link, const N: usize>(
     let response_timeout = m.config().response_timeout_ns;
     let drift_max = m.config().drift.max_frames;
 
-    m.start(SystemTime(dc.now()));
+    // A machine that left cyclic operation is already re-initialising, with its backoff:
+    // let it go on rather than restart it from scratch.
+    if m.state() != State::RestartWait {
+        m.start(SystemTime(dc.now()));
+    }
     loop {
         if stop.load(Ordering::Relaxed) {
             return Ok(Outcome::Interrupted);
         }
         let mono = clock::now_ns();
-        if mono >= give_up {
+        if limits.timeout_ns != u64::MAX && mono >= give_up {
             return Err(BringupError::Timeout { state: m.state() });
         }
         let now = SystemTime(dc.at(mono));
@@ -174,9 +179,17 @@ pub fn bring_up<L: Link, const N: usize>(
                 Event::Error(err) => last_error = Some(err),
                 Event::Restarting => {
                     restarts += 1;
-                    if restarts > limits.max_restarts {
-                        let error = last_error.unwrap_or(DcError::Timeout { state: m.state() });
+                    let error = last_error.unwrap_or(DcError::Timeout { state: m.state() });
+                    if limits.max_restarts.is_some_and(|max| restarts > max) {
                         return Err(classify_failure(error, restarts, t, iface));
+                    }
+                    // Retrying forever is for a network that may come back; an interface
+                    // without carrier needs a person.
+                    if limits.max_restarts.is_none() && !has_carrier(iface) {
+                        return Err(RuntimeError::NoCarrier {
+                            name: iface.to_owned(),
+                        }
+                        .into());
                     }
                 }
                 _ => {}
@@ -269,6 +282,13 @@ pub fn bring_up<L: Link, const N: usize>(
             clock::sleep_until(wake, 0, stop);
         }
     }
+}
+
+/// Whether `iface` reports carrier (`/sys/class/net/IF/carrier`); true when that cannot be
+/// read (the raw socket worked, so assume the link is there).
+pub fn has_carrier(iface: &str) -> bool {
+    std::fs::read_to_string(format!("/sys/class/net/{iface}/carrier"))
+        .map_or(true, |s| s.trim() != "0")
 }
 
 /// Turns the machine's last error into the most useful message.

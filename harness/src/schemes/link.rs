@@ -85,6 +85,11 @@ impl Link {
         self.frames += 1;
         // Observers (clock samples) may have moved the network's time past our cursor.
         self.now = self.now.max(self.net.now());
+        // A stalled master (`Fault::MasterStall`) sends nothing until the stall ends: the
+        // same for every scheme as for ecdc's `Sim`.
+        if let Some(end) = self.net.master_stalled(self.now) {
+            self.now = end;
+        }
         self.last_sent = self.now;
         let frame = self.buf[..n].to_vec();
         let r = match self.net.transact(&frame, self.now).context("emulator")? {

@@ -1,0 +1,236 @@
+//! Hold-over (REQ-DC-127..130): a silence of the wire or a stall of the master during cyclic
+//! operation is not a fault of the slaves' clocks (docs/background/holdover.md §1): the ESC's
+//! time-control loop takes a sample only from a write covering 0x0910, so without FRMW each
+//! clock keeps the rate it learnt; the offsets in 0x0920, the delays in 0x0928 and the
+//! programmed SYNC0 start stay valid. What stops is the
+//! distribution of the reference time and the master's view of it.
+//!
+//! So instead of re-initialising after `max_lost_cycles`, the cyclic phase enters a hold-over
+//! sub-state: it keeps sending its cycle (that is how it notices the wire is back), counts the
+//! time since the last complete cycle, and re-initialises only when that exceeds
+//! `Config::holdover_ns`. The first complete cycle after a hold-over is the resume check,
+//! made of the cycle's own datagrams, so it writes nothing but the FRMW every cycle writes
+//! (never 0x0920, REQ-DC-030):
+//! - BRD 0x0130's working counter is the slave count of the bring-up (same topology);
+//! - the FRMW's and BRD 0x092C's working counters are the DC slave count (reference alive);
+//! - the OR of every AL status (BRD 0x0130 data) shows no INIT where there was none before: an
+//!   ESC that lost power restarts in INIT (docs/background/holdover.md §2), while a slave
+//!   fallen back to SAFEOP by its watchdog is no clock fault;
+//! - every round-robin FPRD answers at its station address (a power-cycled ESC lost it);
+//! - the BRD 0x092C bound, written by this very cycle's FRMW, is at most
+//!   `Config::holdover_check_ns`: a reset ESC's system time restarted at 0 with offset 0, so
+//!   its difference to the reference is essentially a random 32-bit value, not the residual
+//!   drift of a clock that kept its rate (docs/background/holdover.md §2, §3).
+//!
+//! A failed check is a typed fault ([`Error::ResumeCheckFailed`]) and the usual
+//! re-initialisation; a passed one resumes monitoring and lock detection where they were.
+
+use crate::dc::cyclic::Remeasure;
+use crate::dc::error::Error;
+use crate::dc::event::Event;
+use crate::dc::machine::Machine;
+
+/// Why a hold-over began.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HoldoverCause {
+    /// `max_lost_cycles` cycles in a row came back incomplete or not at all (wire silence, a
+    /// stopped peer, a burst of loss).
+    Silence,
+    /// The master did not send for more than `max_lost_cycles` cycle periods (its `now` jumped:
+    /// a stalled host or process).
+    Stall,
+}
+
+/// What the resume check saw when it passed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ResumeCheck {
+    /// Slaves answering BRD 0x0130 (equal to the bring-up's count).
+    pub slaves: u16,
+    /// OR of every slave's AL status (low byte of 0x0130).
+    pub al_status: u16,
+    /// BRD 0x092C upper bound of |Δt| in the resume cycle, ns.
+    pub bound_ns: u32,
+}
+
+/// Why the resume check after a hold-over failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResumeFailure {
+    /// BRD 0x0130 (or BRD 0x092C) counted a different number of slaves.
+    SlaveCount {
+        /// Slaves of the bring-up.
+        expected: u16,
+        /// Slaves answering now.
+        found: u16,
+    },
+    /// The FRMW's working counter is not the number of slaves with a system time (the
+    /// reference or a DC slave is gone or reset).
+    ReferenceWkc {
+        /// Expected working counter.
+        expected: u16,
+        /// Working counter received.
+        actual: u16,
+    },
+    /// A slave no longer answers at its station address (an ESC reset loses it).
+    SlaveLost {
+        /// Station address that did not answer.
+        station: u16,
+    },
+    /// A slave is in INIT (or BOOT) although none was before the hold-over: it was reset.
+    SlaveReset {
+        /// OR of every AL status now.
+        al_status: u16,
+        /// OR of every AL status in the last complete cycle before the hold-over.
+        before: u16,
+    },
+    /// The BRD 0x092C bound after the first FRMW exceeds `Config::holdover_check_ns`.
+    Bound {
+        /// Bound read, ns (`u32::MAX` when the read carried no value).
+        bound_ns: u32,
+    },
+}
+
+/// The hold-over sub-state of `Cyclic` and its own data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Holdover {
+    /// Master time the silence is counted from: one period after the last complete cycle's
+    /// transmission (or, before any, the first cycle's transmission).
+    pub(crate) since: u64,
+    pub(crate) cause: HoldoverCause,
+    /// OR of the AL status of every slave in the last complete cycle (`None`: never read).
+    pub(crate) al_before: Option<u16>,
+}
+
+/// AL status bit 0: set in INIT (1) and BOOT (3), the AL state codes of 0x0130 bits 3..0.
+const AL_INIT_BIT: u16 = 0x0001;
+
+impl<const N: usize> Machine<N> {
+    /// Whether hold-over replaces the re-initialisation on silence (`holdover_ns` > 0).
+    #[inline]
+    pub(crate) fn holdover_enabled(&self) -> bool {
+        self.cfg.holdover_ns > 0
+    }
+
+    /// Enters hold-over (idempotent): reports it and suspends what needs every cycle.
+    pub(crate) fn holdover_start(&mut self, since: u64, cause: HoldoverCause) {
+        if self.cyc.holdover.is_some() {
+            return;
+        }
+        self.cyc.holdover = Some(Holdover {
+            since,
+            cause,
+            al_before: self.cyc.al_ok,
+        });
+        // A delay re-measurement cut by the silence is run again from its first step once
+        // the wire is back (some 0x0928 may already be rewritten: the rerun rewrites all).
+        if self.cyc.remeasure != Remeasure::Idle {
+            self.cyc.remeasure = Remeasure::Idle;
+            self.cyc.remeasure_requested = true;
+            self.cyc.rm_cursor = 0;
+            self.cyc.rm_sent_to = 0;
+            self.cyc.rm_error = None;
+        }
+        self.push_event(Event::HoldoverStarted { since, cause });
+    }
+
+    /// In hold-over and silent for longer than `holdover_ns` at `now`: re-initialise.
+    /// Returns whether it did. The silence is counted from the first cycle that was missed,
+    /// and the first cycle after a silence can leave up to one period after it ended: one
+    /// period more is allowed, so that a silence of exactly `holdover_ns` is held over.
+    pub(crate) fn holdover_expired(&mut self, now: u64) -> bool {
+        let Some(h) = self.cyc.holdover else {
+            return false;
+        };
+        let silent_ns = now.saturating_sub(h.since);
+        let limit = self
+            .cfg
+            .holdover_ns
+            .saturating_add(self.cfg.monitor.cycle_ns);
+        if silent_ns <= limit {
+            return false;
+        }
+        self.fault(now, Error::HoldoverExpired { silent_ns });
+        true
+    }
+
+    /// The first complete cycle after a hold-over: the resume check. Returns true when it
+    /// passed (monitoring continues with this cycle), false after a fault.
+    pub(crate) fn resume_check(&mut self, now: u64, h: Holdover) -> bool {
+        let result = self.resume_result(h);
+        match result {
+            Ok(check) => {
+                self.cyc.holdover = None;
+                self.cyc.topo_streak = 0;
+                self.cyc.wkc_streak = 0;
+                self.stats.holdovers = self.stats.holdovers.saturating_add(1);
+                self.push_event(Event::HoldoverEnded {
+                    after_ns: now.saturating_sub(h.since),
+                    check,
+                });
+                true
+            }
+            Err(failure) => {
+                self.fault(now, Error::ResumeCheckFailed { failure });
+                false
+            }
+        }
+    }
+
+    fn resume_result(&self, h: Holdover) -> Result<ResumeCheck, ResumeFailure> {
+        let c = &self.cyc;
+        let found = c.topo_wkc.unwrap_or(0);
+        if found != self.count {
+            return Err(ResumeFailure::SlaveCount {
+                expected: self.count,
+                found,
+            });
+        }
+        let frmw = c.frmw_wkc.unwrap_or(0);
+        if frmw != self.sys_count {
+            return Err(ResumeFailure::ReferenceWkc {
+                expected: self.sys_count,
+                actual: frmw,
+            });
+        }
+        let bound_wkc = c.bound_wkc.unwrap_or(0);
+        if bound_wkc != self.sys_count {
+            return Err(ResumeFailure::SlaveCount {
+                expected: self.count,
+                found: self
+                    .count
+                    .saturating_sub(self.sys_count)
+                    .saturating_add(bound_wkc),
+            });
+        }
+        if let Some(station) = c.lost_station {
+            return Err(ResumeFailure::SlaveLost { station });
+        }
+        let al_status = c.al_status.unwrap_or(0);
+        if let Some(before) = h.al_before {
+            if al_status & AL_INIT_BIT != 0 && before & AL_INIT_BIT == 0 {
+                return Err(ResumeFailure::SlaveReset { al_status, before });
+            }
+        }
+        // The bound is taken from this cycle only: `bound_ns` still holds the last value
+        // from before the silence when this cycle's read carried none.
+        let bound_ns = c.cycle_bound_ns.unwrap_or(u32::MAX);
+        if bound_ns > self.cfg.holdover_check_ns {
+            return Err(ResumeFailure::Bound { bound_ns });
+        }
+        Ok(ResumeCheck {
+            slaves: found,
+            al_status,
+            bound_ns,
+        })
+    }
+
+    /// Whether the cyclic phase is in hold-over.
+    pub fn in_holdover(&self) -> bool {
+        self.state == crate::dc::State::Cyclic && self.cyc.holdover.is_some()
+    }
+
+    /// Master time at which the running re-initialisation pause ends (`RestartWait` only).
+    pub fn restart_at(&self) -> Option<crate::time::SystemTime> {
+        (self.state == crate::dc::State::RestartWait)
+            .then_some(crate::time::SystemTime(self.wake_at))
+    }
+}
