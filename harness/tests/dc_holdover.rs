@@ -174,19 +174,23 @@ fn hold_over(fault: Fault, duration: u64) -> Outcome {
         out.max_after_10,
         out.max_after_30
     );
-    // Through the silence and after it the skew stays inside the lock bound (`lock_ns`),
-    // and the slaves' loops bring it back under 100 ns within 30 cycles of the resume.
-    // (Within 10 cycles it is not: the loops slew the accumulated ~0.1 µs at ~2 ns/cycle.)
-    let lock_ns = i64::from(s.machine.config().monitor.lock_ns);
+    // Through the silence every slave free-runs on the rate its loop held when the samples
+    // stopped; that rate is off by the loop's last corrections (its proportional part acts on
+    // Δt jitter), ≈ 0.26 ppm here at 0x0930 = 0x0C00 (0.13 ppm at 0x1000, whose D step is
+    // finer): 259 ns after 1 s (128 ns at 0x1000). Bound: 0.4 ppm over the stall. After the
+    // resume the loops bring the skew back under 100 ns within 30 cycles (about 17 here; not
+    // within 10: they slew at ~15 ns per cycle).
+    let bound = i64::try_from(duration * 4 / 10_000_000).unwrap();
     assert!(
-        out.max_during.max(out.max_first_10) <= lock_ns,
-        "skew above lock_ns"
+        out.max_during.max(out.max_first_10) <= bound,
+        "skew {} ns above {bound} ns",
+        out.max_during.max(out.max_first_10)
     );
     assert!(out.max_after_30 <= 100, "skew {} ns", out.max_after_30);
     out
 }
 
-/// A 1 s wire silence after lock: hold-over, resume check passes, skew back within 10 cycles.
+/// A 1 s wire silence after lock: hold-over, resume check passes, skew back within 30 cycles.
 // verifies: REQ-DC-127, REQ-DC-128
 #[test]
 fn wire_silence_1s_holds_over() {

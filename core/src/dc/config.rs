@@ -209,7 +209,8 @@ pub struct Config {
     /// range stays ≈ ±760 ppm (docs/background/esc-registers.md §4.2a). On the emulator
     /// (whose loop law is a model choice) seed 000's line locks about 3× sooner with the same
     /// skew; docs/simulate.md has the per-seed figures, including the scenarios where it is
-    /// slower. Write 0x1000 to keep the reset value.
+    /// slower. The same larger rate per D step makes a hold-over drift about twice as fast
+    /// (docs/background/holdover.md §1). Write 0x1000 to keep the reset value.
     pub speed_counter_start: u16,
     /// Static drift compensation.
     pub drift: DriftConfig,
@@ -234,8 +235,8 @@ pub struct Config {
     /// one cycle period of grace for the resume cycle; 0 disables hold-over (re-initialise after
     /// `monitor.max_lost_cycles`). ecdc choice: 1 s (1 000 cycles at 1 ms), because the slaves'
     /// clocks keep their offsets and learnt rates through a silence, so only the residual
-    /// rate error accumulates (docs/background/holdover.md §1: 38 → 128 ns worst SYNC0 skew
-    /// over 1 s on seed 000's emulated line), while a stopped peer or a stalled host of a few
+    /// rate error accumulates (docs/background/holdover.md §1: 21 → 259 ns worst SYNC0 skew
+    /// over 1 s on seed 000's emulated line at 0x0930 = 0x0C00), while a stopped peer or a stalled host of a few
     /// hundred ms is common on machines without real-time scheduling.
     pub holdover_ns: u64,
     /// Largest BRD 0x092C bound the resume check after a hold-over accepts, ns (REQ-DC-128).
