@@ -911,13 +911,14 @@ fn good_input_runs_and_writes() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `--check`: a run too short to lock misses its targets, writes its files anyway and exits 3.
+/// `--check`: a run too short to lock (20 ms: ecdc locks after ~50 ms) misses its targets,
+/// writes its files anyway and exits 3.
 #[test]
 fn check_exits_3_on_a_missed_target() {
     let dir = fresh_dir(10_001);
     let r = run_in(
         &dir,
-        &expand(&simulate(&["--duration-ms", "50", "--check"]), &dir),
+        &expand(&simulate(&["--duration-ms", "20", "--check"]), &dir),
     );
     assert_eq!(r.code, Some(3), "{}\n{}", r.stdout, r.stderr);
     assert!(
