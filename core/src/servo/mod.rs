@@ -24,11 +24,11 @@ pub mod engine;
 pub mod filter;
 pub mod gains;
 pub mod gate;
+#[cfg(test)]
+mod golden;
 pub mod ieee1588;
 pub mod lock;
 pub mod master;
-#[cfg(test)]
-mod oracle;
 pub mod pi;
 pub mod ptp;
 pub mod refclock;
