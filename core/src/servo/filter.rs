@@ -2,7 +2,7 @@
 //!
 //! The paper's equations survive only as the pole choice e^−aT = 1/2, e^−bT = 1/3 (the equation
 //! images are missing from the seed text). The unity-DC-gain two-pole low-pass with those poles
-//! is [DERIVED]:
+//! is \[DERIVED\]:
 //!   Y(k) = (5/6)·Y(k−1) − (1/6)·Y(k−2) + (1/3)·X(k)          (eq. 9 as reconstructed)
 //! which factors into two first-order sections, each a convex combination:
 //!   U(k) = (1/2)·U(k−1) + (1/2)·X(k),   Y(k) = (1/3)·Y(k−1) + (2/3)·U(k).

@@ -5,7 +5,7 @@
 //! pair that looks harmless can be unstable. A pole radius is one physically meaningful knob: the error decays as
 //! p^k, so p = 0.99 at 1 kHz is a ~100 ms time constant. For the per-sample PI of
 //! [`super::pi`] the closed-loop characteristic polynomial is z² + (Kp + Ki − 2)·z + (1 − Kp)
-//! ([DERIVED] for the plant θₖ₊₁ = θₖ + δ − uₖ, REQ-SERVO-001); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
+//! (\[DERIVED\] for the plant θₖ₊₁ = θₖ + δ − uₖ, REQ-SERVO-001); placing real poles p₁, p₂ gives Kp = 1 − p₁p₂ and
 //! Ki = (1 − p₁)(1 − p₂) (REQ-SERVO-001).
 //!
 //! Q-format: a gain g is stored as the integer round(g · 2^32) in an `i64` ([`ONE`] = 1.0).

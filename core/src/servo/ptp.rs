@@ -31,7 +31,7 @@ pub struct PtpConfig {
     /// Actuator limit, ppb (> 0); y_max = I_max = max_ppb · h₀ / 10^9 ns per interval.
     pub max_ppb: u32,
     /// Run the seed 004 two-pole filter on the offset before the servo. It adds two poles of lag
-    /// inside the loop: [DERIVED] with fast PI poles (1/2 and 1/3, the filter's own pole values
+    /// inside the loop: \[DERIVED\] with fast PI poles (1/2 and 1/3, the filter's own pole values
     /// reused as loop poles — the seed gives no loop gains) the loop rings (error ÷10 per ~200
     /// samples); with slower PI poles (double pole 0.7 / 0.9) it stays well damped but the PI
     /// already averages, so `false` is the recommended setting.
@@ -363,7 +363,7 @@ mod tests {
     #[test]
     fn offset_filter_inside_the_loop() {
         // The seed's filter on the offset (eq. 7–9). The seed gives no loop gains; its filter
-        // poles 1/2 and 1/3 reused as PI poles make a fast loop. [DERIVED] The filter's lag then
+        // poles 1/2 and 1/3 reused as PI poles make a fast loop. \[DERIVED\] The filter's lag then
         // leaves a lightly damped pole pair (error ÷10 per ~200 samples), so this needs far more
         // exchanges than the unfiltered loop above.
         let fast =

@@ -115,6 +115,7 @@ impl<T: AsRef<[u8]>> Datagram<T> {
 
     /// The 10 header bytes, if the buffer holds them (for matching a header in one read).
     #[inline]
+    #[cfg(test)]
     pub(crate) fn header_bytes(&self) -> Option<&[u8; field::HEADER_LEN]> {
         self.buffer.as_ref().first_chunk::<{ field::HEADER_LEN }>()
     }
