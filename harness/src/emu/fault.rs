@@ -39,11 +39,11 @@ pub enum Fault {
     /// The wire goes silent for `duration_ns`: every frame the master sends in that window is
     /// lost before the first slave, and every reply that would reach the master in it is lost
     /// on the way back (the slaves did process that frame). A stopped peer process on a veth
-    /// pair, or a switch rebooting, looks like this. The slaves' clocks run on.
+    /// pair, or a switch rebooting, looks like this. The slaves' clocks run on (REQ-ESC-095).
     WireSilence { duration_ns: u64 },
     /// The master stops for `duration_ns` (a stalled host or process): it neither sends nor
     /// reads. Frames already sent still travel and wait for it; it resumes at the end with its
     /// own clock advanced by the stall. Acted on by the driver that plays the master
-    /// ([`crate::sim::Sim`]), which asks [`crate::emu::Network::master_stalled`].
+    /// ([`crate::sim::Sim`]), which asks [`crate::emu::Network::master_stalled`] (REQ-ESC-096).
     MasterStall { duration_ns: u64 },
 }
