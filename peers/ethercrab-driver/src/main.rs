@@ -19,10 +19,11 @@ use ethercrab::{
     DcSync, MainDevice, MainDeviceConfig, PduStorage, Timeouts,
 };
 
-const MAX_SUBDEVICES: usize = 16;
+// ecdc choice: room for the 32-slave tree of scripts/peers-bench.sh and its process data.
+const MAX_SUBDEVICES: usize = 64;
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 const MAX_FRAMES: usize = 32;
-const PDI_LEN: usize = 64;
+const PDI_LEN: usize = 512;
 
 static PDU_STORAGE: PduStorage<MAX_FRAMES, MAX_PDU_DATA> = PduStorage::new();
 
