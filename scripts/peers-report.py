@@ -40,13 +40,13 @@ def main():
         "\"Other masters\".",
         "",
         "| scenario | master | firing | pairs | mean \\|skew\\| ns | p99 ns | max ns | signed mean ns "
-        "| lock ms after 1st SYNC0 | bring-up ms | frames | AL at exit | load |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| lock ms after 1st SYNC0 | bring-up ms | frames | AL at exit | master exit | load |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in runs:
         s = r["sync"] or {}
         lines.append(
-            "| {sc} | {m} | {fi} | {pa} | {me} | {p99} | {mx} | {sm} | {lk} | {bu} | {fr} | {al} | {ld} |".format(
+            "| {sc} | {m} | {fi} | {pa} | {me} | {p99} | {mx} | {sm} | {lk} | {bu} | {fr} | {al} | {ex} | {ld} |".format(
                 sc=r["scenario"],
                 m=r["master"],
                 fi=f(s.get("slaves_firing"), 0),
@@ -59,6 +59,7 @@ def main():
                 bu=f(r.get("bring_up_ms"), 0),
                 fr=f(r.get("frames"), 0),
                 al=",".join(r.get("al_states") or []),
+                ex=r.get("exit"),
                 ld=f(r.get("load_average_at_start"), 2),
             )
         )
