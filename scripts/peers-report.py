@@ -6,6 +6,7 @@ Every figure comes from the JSON: the emulator's yardstick (true time) and the m
 bring-up lines; nothing is computed here but rounding and layout.
 """
 import html
+import math
 import json
 import sys
 
@@ -107,14 +108,19 @@ def main():
     bar_w = group_w / (len(masters) + 1)
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">',
            f'<rect width="{w}" height="{h}" fill="white"/>',
-           f'<text x="{left}" y="20" font-size="14">SYNC0 skew in true time (bar: mean |skew|, line: max), '
+           f'<text x="{left}" y="20" font-size="14">SYNC0 skew in true time (bar: mean |skew|, line: max; log scale), '
            f'{html.escape(data["generated"])}</text>']
-    y = lambda v: topm + plot_h - plot_h * min(v, top) / top
-    for k in range(6):
-        v = top * k / 5
+    # Log scale: the skews of one chart span 1 ns to tens of µs.
+    decades = max(1, math.ceil(math.log10(max(top, 10.0))))
+
+    def y(v):
+        return topm + plot_h * (1 - math.log10(max(v, 1.0)) / decades)
+
+    for k in range(decades + 1):
+        v = 10 ** k
         out.append(f'<line x1="{left}" x2="{w - 20}" y1="{y(v):.1f}" y2="{y(v):.1f}" stroke="#ddd"/>')
-        out.append(f'<text x="{left - 6}" y="{y(v) + 4:.1f}" text-anchor="end">{v:.0f}</text>')
-    out.append(f'<text x="14" y="{topm + plot_h / 2}" transform="rotate(-90 14 {topm + plot_h / 2})" text-anchor="middle">ns</text>')
+        out.append(f'<text x="{left - 6}" y="{y(v) + 4:.1f}" text-anchor="end">{v}</text>')
+    out.append(f'<text x="14" y="{topm + plot_h / 2}" transform="rotate(-90 14 {topm + plot_h / 2})" text-anchor="middle">ns (log)</text>')
     for gi, sc in enumerate(scen):
         gx = left + gi * group_w
         out.append(f'<text x="{gx + group_w / 2:.1f}" y="{h - bottom + 18}" text-anchor="middle">{html.escape(sc)}</text>')
