@@ -61,7 +61,7 @@ const TRUE: boolean = 1;
 fn slave(i: usize) -> &'static ec_slavet {
     assert!(i < EC_MAXSLAVE);
     // SAFETY: in bounds; SOEM writes the entries during configuration and state checks, which
-    // happen on the main thread, the only one that calls this.
+    // happen on the main thread; the cyclic thread calls this once, before its loop.
     unsafe { &*addr_of_mut!(ec_slave).cast::<ec_slavet>().add(i) }
 }
 
@@ -171,6 +171,9 @@ fn ecatthread(c: &Cyclic, cycletime: i64, expected_wkc: i32) {
     ts.tv_nsec = ht * 1_000_000;
     let mut toff = 0i64;
     let mut integral = 0i64;
+    // ec_configdc set it before this thread started; read once so this thread never looks at
+    // ec_slave[] while the main thread's state checks write it.
+    let hasdc = slave(0).hasdc != FALSE;
     // SAFETY: SOEM's process-data calls; this thread is the only one making them while it
     // runs (the main thread only does state reads/writes, as in the samples, and SOEM guards
     // its frame buffers with its own mutexes).
@@ -202,7 +205,7 @@ fn ecatthread(c: &Cyclic, cycletime: i64, expected_wkc: i32) {
                 c.short_wkc.fetch_add(1, Ordering::Relaxed);
             }
             c.cycles.fetch_add(1, Ordering::Relaxed);
-            if slave(0).hasdc != FALSE {
+            if hasdc {
                 // SAFETY: ec_DCtime is written by ec_receive_processdata on this thread.
                 let dctime = unsafe { ec_DCtime };
                 let (off, delta) = ec_sync(dctime, cycletime, &mut integral);
