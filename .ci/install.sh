@@ -8,7 +8,9 @@ command -v jq >/dev/null 2>&1 || need_apt+=(jq)
 command -v clang >/dev/null 2>&1 || need_apt+=(clang)
 command -v valgrind >/dev/null 2>&1 || need_apt+=(valgrind)
 command -v cc >/dev/null 2>&1 || need_apt+=(gcc)
-# the z3 crate generates its bindings with bindgen, which loads libclang
+# peers/soem-driver: SOEM-sys builds SOEM's C sources with cmake and its bindings with bindgen
+command -v cmake >/dev/null 2>&1 || need_apt+=(cmake)
+# the z3 and SOEM-sys crates generate their bindings with bindgen, which loads libclang
 ls /usr/lib/llvm-*/lib/libclang.so* >/dev/null 2>&1 || need_apt+=(libclang-dev) # libclang.so, not libclang-cpp.so
 if [ "${#need_apt[@]}" -gt 0 ]; then
     echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections 2>/dev/null || true

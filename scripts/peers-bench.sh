@@ -1,84 +1,165 @@
 #!/usr/bin/env bash
-# Other masters on the emulator, measured by its DC yardstick (docs/emulator.md "DC yardstick").
-# Over a veth pair between two network namespaces created (and always deleted) by this script:
+# Other masters on the emulator beside ecdc, measured by its DC yardstick (docs/emulator.md
+# "DC yardstick"). Over a veth pair between two network namespaces created (and always deleted)
+# by this script:
 #
 #   master ns  [ecm0] <--veth--> [ecs0]  slave ns
-#   MASTER                         ecdc emulate --json
+#   MASTER                         ecdc emulate --json --scenario FILE
 #
-# Masters, one after the other, each against a fresh `ecdc emulate` with the same scenario
-# (default: 3 slaves in a line, seed 0), each run for the same SECONDS of cyclic operation at a
-# 1 ms cycle:
-#   ethercrab  peers/ethercrab-driver: the real ethercrab crate, DC as its own docs do it
-#   ecdc       `ecdc run --cycle-us 1000`
-# Neither is told anything about the emulated network; both only get the interface. The numbers
-# are the emulator's true-time measurement of the SYNC0 pulses, not what either master believes.
-# Host scheduling makes each run's wire timing different, so runs differ by a few ns.
+# For each scenario, the masters one after the other, each against a fresh `ecdc emulate` with
+# the same scenario file (so the same seed: the same crystals and delays), each for the same
+# SECONDS of cyclic operation at a 1 ms cycle:
+#   ethercrab    peers/ethercrab-driver: the real ethercrab crate, DC as its own docs do it
+#   soem         peers/soem-driver: the real SOEM (GPL-2.0, its own crate), DC as its samples do
+#   ecdc         `ecdc run --cycle-us 1000`
+#   soem-config  soem-driver --config-only: ec_config_init + ec_config_map + ec_configdc, no
+#                cyclic phase (for CI; not in the default list)
+# None is told anything about the emulated network; each only gets the interface and the cycle.
+# The numbers are the emulator's true-time measurement of the SYNC0 pulses, not what a master
+# believes. Host scheduling makes each run's wire timing different, so runs differ by a few ns.
+#
+# Scenarios (harness/scenarios/peers_*.toml): seed000-line6, seed003-line2, tree32.
+# Writes OUT/peers.json (one record per run, with the commands), and from it OUT/peers.md and
+# OUT/peers.svg (scripts/peers-report.py).
 #
 # Exit 0 = every master ran, 77 = skipped (reason on the last line), anything else = failed.
-# Usage: scripts/peers-bench.sh [SECONDS] [-- extra `ecdc emulate` args, e.g. --slaves 6]
+# Usage: scripts/peers-bench.sh [SECONDS] [SCENARIO...]      (default 20 s, all three)
+# Environment: PEERS_MASTERS (default "ethercrab soem ecdc"), PEERS_OUT (default
+# benches/results), PEERS_NO_BUILD=1 to use already built binaries.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-SECONDS_RUN="${1:-10}"
+SECONDS_RUN="${1:-20}"
 shift || true
-[ "${1:-}" = "--" ] && shift
-EMU_ARGS=("$@")
+SCENARIOS=("$@")
+[ "${#SCENARIOS[@]}" -eq 0 ] && SCENARIOS=(seed000-line6 seed003-line2 tree32)
+read -r -a MASTERS <<<"${PEERS_MASTERS:-ethercrab soem ecdc}"
+OUT="${PEERS_OUT:-benches/results}"
+CYCLE_US=1000
+
+scenario_file() {
+    case "$1" in
+        seed000-line6) echo harness/scenarios/peers_seed000_line6.toml ;;
+        seed003-line2) echo harness/scenarios/peers_seed003.toml ;;
+        tree32) echo harness/scenarios/peers_tree32.toml ;;
+        *) return 1 ;;
+    esac
+}
 
 # shellcheck source=scripts/netns-pair.sh
 source scripts/netns-pair.sh
+for s in "${SCENARIOS[@]}"; do
+    scenario_file "$s" >/dev/null || fail "unknown scenario $s (seed000-line6, seed003-line2, tree32)"
+done
 command -v jq >/dev/null 2>&1 || skip "jq not installed (needed to read the JSON summaries)"
 netns_pair "peer"
 ip -n "$NS_M" link set ecm0 up || fail "bringing ecm0 up"
 
 TARGET="${CARGO_TARGET_DIR:-$PWD/target}"
-cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build ecdc"
-(cd peers/ethercrab-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
-    || fail "cargo build peers/ethercrab-driver"
 ECDC="$TARGET/release/ecdc"
 CRAB="$TARGET/release/ethercrab-driver"
+SOEM="$TARGET/release/soem-driver"
+if [ -z "${PEERS_NO_BUILD:-}" ]; then
+    cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build ecdc"
+    for m in "${MASTERS[@]}"; do
+        case "$m" in
+            ethercrab) (cd peers/ethercrab-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
+                || fail "cargo build peers/ethercrab-driver" ;;
+            soem | soem-config) (cd peers/soem-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
+                || fail "cargo build peers/soem-driver (needs cmake and libclang: .ci/install.sh)" ;;
+        esac
+    done
+fi
 
-# measure NAME COMMAND...: a fresh emulator, the master in the master namespace, then the
-# emulator's JSON in $WORK/NAME.json.
+# The command each master runs in the master namespace (as shown in the results).
+master_cmd() {
+    case "$1" in
+        ethercrab) echo "env RUST_LOG=warn $CRAB ecm0 $SECONDS_RUN $CYCLE_US" ;;
+        soem) echo "$SOEM ecm0 $SECONDS_RUN $CYCLE_US" ;;
+        soem-config) echo "$SOEM ecm0 --config-only" ;;
+        ecdc) echo "$ECDC run --iface ecm0 --cycle-us $CYCLE_US --duration $SECONDS_RUN --json" ;;
+        *) return 1 ;;
+    esac
+}
+
+# The master's bring-up time, ms, from its own output: ethercrab's start to all SubDevices in
+# OP; SOEM's ec_init to ec_dcsync0 done on every DC slave; ecdc's start to its cyclic phase.
+bring_up_ms() {
+    case "$1" in
+        ethercrab) sed -n 's/.*all SubDevices in OP after [0-9]* ms (\([0-9]*\) ms since start).*/\1/p' "$2.err" ;;
+        soem) sed -n 's/.*ec_dcsync0 on [0-9]* slaves (\([0-9]*\) ms since start).*/\1/p' "$2.err" ;;
+        soem-config) sed -n 's/.*ec_configdc .*(\([0-9]*\) ms).*/\1/p' "$2.err" ;;
+        ecdc) jq -r '.bringup_ms' "$2.out" ;;
+    esac | tail -n 1
+}
+
+FAILED=()
+RECORDS="$WORK/records.jsonl"
+: >"$RECORDS"
+# measure SCENARIO MASTER: a fresh emulator, the master in the master namespace, then one JSON
+# record appended to $RECORDS.
 measure() {
-    local name="$1"
-    shift
-    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --json "${EMU_ARGS[@]}" \
-        >"$WORK/$name.json" 2>"$WORK/$name-emu.err" &
-    local emu=$!
+    local scen="$1" master="$2" file cmd base emu rc
+    file="$(scenario_file "$scen")"
+    cmd="$(master_cmd "$master")" || fail "unknown master $master"
+    base="$WORK/$scen-$master"
+    local emu_cmd=("$ECDC" emulate --iface ecs0 --json --scenario "$file")
+    ip netns exec "$NS_S" "${emu_cmd[@]}" >"$base.json" 2>"$base-emu.err" &
+    emu=$!
     PIDS+=("$emu")
     for _ in $(seq 50); do
-        grep -q "serving" "$WORK/$name-emu.err" 2>/dev/null && break
+        grep -q "serving" "$base-emu.err" 2>/dev/null && break
         sleep 0.1
     done
-    timeout $((SECONDS_RUN + 60)) ip netns exec "$NS_M" "$@" >"$WORK/$name.out" 2>"$WORK/$name.err"
-    local rc=$?
+    local load
+    load="$(cut -d' ' -f1 /proc/loadavg)"
+    # shellcheck disable=SC2086 # the command is a word list by construction
+    timeout $((SECONDS_RUN + 120)) ip netns exec "$NS_M" $cmd >"$base.out" 2>"$base.err"
+    rc=$?
     sleep 0.2
     kill -TERM "$emu" 2>/dev/null
     wait "$emu"
     PIDS=("${PIDS[@]/$emu}")
     if [ "$rc" -ne 0 ]; then
-        tail -n 20 "$WORK/$name.err"
-        fail "$name exited with $rc"
+        # Recorded, not fatal: the other runs still say something, and the row shows the exit.
+        tail -n 20 "$base.err"
+        echo "FAILED: $master on $scen exited with $rc"
+        FAILED+=("$scen/$master")
     fi
-    grep -h "ethercrab-driver:" "$WORK/$name.err" || true
+    grep -h "driver:" "$base.err" | sed "s/^/  [$scen $master] /" || true
+    local bu
+    bu="$(bring_up_ms "$master" "$base")"
+    jq -c --arg scen "$scen" --arg file "$file" --arg master "$master" \
+        --arg cmd "${cmd//$TARGET\/release\//}" --arg emu "ecdc emulate --iface ecs0 --json --scenario $file" \
+        --arg bu "${bu:-}" --arg load "$load" --argjson secs "$SECONDS_RUN" --argjson rc "$rc" \
+        --rawfile log "$base.err" --slurpfile run <(if [ "$master" = ecdc ]; then cat "$base.out"; else echo null; fi) '
+        {scenario: $scen, scenario_file: $file, master: $master, seconds: $secs,
+         cycle_us: '"$CYCLE_US"', command: $cmd, emulate_command: $emu, exit: $rc,
+         load_average_at_start: ($load | tonumber),
+         bring_up_ms: (if $bu == "" or $bu == "null" then null else ($bu | tonumber) end),
+         frames: .frames.received, sync: .sync,
+         al_states: ([.slaves[].al_state] | unique),
+         identities: [.slaves[].identity],
+         slaves: [.slaves[] | {position, sync0_edges, clock_error_mean_ns, clock_error_max_abs_ns}],
+         master_log: ($log | split("\n") | map(select(test("driver:"))))}
+        + (if $run[0] == null then {} else {ecdc_run: ($run[0] | {restarts, bringup_ms,
+             machine_frames_sent, frames_lost: .frames.lost, overruns: .cyclic.overruns})} end)' \
+        "$base.json" >>"$RECORDS" || fail "reading $base.json"
 }
 
-measure ethercrab env RUST_LOG=warn "$CRAB" ecm0 "$SECONDS_RUN" 1000
-measure ecdc "$ECDC" run --iface ecm0 --cycle-us 1000 --duration "$SECONDS_RUN" --json
-jq -r '"ecdc run: restarts \(.restarts), frames sent \(.frames.sent) lost \(.frames.lost), cyclic overruns \(.cyclic.overruns), wake max \(.cyclic.wake.max / 1000 | round) us"' \
-    "$WORK/ecdc.out"
+for scen in "${SCENARIOS[@]}"; do
+    for m in "${MASTERS[@]}"; do
+        echo "== $scen: $m"
+        measure "$scen" "$m"
+    done
+done
 
-echo "== the emulator's yardstick ($SECONDS_RUN s cyclic, 1 ms; emulate ${EMU_ARGS[*]:-(3 slaves, seed 0)}; load average $(cut -d' ' -f1 /proc/loadavg))"
-printf '%-10s %7s %7s %9s %8s %8s %12s %10s %s\n' master firing pairs "mean|.|" "p99|.|" "max|.|" "signed mean" "lock ms" "AL states"
-for name in ethercrab ecdc; do
-    jq -r --arg n "$name" '
-      def f: if . == null then "-" else (. * 10 | round / 10 | tostring) end;
-      [$n, (.sync.slaves_firing|tostring), (.sync.pairs|tostring), (.sync.skew_mean_ns|f),
-       (.sync.skew_p99_ns|f), (.sync.skew_max_ns|f), (.sync.skew_signed_mean_ns|f),
-       (.sync.lock_ms|f), ([.slaves[].al_state] | unique | join(","))] | @tsv' "$WORK/$name.json" |
-        awk -F'\t' '{printf "%-10s %7s %7s %9s %8s %8s %12s %10s %s\n", $1, $2, $3, $4, $5, $6, $7, $8, $9}'
-done
-echo "per slave (clock error vs the reference in the window: signed mean / max |.|, ns)"
-for name in ethercrab ecdc; do
-    jq -r --arg n "$name" '"  \($n): " + ([.slaves[] | "\(.position): \(.clock_error_mean_ns // "-" | if type == "number" then (. * 10 | round / 10) else . end)/\(.clock_error_max_abs_ns // "-")"] | join("  "))' "$WORK/$name.json"
-done
+mkdir -p "$OUT"
+jq -s --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg host "$(nproc) CPUs, $(uname -r)" \
+    --arg cmd "${PEERS_MASTERS:+PEERS_MASTERS=\"$PEERS_MASTERS\" }scripts/peers-bench.sh $SECONDS_RUN ${SCENARIOS[*]}" \
+    '{generated: $date, machine: $host, command: $cmd, runs: .}' \
+    "$RECORDS" >"$OUT/peers.json" || fail "writing $OUT/peers.json"
+python3 scripts/peers-report.py "$OUT/peers.json" "$OUT/peers.md" "$OUT/peers.svg" \
+    || fail "scripts/peers-report.py"
+cat "$OUT/peers.md"
+[ "${#FAILED[@]}" -eq 0 ] || fail "exited non-zero: ${FAILED[*]} (rows kept in $OUT/peers.md)"
 echo "PASS: every master ran against the emulator"
