@@ -10,6 +10,8 @@
 # 1 ms cycle:
 #   ethercrab  peers/ethercrab-driver: the real ethercrab crate, DC as its own docs do it
 #   ecdc       `ecdc run --cycle-us 1000`
+#   ethercrab+ecdc  peers/ethercrab-ecdc: ethercrab's init, AL states and process data, ecdc-core
+#              doing DC in the same TX/RX loop (ethercrab's own DC off; docs/ethercrab-ecdc.md)
 # Neither is told anything about the emulated network; both only get the interface. The numbers
 # are the emulator's true-time measurement of the SYNC0 pulses, not what either master believes.
 # Host scheduling makes each run's wire timing different, so runs differ by a few ns.
@@ -62,23 +64,32 @@ measure() {
     grep -h "ethercrab-driver:" "$WORK/$name.err" || true
 }
 
+MASTERS=(ethercrab ecdc)
 measure ethercrab env RUST_LOG=warn "$CRAB" ecm0 "$SECONDS_RUN" 1000
 measure ecdc "$ECDC" run --iface ecm0 --cycle-us 1000 --duration "$SECONDS_RUN" --json
 jq -r '"ecdc run: restarts \(.restarts), frames sent \(.frames.sent) lost \(.frames.lost), cyclic overruns \(.cyclic.overruns), wake max \(.cyclic.wake.max / 1000 | round) us"' \
     "$WORK/ecdc.out"
 
+# ---- ethercrab+ecdc (peers/ethercrab-ecdc): told the same as the others, only the interface ----
+(cd peers/ethercrab-ecdc && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
+    || fail "cargo build peers/ethercrab-ecdc"
+measure ethercrab+ecdc env RUST_LOG=warn ETHERCRAB_ECDC_EVENTS="${ETHERCRAB_ECDC_EVENTS:-0}" "$TARGET/release/ethercrab-ecdc" ecm0 "$SECONDS_RUN" 1000
+grep -h "ethercrab-ecdc:" "$WORK/ethercrab+ecdc.err" || true
+MASTERS+=(ethercrab+ecdc)
+# ---- end ethercrab+ecdc ----
+
 echo "== the emulator's yardstick ($SECONDS_RUN s cyclic, 1 ms; emulate ${EMU_ARGS[*]:-(3 slaves, seed 0)}; load average $(cut -d' ' -f1 /proc/loadavg))"
-printf '%-10s %7s %7s %9s %8s %8s %12s %10s %s\n' master firing pairs "mean|.|" "p99|.|" "max|.|" "signed mean" "lock ms" "AL states"
-for name in ethercrab ecdc; do
+printf '%-15s %7s %7s %9s %8s %8s %12s %10s %s\n' master firing pairs "mean|.|" "p99|.|" "max|.|" "signed mean" "lock ms" "AL states"
+for name in "${MASTERS[@]}"; do
     jq -r --arg n "$name" '
       def f: if . == null then "-" else (. * 10 | round / 10 | tostring) end;
       [$n, (.sync.slaves_firing|tostring), (.sync.pairs|tostring), (.sync.skew_mean_ns|f),
        (.sync.skew_p99_ns|f), (.sync.skew_max_ns|f), (.sync.skew_signed_mean_ns|f),
        (.sync.lock_ms|f), ([.slaves[].al_state] | unique | join(","))] | @tsv' "$WORK/$name.json" |
-        awk -F'\t' '{printf "%-10s %7s %7s %9s %8s %8s %12s %10s %s\n", $1, $2, $3, $4, $5, $6, $7, $8, $9}'
+        awk -F'\t' '{printf "%-15s %7s %7s %9s %8s %8s %12s %10s %s\n", $1, $2, $3, $4, $5, $6, $7, $8, $9}'
 done
 echo "per slave (clock error vs the reference in the window: signed mean / max |.|, ns)"
-for name in ethercrab ecdc; do
+for name in "${MASTERS[@]}"; do
     jq -r --arg n "$name" '"  \($n): " + ([.slaves[] | "\(.position): \(.clock_error_mean_ns // "-" | if type == "number" then (. * 10 | round / 10) else . end)/\(.clock_error_max_abs_ns // "-")"] | join("  "))' "$WORK/$name.json"
 done
 echo "PASS: every master ran against the emulator"

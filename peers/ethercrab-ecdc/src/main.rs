@@ -71,8 +71,15 @@ fn main_inner() -> Result<(), String> {
         c.other,
         c.send_errors
     );
-    for (_, e) in s.events.iter().filter(|(_, e)| e.starts_with("Error")) {
-        eprintln!("ethercrab-ecdc: ecdc fault: {e}");
+    // The machine's event log, relative to its first event; all of it with
+    // ETHERCRAB_ECDC_EVENTS=1, else the faults.
+    let all = std::env::var_os("ETHERCRAB_ECDC_EVENTS").is_some_and(|v| v == "1");
+    let t0 = s.events.first().map_or(0, |(t, _)| *t);
+    for (t, e) in &s.events {
+        if all || e.starts_with("Error") {
+            let ms = t.saturating_sub(t0) as f64 / 1e6;
+            eprintln!("ethercrab-ecdc: ecdc event at {ms:.1} ms: {e}");
+        }
     }
     Ok(())
 }
