@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use ecdc_core::dc::{Config, Event, Machine, State, Stations};
+use ecdc_core::dc::{Config, Event, Machine, State, Stations, TdiffSource};
 use ecdc_core::time::SystemTime;
 use ecdc_harness::runtime::clock::{self, DcClock};
 use ecdc_harness::runtime::socket::Link;
@@ -151,6 +151,8 @@ pub struct TxRx<'sto, L: Link, const N: usize> {
     clock: DcClock,
     shared: Arc<Shared>,
     counters: Counters,
+    /// Slave count of the bring-up whose t_Diff values are pinned, if any.
+    pinned: Option<u16>,
 }
 
 impl<'sto, L: Link, const N: usize> TxRx<'sto, L, N> {
@@ -171,6 +173,7 @@ impl<'sto, L: Link, const N: usize> TxRx<'sto, L, N> {
             clock,
             shared,
             counters: Counters::default(),
+            pinned: None,
         }
     }
 
@@ -253,6 +256,7 @@ impl<'sto, L: Link, const N: usize> TxRx<'sto, L, N> {
                 events.push(e);
                 fresh = true;
             }
+            self.pin_t_diff(&events);
             if fresh || mono.saturating_sub(last_report) > 100_000_000 {
                 last_report = mono;
                 self.report(mono, &events);
@@ -261,6 +265,39 @@ impl<'sto, L: Link, const N: usize> TxRx<'sto, L, N> {
         let mono = clock::now_ns();
         self.report(mono, &[]);
         (self.link, self.machine)
+    }
+
+    /// After the first lock, pins every slave's measured t_Diff as its configured value, so a
+    /// later bring-up uses it. ethercrab keeps the slaves in OP, where the machine does not
+    /// close ports to measure t_Diff (REQ-DC-123), and a re-initialisation after a fault (a
+    /// host stall long enough to lose `max_lost_cycles` cycles) would otherwise fall back to
+    /// `Config::t_diff_ns` and write delays off by t_Diff/2 per hop (seed 000 eq. 13) while
+    /// it keeps the offsets (REQ-DC-030). A bring-up that finds a different number of slaves
+    /// unpins them: positions no longer name the same ESCs.
+    fn pin_t_diff(&mut self, events: &[Event]) {
+        for e in events {
+            match *e {
+                Event::SlavesFound { count, .. } if self.pinned.is_some_and(|c| c != count) => {
+                    for pos in 0..count.max(self.pinned.unwrap_or(0)) {
+                        let _ = self.machine.set_slave_t_diff(pos, None);
+                    }
+                    self.pinned = None;
+                }
+                Event::Locked { .. } if self.pinned.is_none() => {
+                    let values: Vec<(u16, i32, TdiffSource)> = (0u16..)
+                        .zip(self.machine.slaves())
+                        .map(|(pos, s)| (pos, s.t_diff_ns, s.t_diff_source))
+                        .collect();
+                    for (pos, v, src) in &values {
+                        if matches!(src, TdiffSource::Measured | TdiffSource::SameType { .. }) {
+                            let _ = self.machine.set_slave_t_diff(*pos, Some(*v));
+                        }
+                    }
+                    self.pinned = u16::try_from(values.len()).ok();
+                }
+                _ => {}
+            }
+        }
     }
 
     fn report(&self, mono: u64, events: &[Event]) {
@@ -321,6 +358,8 @@ pub struct Report {
     pub dc_lock_ms: f64,
     /// From the OP request to every SubDevice in OP, ms.
     pub op_ms: f64,
+    /// Monotonic ns when every SubDevice was in OP (the clock of [`Status::events`]).
+    pub op_mono_ns: u64,
     /// Process-data cycles in OP.
     pub cycles: u64,
     /// Cycles whose LRW working counter differed from the first cycle's in OP.
@@ -447,6 +486,7 @@ async fn application(
         smol::Timer::at(next).await;
     }
     let op_ms = op_request.elapsed().as_secs_f64() * 1e3;
+    let op_mono_ns = clock::now_ns();
 
     let until = Instant::now() + Duration::from_secs_f64(opts.seconds.max(0.0));
     let mut cycles = 0u64;
@@ -475,6 +515,7 @@ async fn application(
         init_ms,
         dc_lock_ms,
         op_ms,
+        op_mono_ns,
         cycles,
         wkc_changes,
         status: Status::default(),

@@ -3,67 +3,19 @@
 //! the link was made). Checks what the emulator saw: every slave fires SYNC0 and the pulses
 //! of each cycle coincide across slaves, and ecdc used the addresses ethercrab assigned.
 
-use std::collections::{BTreeMap, VecDeque};
-use std::io;
-use std::sync::atomic::AtomicBool;
+mod support;
 
-use ecdc_harness::emu::{Delivery, Network, Scenario, SyncSignal};
-use ecdc_harness::runtime::clock;
-use ecdc_harness::runtime::socket::Link;
+use ecdc_harness::emu::Scenario;
 use ethercrab::PduStorage;
 use ethercrab_ecdc::{run, Options};
+use support::{sync0_spreads, EmuLink};
 
 static PDU_STORAGE: PduStorage<32, { PduStorage::element_size(1100) }> = PduStorage::new();
-
-/// The emulated chain behind an in-memory link: a sent frame goes through the network at once
-/// (at the current true time) and its reply is handed out when its last bit would arrive.
-struct EmuLink {
-    net: Network,
-    start: u64,
-    queue: VecDeque<(u64, Vec<u8>)>,
-}
-
-impl Link for EmuLink {
-    fn send(&mut self, frame: &[u8]) -> io::Result<()> {
-        let t = clock::now_ns()
-            .saturating_sub(self.start)
-            .max(self.net.now());
-        match self.net.transact(frame, t) {
-            Ok(Delivery::Returned(r)) => self.queue.push_back((self.start + r.arrival, r.frame)),
-            Ok(Delivery::Lost(_)) => {}
-            Err(e) => return Err(io::Error::other(format!("{e:?}"))),
-        }
-        Ok(())
-    }
-
-    fn recv(&mut self, buf: &mut [u8], deadline_ns: u64) -> io::Result<Option<usize>> {
-        let stop = AtomicBool::new(false);
-        match self.queue.front() {
-            Some((at, _)) if *at <= deadline_ns => {
-                clock::sleep_until(*at, 0, &stop);
-                let Some((_, f)) = self.queue.pop_front() else {
-                    return Ok(None);
-                };
-                let n = f.len().min(buf.len());
-                buf[..n].copy_from_slice(&f[..n]);
-                Ok(Some(f.len()))
-            }
-            _ => {
-                clock::sleep_until(deadline_ns, 0, &stop);
-                Ok(None)
-            }
-        }
-    }
-}
 
 #[test]
 fn ethercrab_configures_ecdc_synchronises() {
     let slaves = 3;
-    let link = EmuLink {
-        net: Network::new(&Scenario::line(slaves)).expect("scenario"),
-        start: clock::now_ns(),
-        queue: VecDeque::new(),
-    };
+    let link = EmuLink::new(&Scenario::line(slaves));
     let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
     let opts = Options {
         seconds: 1.0,
@@ -88,18 +40,9 @@ fn ethercrab_configures_ecdc_synchronises() {
     assert_eq!(c.crab_refused, 0, "{c:?}");
     assert_eq!(c.crab_received, c.crab_sent, "{c:?}");
 
-    // The emulator's true SYNC0 edges: group by the programmed system time (one pulse of
-    // the common grid), keep the pulses every slave fired, and take the spread of each.
-    let mut pulses: BTreeMap<u64, Vec<u64>> = BTreeMap::new();
-    for e in link.net.take_sync_edges() {
-        if e.signal == SyncSignal::Sync0 {
-            pulses.entry(e.system_time).or_default().push(e.true_time);
-        }
-    }
-    let spreads: Vec<u64> = pulses
-        .values()
-        .filter(|t| t.len() == slaves)
-        .map(|t| t.iter().max().unwrap() - t.iter().min().unwrap())
+    let spreads: Vec<u64> = sync0_spreads(&mut link.net, slaves)
+        .into_iter()
+        .map(|(_, s)| s)
         .collect();
     // 1 s of OP at 1 ms, plus the lock wait and the OP transition.
     assert!(spreads.len() > 900, "{} pulses fired by all", spreads.len());
