@@ -71,6 +71,13 @@ fn main_inner() -> Result<(), String> {
         c.other,
         c.send_errors
     );
+    eprintln!(
+        "ethercrab-ecdc: ecdc cycles {} lost {} timeouts {}; longest loop turn {} us",
+        s.machine.cycles,
+        s.machine.lost_cycles,
+        s.machine.timeouts,
+        s.max_turn_gap_ns / 1000
+    );
     // The machine's event log, relative to its first event; all of it with
     // ETHERCRAB_ECDC_EVENTS=1, else the faults.
     let all = std::env::var_os("ETHERCRAB_ECDC_EVENTS").is_some_and(|v| v == "1");
