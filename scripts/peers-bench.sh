@@ -14,6 +14,9 @@
 #   ecdc         `ecdc run --cycle-us 1000`
 #   soem-config  soem-driver --config-only: ec_config_init + ec_config_map + ec_configdc, no
 #                cyclic phase (for CI; not in the default list)
+#   ethercrab+ecdc  peers/ethercrab-ecdc: ethercrab's init, AL states and process data, ecdc-core
+#                doing DC in the same TX/RX loop (ethercrab's own DC off; docs/ethercrab-ecdc.md;
+#                not in the default list: PEERS_MASTERS="ethercrab ecdc ethercrab+ecdc")
 # None is told anything about the emulated network; each only gets the interface and the cycle.
 # The numbers are the emulator's true-time measurement of the SYNC0 pulses, not what a master
 # believes. Host scheduling makes each run's wire timing different, so runs differ by a few ns.
@@ -64,6 +67,8 @@ if [ -z "${PEERS_NO_BUILD:-}" ]; then
         case "$m" in
             ethercrab) (cd peers/ethercrab-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
                 || fail "cargo build peers/ethercrab-driver" ;;
+            ethercrab+ecdc) (cd peers/ethercrab-ecdc && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
+                || fail "cargo build peers/ethercrab-ecdc" ;;
             soem | soem-config) (cd peers/soem-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
                 || fail "cargo build peers/soem-driver (needs cmake and libclang: .ci/install.sh)" ;;
         esac
@@ -77,6 +82,7 @@ master_cmd() {
         soem) echo "$SOEM ecm0 $SECONDS_RUN $CYCLE_US" ;;
         soem-config) echo "$SOEM ecm0 --config-only" ;;
         ecdc) echo "$ECDC run --iface ecm0 --cycle-us $CYCLE_US --duration $SECONDS_RUN --json" ;;
+        ethercrab+ecdc) echo "env RUST_LOG=warn $TARGET/release/ethercrab-ecdc ecm0 $SECONDS_RUN $CYCLE_US" ;;
         *) return 1 ;;
     esac
 }

@@ -338,6 +338,9 @@ pub fn config_from_c(c: &ecdc_config) -> Result<Config, ecdc_status> {
             }),
         },
         station_base: c.station_base,
+        // The C configuration has no field for adopting a host's addresses (REQ-DC-140) yet:
+        // a C host assigns them as `station_base` says.
+        stations: ecdc_core::dc::Stations::Assign,
         index_first: c.index_first,
         index_count: c.index_count,
         response_timeout_ns: c.response_timeout_ns,

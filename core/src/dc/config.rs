@@ -172,6 +172,9 @@ pub struct Config {
     /// Station address of the first slave (position 0); slave `i` gets `station_base + i`.
     /// 0x1001 is the customary first configured address (SOEM, IgH).
     pub station_base: u16,
+    /// Whether the machine assigns the station addresses (default) or adopts the ones a host
+    /// master wrote (REQ-DC-140).
+    pub stations: crate::dc::Stations,
     /// First datagram index the machine may use. The machine owns `index_count` consecutive
     /// indices (mod 256), so an embedding master keeps the others for its own datagrams.
     pub index_first: u8,
@@ -253,6 +256,7 @@ impl Default for Config {
     fn default() -> Self {
         Config {
             station_base: 0x1001,
+            stations: crate::dc::Stations::Assign,
             index_first: 0x80,
             index_count: 0x80,
             response_timeout_ns: 10_000_000,

@@ -1,5 +1,6 @@
-//! Discovery (REQ-DC-100): count the slaves, give each a station address, read what each one
-//! can do (0x0008 features, 0x0110 DL status) and which DC slaves really have a system time.
+//! Discovery (REQ-DC-100): count the slaves, give each a station address (or adopt the host
+//! master's, REQ-DC-140), read what each one can do (0x0008 features, 0x0110 DL status) and
+//! which DC slaves really have a system time.
 
 use crate::dc::error::Error;
 use crate::dc::event::Event;
@@ -8,21 +9,15 @@ use crate::dc::request::{le, Op, Pending};
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::state::State;
 use crate::wire::register::{reg, DlStatus, EscFeatures};
-use crate::wire::{Address, Command};
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn discovery_item(&self, i: u16) -> Item {
         match self.state {
             // BRD of the 2-byte type/revision word: every slave increments the WKC.
             State::CountSlaves => Item::Send(Op::brd(0x0000, 2)),
-            State::AssignAddresses => Item::Send(Op {
-                command: Command::Apwr,
-                address: Address::position(i, reg::STATION_ADDRESS),
-                len: 2,
-                payload: crate::dc::request::Payload::Le(u64::from(self.station_of(i))),
-            }),
+            State::AssignAddresses => self.station_item(i),
             State::ReadInfo => {
-                let station = self.station_of(i / 2);
+                let station = self.slave(i / 2).map_or(0, |s| s.station);
                 if i % 2 == 0 {
                     Item::Send(Op::fprd(station, reg::ESC_FEATURES, 2))
                 } else {
@@ -71,7 +66,7 @@ impl<const N: usize> Machine<N> {
             }
             State::AssignAddresses => {
                 self.expect_wkc(p, 1, wkc)?;
-                let station = self.station_of(i);
+                let station = self.station_reply(i, p, data)?;
                 if let Some(s) = self.slave_mut(i) {
                     s.station = station;
                 }

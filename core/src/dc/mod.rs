@@ -30,6 +30,7 @@ mod remeasure;
 mod request;
 pub mod slave;
 pub mod state;
+pub mod stations;
 mod steps;
 pub mod tdiff;
 #[cfg(test)]
@@ -46,4 +47,5 @@ pub use machine::{Machine, Stats};
 pub use request::MAX_INFLIGHT;
 pub use slave::{DcKind, SlaveInfo};
 pub use state::State;
+pub use stations::Stations;
 pub use tdiff::{TdiffFallback, TdiffSource};
