@@ -377,3 +377,73 @@ fn one_frame_per_round() {
         "line(2): read, first latch, its read"
     );
 }
+
+/// REQ-DC-123: a re-initialisation while the application holds the slaves in OP closes no
+/// port, and every slave keeps the value measured at its position in the first bring-up
+/// (source `Earlier`) instead of falling back to `Config::t_diff_ns`.
+#[test]
+fn restart_while_running_keeps_the_measured_values() {
+    // verifies: REQ-DC-123
+    use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
+    use ecdc_harness::emu::Fault;
+    let sc = Scenario::line(4);
+    let mut s = sim::<8>(&sc, nothing_told());
+    s.drive_until(20_000_000_000, |e| matches!(e, Event::Locked { .. }))
+        .expect("first lock");
+    let first: Vec<(i32, TdiffSource)> = s
+        .machine
+        .slaves()
+        .iter()
+        .map(|x| (x.t_diff_ns, x.t_diff_source))
+        .collect();
+    assert!(first.iter().any(|x| x.1 == TdiffSource::Measured));
+    // The application takes every slave to OP (INIT → PRE-OP → SAFE-OP → OP).
+    let stations: Vec<u16> = s.machine.slaves().iter().map(|x| x.station).collect();
+    for st in stations {
+        for req in [2u16, 4, 8] {
+            let mut buf = [0u8; 128];
+            let mut b = FrameBuilder::new(&mut buf).unwrap();
+            b.push(
+                Command::Fpwr,
+                0x01,
+                Address::configured(st, 0x0120),
+                &req.to_le_bytes(),
+            )
+            .unwrap();
+            let n = b.finish().unwrap();
+            let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
+            let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
+            let f = eth.ecat_frame().unwrap();
+            let d = f.iter().next().unwrap().unwrap();
+            assert_eq!(d.wkc(), 1, "station {st:#x} AL control {req}");
+        }
+    }
+    // A silence beyond the hold-over limit: the machine re-initialises.
+    let mark = s.events().len();
+    let at = s.now() + 10_000_000;
+    s.net
+        .schedule_fault(
+            at,
+            Fault::WireSilence {
+                duration_ns: 1_500_000_000,
+            },
+        )
+        .unwrap();
+    s.run_until(at + 1_500_000_000).unwrap();
+    s.drive_until(at + 20_000_000_000, |e| {
+        matches!(e, Event::DelaysMeasured { .. })
+    })
+    .expect("second bring-up");
+    assert!(s.events()[mark..]
+        .iter()
+        .any(|(_, e)| matches!(e, Event::Restarting)));
+    for (i, (x, (v, src))) in s.machine.slaves().iter().zip(&first).enumerate() {
+        assert_eq!(x.t_diff_ns, *v, "slave {i}");
+        let want = match src {
+            TdiffSource::Measured => TdiffSource::Earlier,
+            other => *other,
+        };
+        assert_eq!(x.t_diff_source, want, "slave {i}");
+        assert_eq!(dl_control(&s, i), 0x0001, "slave {i}: no port closed");
+    }
+}

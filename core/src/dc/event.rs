@@ -19,7 +19,7 @@ pub enum Event {
     /// Every slave's t_Diff is known (REQ-DC-126); the per-slave values and sources are in
     /// [`crate::dc::Machine::slaves`].
     TdiffResolved {
-        /// Slaves measured themselves.
+        /// Slaves measured themselves, in this bring-up or (while the slaves run) an earlier one.
         measured: u16,
         /// Slaves given the value of a measured slave of the same ESC type and revision.
         same_type: u16,

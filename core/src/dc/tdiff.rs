@@ -72,6 +72,10 @@ pub enum TdiffSource {
         /// Position of the measured slave.
         from: u16,
     },
+    /// Measured on this slave in an earlier bring-up of this machine: this one found a slave
+    /// in SAFE-OP or OP, so no port was closed (REQ-DC-123), and the slave at this position
+    /// still has the ESC type and revision it had then (REQ-DC-126).
+    Earlier,
     /// A measurement was wanted but could not be used; the value is `Config::t_diff_ns`.
     Fallback(TdiffFallback),
 }
@@ -83,6 +87,7 @@ impl core::fmt::Display for TdiffSource {
             TdiffSource::Configured => f.write_str("configured"),
             TdiffSource::Measured => f.write_str("measured"),
             TdiffSource::SameType { from } => write!(f, "same type as {from}"),
+            TdiffSource::Earlier => f.write_str("measured in an earlier bring-up"),
             TdiffSource::Fallback(TdiffFallback::Running) => f.write_str("fallback: running"),
             TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns }) => {
                 write!(f, "fallback: measured {measured_ns} ns implausible")
@@ -186,6 +191,11 @@ pub(crate) struct Tdiff<const N: usize> {
     pending: Option<(u16, u16)>,
     /// The current `CountSlaves` step starts with the restore of `pending`.
     pub(crate) recovering: bool,
+    /// Per position, (ESC type, value) of the last value measured there, and the slave count
+    /// of that bring-up: used when a later bring-up may not close ports (REQ-DC-123), e.g. a
+    /// re-initialisation while the application holds the slaves in OP. Survives restarts.
+    kept: [Option<(u16, i32)>; N],
+    kept_count: u16,
 }
 
 impl<const N: usize> Tdiff<N> {
@@ -203,6 +213,8 @@ impl<const N: usize> Tdiff<N> {
             closed: 0,
             pending: None,
             recovering: false,
+            kept: [None; N],
+            kept_count: 0,
         }
     }
 
@@ -823,6 +835,8 @@ impl<const N: usize> Machine<N> {
                     default,
                     TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns: v }),
                 )
+            } else if let Some(v) = self.tdiff_earlier(i, s) {
+                (v, TdiffSource::Earlier)
             } else if self.tdiff.running && s.dc.has_latches() && cfg.mode != TdiffMode::Off {
                 (default, TdiffSource::Fallback(TdiffFallback::Running))
             } else {
@@ -830,10 +844,12 @@ impl<const N: usize> Machine<N> {
             };
         }
         // Slaves without their own value (including non-DC slaves, whose t_Diff enters the
-        // delays of the DC slaves behind them) take one measured on the same ESC type +
-        // revision.
+        // delays of the DC slaves behind them, and slaves a running network kept from being
+        // measured) take one measured on the same ESC type + revision.
         for i in 0..count {
-            let Some((_, TdiffSource::Default)) = resolved.get(i).copied() else {
+            let Some((_, TdiffSource::Default | TdiffSource::Fallback(TdiffFallback::Running))) =
+                resolved.get(i).copied()
+            else {
                 continue;
             };
             let Some(s) = self.slaves.get(i) else {
@@ -843,17 +859,42 @@ impl<const N: usize> Machine<N> {
             let from = (0u16..)
                 .zip(self.slaves.iter().zip(resolved.iter()))
                 .take(count)
-                .find(|(_, (o, (_, src)))| o.esc_type == ty && *src == TdiffSource::Measured)
+                .find(|(_, (o, (_, src)))| {
+                    o.esc_type == ty && matches!(src, TdiffSource::Measured | TdiffSource::Earlier)
+                })
                 .map(|(j, (_, (v, _)))| (j, *v));
             if let (Some((j, v)), Some(slot)) = (from, resolved.get_mut(i)) {
                 *slot = (v, TdiffSource::SameType { from: j });
+            }
+        }
+        if resolved
+            .iter()
+            .take(count)
+            .any(|(_, src)| *src == TdiffSource::Measured)
+        {
+            // A new measurement replaces what was kept (the slave count may have changed).
+            self.tdiff.kept = [None; N];
+            self.tdiff.kept_count = self.count;
+            for ((slot, s), (v, src)) in self
+                .tdiff
+                .kept
+                .iter_mut()
+                .zip(self.slaves.iter())
+                .zip(resolved.iter())
+                .take(count)
+            {
+                if *src == TdiffSource::Measured {
+                    *slot = Some((s.esc_type, *v));
+                }
             }
         }
         for (s, (v, src)) in self.slaves.iter_mut().zip(resolved.iter()).take(count) {
             s.t_diff_ns = *v;
             s.t_diff_source = *src;
             match src {
-                TdiffSource::Measured => measured = measured.saturating_add(1),
+                TdiffSource::Measured | TdiffSource::Earlier => {
+                    measured = measured.saturating_add(1);
+                }
                 TdiffSource::SameType { .. } => same_type = same_type.saturating_add(1),
                 TdiffSource::Configured => configured = configured.saturating_add(1),
                 TdiffSource::Fallback(_) => fallback = fallback.saturating_add(1),
@@ -868,6 +909,19 @@ impl<const N: usize> Machine<N> {
         });
         self.tdiff.clear();
         State::LatchReadBefore
+    }
+
+    /// The value measured at position `i` in an earlier bring-up, if this bring-up may not
+    /// measure (a slave runs), the network has the same slave count and the slave there has
+    /// the same ESC type and revision.
+    fn tdiff_earlier(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
+        if !self.tdiff.running || self.tdiff.kept_count != self.count {
+            return None;
+        }
+        match self.tdiff.kept.get(usize::from(i)).copied().flatten() {
+            Some((ty, v)) if ty == s.esc_type => Some(v),
+            _ => None,
+        }
     }
 
     /// Resets the phase's data at the start of a bring-up; a restore left pending by an
