@@ -5,6 +5,10 @@
 //! act on any of them (REQ-DC-032): it stays locked, never restarts, the true-time skew stays
 //! that of an undisturbed run, and the machine counts them as foreign.
 //!
+//! A second test delivers each of the machine's own replies twice, back to back, a quarter
+//! cycle late and 1.5 cycles late (after the next cycle's reply): the copy matches nothing
+//! in flight any more and is counted, not used.
+//!
 //! The second master only reads here. One that writes 0x0910 itself (its own FRMW drift
 //! compensation) changes the slaves' control loops on the wire, which no reply matching can
 //! undo: with it in the list the line lost lock, so it is not part of this test.
@@ -146,4 +150,109 @@ fn foreign_replies_truncations_vlan_and_other_ethertypes_are_ignored() {
         "{}",
         st.cycles - stats0.cycles
     );
+}
+
+/// Drives a locked line by hand (the machine's own frames through the emulator, as
+/// `Sim::step` does) and delivers every reply twice: once on time and once more `late_ns`
+/// later (0 = back to back), so the copy lands while the next cycle is in flight or after it.
+/// Returns (cycles run, foreign frames + datagrams counted, worst true sync error in ns).
+fn duplicated_replies(late_ns: u64) -> (u64, u64, i64) {
+    let mut s = sim::<8>(&Scenario::seed000_line(), seed000_config());
+    lock(&mut s, 3_000_000_000);
+    let t0 = s.now() + 200_000_000;
+    s.run_until(t0).unwrap();
+    let stats0 = *s.machine.stats();
+    // The emulator may already be a few ns past the driver's clock (its last frame's walk).
+    let mut t = s.now().max(s.net.now());
+    let end = t + 2_000 * CYCLE;
+    let mut flight: Vec<(u64, Vec<u8>)> = Vec::new();
+    let mut buf = vec![0u8; 1514];
+    let clocks: Vec<(usize, bool)> = (0..6).map(|i| (i, true)).collect();
+    let mut worst = 0i64;
+    let mut next_check = t;
+    let mut samples = 0u64;
+    let mut bad = Vec::new();
+    while t < end {
+        flight.sort_by_key(|f| f.0);
+        while flight.first().is_some_and(|f| f.0 <= t) {
+            let (at, f) = flight.remove(0);
+            s.machine.handle_frame(s.master_time_at(at), &f);
+        }
+        if t >= next_check {
+            next_check = t + 20 * CYCLE;
+            // The emulator refuses a sample before a frame it already walked (a few ns
+            // ahead of the driver); such instants are skipped and the samples counted.
+            let mut sample = |i: usize| s.net.clock(i, t).ok().and_then(|c| c.system_time);
+            if let Some(r) = sample(0) {
+                let mut ok = true;
+                let mut w = 0i64;
+                for &(i, _) in &clocks {
+                    match sample(i) {
+                        Some(x) => w = w.max((x.wrapping_sub(r) as i64).abs()),
+                        None => ok = false,
+                    }
+                }
+                if ok {
+                    worst = worst.max(w);
+                    samples += 1;
+                }
+            }
+        }
+        let m = s.master_time_at(t);
+        s.machine.handle_timeout(m);
+        while let Some(n) = s.machine.poll_transmit(m, &mut buf) {
+            if let ecdc_harness::emu::Delivery::Returned(r) = s.net.transact(&buf[..n], t).unwrap()
+            {
+                let at = r.arrival.max(t);
+                flight.push((at + late_ns, r.frame.clone()));
+                flight.push((at, r.frame));
+            }
+        }
+        while let Some(e) = s.machine.poll_event() {
+            if matches!(
+                e,
+                Event::LockLost { .. } | Event::Restarting | Event::HoldoverStarted { .. }
+            ) {
+                bad.push((t, e));
+            }
+        }
+        let next_arrival = flight.iter().map(|f| f.0).min();
+        let next_timeout = s.machine.poll_timeout().map(|x| {
+            // master clock is ideal here (Sim::new default): true = master − epoch
+            x.as_nanos() - s.master_time_at(0).as_nanos()
+        });
+        let next = match (next_arrival, next_timeout) {
+            (Some(a), Some(b)) => a.min(b),
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => break,
+        };
+        t = next.max(t + 1).max(s.net.now());
+    }
+    assert!(bad.is_empty(), "late {late_ns}: {bad:?}");
+    assert!(samples >= 50, "late {late_ns}: {samples} true-time samples");
+    assert!(s.machine.is_locked());
+    let st = *s.machine.stats();
+    (
+        st.cycles - stats0.cycles,
+        (st.foreign_frames - stats0.foreign_frames)
+            + (st.foreign_datagrams - stats0.foreign_datagrams),
+        worst,
+    )
+}
+
+#[test]
+fn duplicated_and_late_replies_are_ignored() {
+    // Back to back, a quarter cycle late (next cycle not sent yet), 1.5 cycles late (after
+    // the next cycle's reply: reordered).
+    for late in [0, CYCLE / 4, CYCLE * 3 / 2] {
+        let (cycles, foreign, worst) = duplicated_replies(late);
+        eprintln!("late {late} ns: cycles {cycles}, foreign {foreign}, worst {worst} ns");
+        assert!(cycles >= 1_900, "late {late}: {cycles} cycles");
+        // Every copy was counted as not matching anything in flight.
+        assert!(
+            foreign >= cycles,
+            "late {late}: foreign {foreign} < cycles {cycles}"
+        );
+        assert!(worst < 100, "late {late}: true sync error {worst} ns");
+    }
 }
