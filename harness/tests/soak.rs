@@ -9,7 +9,7 @@ use ecdc_harness::emu::{Fault, Network};
 
 #[test]
 fn two_minutes_on_seed000_line() {
-    let r = soak(Topology::Seed000Line, 120.0, 1).unwrap();
+    let r = soak(Topology::Seed000Line, 120.0, 1, false).unwrap();
     for j in &r.judged {
         eprintln!(
             "{:>8.3} s {:<15} {:<40} {:?} {:?}",

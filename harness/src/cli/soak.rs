@@ -85,6 +85,10 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Control run: leave the slaves in INIT (the driver never requests OP), so DC may
+    /// rewrite every offset at each restart.
+    #[arg(long)]
+    pub stay_init: bool,
 }
 
 /// One planned fault.
@@ -506,7 +510,12 @@ fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
 }
 
 /// Runs a soak.
-pub fn soak(topology: Topology, seconds: f64, seed: u64) -> anyhow::Result<SoakReport> {
+pub fn soak(
+    topology: Topology,
+    seconds: f64,
+    seed: u64,
+    stay_init: bool,
+) -> anyhow::Result<SoakReport> {
     let until = (seconds * 1e9) as u64;
     let (mut sc, cfg) = setup(topology, seed);
     let n = sc.resolve().map_err(|e| anyhow::anyhow!("{e}"))?.len();
@@ -538,7 +547,7 @@ pub fn soak(topology: Topology, seconds: f64, seed: u64) -> anyhow::Result<SoakR
             s.run_until(to).map_err(|e| anyhow::anyhow!("sim: {e}"))?;
             let locked = s.machine.is_locked();
             chunks.drain(&mut s.net, locked);
-            if locked && !last_locked {
+            if locked && !last_locked && !stay_init {
                 to_op(s).map_err(|e| anyhow::anyhow!("sim: {e}"))?;
             }
             last_locked = locked;
@@ -703,7 +712,7 @@ pub fn soak(topology: Topology, seconds: f64, seed: u64) -> anyhow::Result<SoakR
 /// Runs `ecdc soak`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let wall = std::time::Instant::now();
-    let r = soak(args.topology, args.seconds, args.seed)?;
+    let r = soak(args.topology, args.seconds, args.seed, args.stay_init)?;
     let wall_s = wall.elapsed().as_secs_f64();
     if args.json {
         #[derive(Serialize)]
