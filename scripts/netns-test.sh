@@ -12,6 +12,7 @@
 #   (emulator SIGSTOPped 300 ms, later the master 300 ms: no re-initialisation, locked);
 #   2d: emulator stopped 3 s: re-initialisation with backoff until it answers, locked.
 # Part 3: the errors a user can act on.
+# Part 4: hostile wire (scripts/hostile-inject.py on the slave end while `ecdc run` is locked).
 #
 # Exit 0 = passed, 77 = skipped (reason on the last line, "SKIP: ..."), anything else = failed.
 # Usage: scripts/netns-test.sh [path/to/ecdc]   (default: builds it with cargo)
@@ -284,6 +285,60 @@ else
     echo "  FAIL emulator (tree scenario) did not start:"
     sed 's/^/    /' "$WORK/emu-esc.err"
     FAILED=1
+fi
+
+echo "== part 4: hostile wire: a second master's and forged frames while DC runs (scripts/hostile-inject.py)"
+# The injector sits on the slave end after the emulator has answered for 1.5 s (DC locked:
+# bring-up itself refuses to run next to another master) and sends, for every 20th reply,
+# the copies listed in the script. First a control run (the injector only sniffs: same CPU
+# load, nothing sent), then the hostile one. DC must stay locked without a restart, every
+# received frame lands in exactly one counter, the yardstick stays < 100 ns.
+run_hostile() { # run_hostile TAG EVERY
+    local tag="$1" every="$2"
+    start_emulator esc || { echo "  FAIL emulator (esc) did not start"; FAILED=1; return; }
+    ip netns exec "$NS_S" python3 scripts/hostile-inject.py --iface ecs0 --delay 1.5 --seconds 2.5 \
+        --every "$every" >"$WORK/inject-$tag.json" 2>"$WORK/inject-$tag.err" &
+    INJ_PID=$!
+    PIDS+=("$INJ_PID")
+    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 4 --json \
+        >"$WORK/run-$tag.json" 2>"$WORK/run-$tag.err"
+    RUN_RC=$?
+    wait "$INJ_PID"
+    PIDS=("${PIDS[@]/$INJ_PID}")
+    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
+    cp "$WORK/emu-esc.json" "$WORK/emu-$tag.json"
+    R="$WORK/run-$tag.json"; E="$WORK/emu-$tag.json"; I="$WORK/inject-$tag.json"
+    if [ "$RUN_RC" -ne 0 ] || [ ! -s "$I" ]; then
+        tail -n 20 "$WORK/run-$tag.err" "$WORK/inject-$tag.err"
+        echo "  FAIL ecdc run exited with $RUN_RC (or the injector printed nothing)"
+        FAILED=1
+        return
+    fi
+    echo "  [$tag]"
+    jq -c '.' "$I"
+    jq -c '{frames: .frames, restarts: .restarts, holdovers: .holdovers, locked: .cyclic.locked_at_end}' "$R"
+    jq -c '.sync | {pairs, skew_max_ns, lock_ms}' "$E"
+    check "[$tag] DC locked at the end, no restart" '.cyclic.locked_at_end == true and .restarts == 0' "$R"
+    check "[$tag] lost <= 5% (as in part 2)" '.frames.lost * 20 <= .frames.sent' "$R"
+    check "[$tag] every received frame accounted for" \
+        '.frames | .received == (.matched + .stale + .mismatched + .foreign + .own_unprocessed + .other_master + .truncated)' "$R"
+    check "[$tag] yardstick: max |skew| below 100 ns" '.sync.skew_max_ns != null and .sync.skew_max_ns < 100' "$E"
+}
+if command -v python3 >/dev/null 2>&1; then
+    run_hostile control 1000000000
+    run_hostile hostile 20
+    I="$WORK/inject-hostile.json"; R="$WORK/run-hostile.json"
+    if [ -s "$I" ] && [ -s "$R" ]; then
+        check "injector sent every kind" '([.sent[]] | all(. > 0)) and .send_errors == 0' "$I"
+        check "duplicates and forged copies of replies counted as stale/mismatched" \
+            '(.frames.stale + .frames.mismatched) >= $inj[0].sent.duplicate + $inj[0].sent.command' \
+            "$R" --slurpfile inj "$I"
+        check "the second master's frames counted as other_master" \
+            '.frames.other_master >= $inj[0].sent.other_master' "$R" --slurpfile inj "$I"
+        check "unparsable frames counted as foreign" '.frames.foreign > 0' "$R"
+    fi
+else
+    echo "  skip part 4 (python3 not installed)"
 fi
 
 echo "== part 3: errors a user can act on"

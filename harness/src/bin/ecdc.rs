@@ -25,6 +25,8 @@ enum Command {
     Run(cli::run::Args),
     /// Measure round trips on a network interface (back to back and inside a cycle).
     Rtt(cli::rtt::Args),
+    /// Soak: simulated hours of DC under a seeded random fault schedule.
+    Soak(cli::soak::Args),
     /// Benchmarks: `ecdc bench dc` compares DC precision with other masters' schemes.
     Bench(cli::bench::Args),
 }
@@ -39,6 +41,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(args) => cli::run::run(args),
         Command::Rtt(args) => cli::rtt::run(args),
         Command::Bench(args) => cli::bench::run(args),
+        Command::Soak(args) => cli::soak::run(args),
     };
     // 0 ok, 1 runtime error, 2 usage error (as clap's), 3 `--check` target missed: README.
     match result {

@@ -10,4 +10,5 @@ pub mod run;
 pub mod scan;
 pub mod sensitivity;
 pub mod simulate;
+pub mod soak;
 pub mod validate;

@@ -112,6 +112,9 @@ pub struct Esc {
     pending_seq: u64,
     rng: ChaCha8Rng,
     power_ups: u64,
+    /// Frames that wrote any byte of 0x0920..=0x0927 while the AL state was SAFEOP or OP:
+    /// an observer for REQ-DC-103 (the offset must never move under a running application).
+    offset_writes_running: u64,
     loop_ctl: u8,
     /// No SYNC pulse can fire before this true time (a conservative bound that survives loop
     /// samples; cleared by anything else that can move the next pulse). Skips the pulse search
@@ -176,6 +179,7 @@ impl Esc {
             pending_seq: 0,
             rng,
             power_ups: 0,
+            offset_writes_running: 0,
             loop_ctl: 0,
             quiet_until: 0,
             dev_cache: None,
@@ -734,6 +738,9 @@ impl Esc {
         let mut recv = (st.sys_read as u32).to_le_bytes();
         let mut sii_staged = [None; 16];
         let gate = self.ram_gate(usize::from(ado) + data.len());
+        // AL states 4 (SAFEOP) and 8 (OP); the state before this frame's bytes land.
+        let running = matches!(self.al_state(), 4 | 8);
+        let mut offset_written = false;
         for (i, b) in data.iter().enumerate() {
             let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
                 break;
@@ -769,6 +776,7 @@ impl Esc {
             }
             self.regs.set_u8(a, *b);
             match a {
+                0x0920..=0x0927 => offset_written = true,
                 0x0120 => touched.al_control = true,
                 0x0930..=0x0931 => touched.speed_start = true,
                 0x0981 => touched.activation = true,
@@ -779,6 +787,9 @@ impl Esc {
         }
         if !any {
             return false;
+        }
+        if offset_written && running {
+            self.offset_writes_running = self.offset_writes_running.saturating_add(1);
         }
         // REQ-ESC-030: only BWR/FPWR covering 0x0900 trigger the receive-time latch.
         // REQ-ESC-083: a non-DC slave never latches (it still adds its delays in the walk).
@@ -1016,6 +1027,12 @@ impl Esc {
     /// Number of power-ups after the initial one.
     pub fn power_ups(&self) -> u64 {
         self.power_ups
+    }
+
+    /// Frames that wrote the system time offset (0x0920..=0x0927) while this slave was in
+    /// SAFEOP or OP (counted over power cycles).
+    pub fn offset_writes_running(&self) -> u64 {
+        self.offset_writes_running
     }
 }
 
