@@ -325,3 +325,22 @@ fn stale_latch_is_not_used() {
         Err(Error::Measurement { station: 0x1002 })
     );
 }
+
+#[test]
+fn transition_outside_can_go_is_a_typed_error() {
+    // verifies: REQ-CONV-008
+    // No input drives the machine there (the model check asserts that no explored run reports
+    // `Error::Internal`); the engine is called directly to reach the guard.
+    let mut m = machine();
+    m.start(SystemTime(T0));
+    assert_eq!(m.state(), State::CountSlaves);
+    assert!(!State::CountSlaves.can_go(State::Cyclic));
+    m.enter(State::Cyclic);
+    assert_eq!(m.state(), State::Failed);
+    assert!(events(&mut m).contains(&Event::Error(Error::Internal {
+        state: State::CountSlaves
+    })));
+    // An allowed transition still goes where it was asked.
+    m.enter(State::CountSlaves);
+    assert_eq!(m.state(), State::CountSlaves);
+}
