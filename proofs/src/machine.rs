@@ -23,6 +23,7 @@
 //! Callers: the proptest `proofs/tests/machine.rs`, the fuzz target
 //! `fuzz/fuzz_targets/machine_script.rs`, and the Kani harness [`kani_machine_script`] (small
 //! bound; Kani is not installed on the build machine, so it has not been run here).
+//! verifies: P6, REQ-CONV-003, REQ-DC-030, REQ-DC-035, REQ-DC-053, REQ-DC-103, REQ-DC-113
 
 #[cfg(not(kani))]
 use crate::kani_shim as kani;

@@ -36,6 +36,7 @@
 //! Limits: the ring has no clocks (offset *values* are checked elsewhere: P3/P4 and the harness
 //! end-to-end tests), AL states change only by a slave reset, and the depth bound is per seed.
 //! The seeds are the states of the fault-free bring-up, so every phase is a root of the search.
+//! verifies: P3, P4, P6, REQ-CONV-008, REQ-DC-032, REQ-DC-103, REQ-DC-110, REQ-DC-113
 
 use crate::machine::{al_truth, check_tx, script_config, Model, Outcome, Violation, CAP};
 use ecdc_core::dc::{Config, Event, Machine, State};

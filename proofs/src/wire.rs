@@ -7,6 +7,7 @@
 //!   random tests),
 //! - the property tests and exhaustive checks in `proofs/tests/wire*.rs`,
 //! - the fuzz targets in `fuzz/fuzz_targets/wire_*.rs`.
+//! verifies: P1, REQ-WIRE-020, REQ-WIRE-021, REQ-WIRE-022, REQ-WIRE-030
 
 use ecdc_core::wire::{
     Address, Command, Datagram, DatagramRepr, EcatFrame, Error, EthernetFrame, FrameBuilder,

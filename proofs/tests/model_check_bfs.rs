@@ -8,6 +8,7 @@
 //! re-measure) is visited once and checked: no panic, frame properties (index range, 0x0920
 //! only to INIT/PREOP/BOOT stations, widths), index matching, deadline, bounded liveness.
 //! `#[ignore]`d: run by `.ci/layers/30-model-check.sh` in release mode.
+//! verifies: P6, REQ-DC-103, REQ-DC-110, REQ-DC-113
 
 use ecdc_proofs::machine::Violation;
 use ecdc_proofs::model::{explore, nominal_path, ModelViolation, Report, World};

@@ -309,6 +309,7 @@ fn latched_ports_give_delays() {
 /// did not change across the trigger, so the frame never came back through it. The port is
 /// treated as closed, slave 1 then has nowhere to hang, and the round is rejected instead of
 /// yielding a delay from a stale time.
+// verifies: REQ-DC-101
 #[test]
 fn stale_latch_is_not_used() {
     let mut m = two_slave_line();

@@ -266,7 +266,7 @@ impl MasterServo {
         (theta, correction, raw.unsigned_abs() >= u128::from(p))
     }
 
-    /// REQ-SERVO-100..105: process one cycle.
+    /// REQ-SERVO-100..104: process one cycle.
     pub fn update(&mut self, input: MasterInput) -> MasterOutput {
         match input {
             MasterInput::Lost => {

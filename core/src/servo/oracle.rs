@@ -581,7 +581,7 @@ pub mod master {
             (theta, correction, raw.unsigned_abs() >= u128::from(p))
         }
 
-        /// REQ-SERVO-100..105: process one cycle.
+        /// REQ-SERVO-100..104: process one cycle.
         pub fn update(&mut self, input: MasterInput) -> MasterOutput {
             let (local_ns, (theta, correction, beyond)) = match input {
                 MasterInput::Lost => {
