@@ -3,6 +3,7 @@
 //! slave's own t_Diff set on the machine, the measured delays equal the emulator's true frame
 //! path; with one common value for all, they are off by the accumulated t_Diff error — the
 //! second half shows this test can tell the two apart.
+//!
 //! verifies: REQ-DC-015
 
 mod dc_support;

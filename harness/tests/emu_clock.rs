@@ -2,6 +2,7 @@
 //!
 //! Offsets and delays are set from the emulator's *truth* here (not by master maths), so these
 //! tests check the slave model alone.
+//!
 //! verifies: REQ-ESC-040, REQ-ESC-041, REQ-ESC-042, REQ-ESC-043, REQ-ESC-044, REQ-ESC-050, REQ-ESC-051, REQ-ESC-052, REQ-ESC-053, REQ-ESC-054, REQ-ESC-055, REQ-ESC-056
 
 mod emu_support;

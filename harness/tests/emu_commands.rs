@@ -1,5 +1,6 @@
 //! WKC and ADP behaviour of every command (REQ-ESC-001..REQ-ESC-006), checked through frames
 //! built and parsed with `ecdc_core::wire`.
+//!
 //! verifies: REQ-ESC-001, REQ-ESC-002, REQ-ESC-003, REQ-ESC-004, REQ-ESC-005, REQ-ESC-006
 
 mod emu_support;

@@ -1,4 +1,5 @@
 //! Faults, determinism and scenario files (REQ-ESC-090..REQ-ESC-096, REQ-ESC-100).
+//!
 //! verifies: REQ-ESC-090, REQ-ESC-091, REQ-ESC-092, REQ-ESC-093, REQ-ESC-094, REQ-ESC-095, REQ-ESC-096, REQ-ESC-100
 
 mod emu_support;

@@ -2,6 +2,7 @@
 //! (REQ-ESC-020, REQ-ESC-025..REQ-ESC-027): invalid transitions, error flag and code,
 //! acknowledge, PREOP→SAFEOP refused without a valid SyncManager configuration, working
 //! counters per command and outputs reaching the device only in OP.
+//!
 //! verifies: REQ-ESC-020, REQ-ESC-025, REQ-ESC-026, REQ-ESC-027
 
 mod emu_support;

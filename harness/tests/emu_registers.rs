@@ -1,5 +1,6 @@
 //! Register contract: reset values, access rules, widths, AL and DL status, receive-time latch
 //! rules (REQ-ESC-010..REQ-ESC-032, REQ-ESC-061).
+//!
 //! verifies: REQ-ESC-010, REQ-ESC-011, REQ-ESC-012, REQ-ESC-013, REQ-ESC-014, REQ-ESC-015, REQ-ESC-020, REQ-ESC-021, REQ-ESC-022, REQ-ESC-023, REQ-ESC-024, REQ-ESC-025, REQ-ESC-026, REQ-ESC-027, REQ-ESC-030, REQ-ESC-031, REQ-ESC-032, REQ-ESC-061
 
 mod emu_support;

@@ -2,6 +2,7 @@
 //! (REQ-ESC-021..REQ-ESC-024): word-by-word reads in 4- and 8-byte mode, busy, error bits,
 //! write protection, reload, bad images, and the category layout of built images checked
 //! with a parser written here (not the emulator's).
+//!
 //! verifies: REQ-ESC-021, REQ-ESC-022, REQ-ESC-023, REQ-ESC-024
 
 mod emu_support;

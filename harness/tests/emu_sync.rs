@@ -1,6 +1,7 @@
 //! SYNC unit: activation rules, start time, cycles, single shot, past start times, SYNC1,
 //! edges in true time, and the slave-to-slave skew after drift compensation
 //! (REQ-ESC-070..REQ-ESC-079).
+//!
 //! verifies: REQ-ESC-070, REQ-ESC-071, REQ-ESC-072, REQ-ESC-073, REQ-ESC-074, REQ-ESC-075, REQ-ESC-076, REQ-ESC-077, REQ-ESC-078, REQ-ESC-079
 
 mod emu_support;

@@ -1,5 +1,6 @@
 //! Frame-path timing: processing order, t_P ≠ t_F, cable delays, non-DC slaves, 32-bit port
 //! time wrap (REQ-ESC-080..REQ-ESC-083, REQ-ESC-094).
+//!
 //! verifies: REQ-ESC-080, REQ-ESC-081, REQ-ESC-082, REQ-ESC-083, REQ-ESC-094
 
 mod emu_support;

@@ -2,6 +2,7 @@
 //! nothing (`t_diff_ns` 0) and must find every ESC's t_P − t_F within ±5 ns of the emulator's
 //! truth on seed 000's 6-slave line, the 100-slave tree and the 512-slave line; every slave's
 //! value carries its source; DL control is restored exactly; a running slave stops the step.
+//!
 //! verifies: REQ-DC-120, REQ-DC-121, REQ-DC-122, REQ-DC-123, REQ-DC-124, REQ-DC-125, REQ-DC-126
 
 mod dc_support;

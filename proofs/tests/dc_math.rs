@@ -1,5 +1,6 @@
 //! Property tests for P3 (delay) and P4 (offset) and the SYNC start, calling the same bodies as
 //! the Kani harnesses (`proofs/src/dc_math.rs`). Random tests, not proofs.
+//!
 //! verifies: P3, P4
 
 use ecdc_core::dc::port::PortSet;

@@ -1,6 +1,7 @@
 //! Property test for REQ-PROP P6 (`ecdc_proofs::machine::run_script`): random scripts of
 //! replies, garbage, loss, reordering and commands never make the DC machine panic, break
 //! index matching, step 0x0920 of a running slave or write a wrong register width.
+//!
 //! verifies: P6
 
 use ecdc_proofs::machine::{run_script, Outcome};

@@ -24,6 +24,7 @@
 //! enumerated exhaustively. The model line has no clocks, so a reset slave's clock jump is
 //! covered by the harness end-to-end tests on the ESC emulator, not here.
 //! `#[ignore]`d: run by `.ci/layers/30-model-check.sh` in release mode.
+//!
 //! verifies: P6, REQ-DC-103, REQ-DC-113
 
 use ecdc_proofs::machine::{run_script, Outcome};

@@ -1,6 +1,7 @@
 //! Servo property tests (P5 and REQ-SERVO-*): proptest drivers for the bodies in
 //! `ecdc_proofs::servo`, model tests of `ecdc_core::servo` against `ecdc_spec::servo`, and
 //! closed-loop simulations of the master-follows-reference loop on a drifting, jittery master.
+//!
 //! verifies: P5
 
 use ecdc_core::servo::filter::OffsetFilter;

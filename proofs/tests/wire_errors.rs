@@ -2,6 +2,7 @@
 //! working counters (spec/req/wire.md): REQ-WIRE-002, REQ-WIRE-011, REQ-WIRE-012,
 //! REQ-WIRE-014, REQ-WIRE-032, REQ-WIRE-051. Frames are built by hand (not with our builder)
 //! and checked on both sides of each limit; the command tables are written out independently.
+//!
 //! verifies: REQ-WIRE-002, REQ-WIRE-011, REQ-WIRE-012, REQ-WIRE-014, REQ-WIRE-032, REQ-WIRE-051
 
 use ecdc_core::wire::Address;

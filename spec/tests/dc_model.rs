@@ -12,6 +12,7 @@
 //!   than `3g` per DC hop: |error| ≤ 1.5·g·hops + 0.5 (rounding). The measured maximum is printed.
 //! - `t_Diff` unknown (0): each ESC's `t_Diff` enters at most twice with factor ½, so
 //!   |error| ≤ Σ|t_Diff| over the ESCs on the path + 0.5.
+//!
 //! verifies: REQ-DC-014, REQ-DC-060, REQ-DC-061
 
 use ecdc_core::dc::delay::{self, DelayError};

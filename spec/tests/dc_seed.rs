@@ -1,6 +1,7 @@
 //! The seed formulas (spec::seed000, spec::seed003, spec::esc_dc) and the register contract
 //! (spec::register) checked against the network model, and the seed errata demonstrated
 //! (REQ-DC-014, 020, 025, 090).
+//!
 //! verifies: REQ-DC-014
 
 use ecdc_core::dc::{delay, offset, topology::Topology};
