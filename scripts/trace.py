@@ -5,15 +5,23 @@ must be cited in proofs/ and listed in docs/verification.md.
 
   scripts/trace.py            print the table
   scripts/trace.py --check    also gate: fail if an id is untraced and not in the committed
-                              snapshot scripts/trace-untraced.txt (the snapshot may only shrink)
+                              snapshot scripts/trace-untraced.txt (the snapshot may only shrink;
+                              each line is `ID  # reason`, a line without a reason fails)
   scripts/trace.py --self-test  run the checker on a small made-up tree (negative controls)
   scripts/trace.py --update   rewrite the snapshot to the current untraced ids (and ids
                               cited but not defined, which the gate also freezes)
 
 A "definition" is a requirement id in bold (`**REQ-DC-004 ...**`) or in the first cell of a
 table row. A "code" citation is an occurrence in non-test Rust code of core/, spec/ or
-harness/ (`src/**.rs` before the first `#[cfg(test)]`). A "test" citation is an occurrence in
-a test module, a `tests/` directory, proofs/, fuzz/ or benches/.
+harness/ (`src/**.rs` before the first `#[cfg(test)]`), an `// implements: REQ-...` line being
+the explicit form. A "test" citation is only an explicit marker line in test code (a test
+module, a `tests/` directory, proofs/, fuzz/ or benches/):
+
+    // verifies: REQ-DC-014, REQ-WIRE-020..022
+
+A test that merely mentions an id in prose does not trace it. Ranges `REQ-X-NNN..MMM` (and
+`REQ-X-NNN..REQ-X-MMM`) are expanded in markers and in code citations alike. Properties
+P1..P6 are traced by a `verifies: P6` marker in proofs/.
 """
 import pathlib
 import re
@@ -28,6 +36,38 @@ def set_root(root):
     ROOT = pathlib.Path(root)
     SNAPSHOT = ROOT / "scripts" / "trace-untraced.txt"
 REQ = re.compile(r"REQ-[A-Z]+-\d{3}")
+# An id or a range of ids: REQ-DC-014..017 or REQ-DC-014..REQ-DC-017.
+REQ_OR_RANGE = re.compile(r"REQ-([A-Z]+)-(\d{3})(?:\s*\.\.\s*(?:REQ-\1-)?(\d{3}))?")
+MARKER = re.compile(r"^\s*(?://+!?|/?\*+|#)\s*verifies:\s*(.*)$", re.M)
+PROP_ID = re.compile(r"\bP\d\b")
+# A range wider than this is a typo, not a citation.
+MAX_RANGE = 40
+
+
+DEFINED = None
+
+
+def expand(text):
+    """Every REQ id in `text`, with ranges expanded: both ends always, the ids between them
+    when spec/ defines them (numbering has gaps, and a range means the ids it spans)."""
+    out = set()
+    for m in REQ_OR_RANGE.finditer(text):
+        area, lo, hi = m.group(1), int(m.group(2)), m.group(3)
+        hi = int(hi) if hi else lo
+        if hi < lo or hi - lo > MAX_RANGE:
+            hi = lo
+        ids = [f"REQ-{area}-{n:03d}" for n in range(lo, hi + 1)]
+        ends = {ids[0], ids[-1]}
+        out.update(r for r in ids if r in ends or DEFINED is None or r in DEFINED)
+    return out
+
+
+def markers(text):
+    """The ids and properties named on explicit `verifies:` lines of `text`."""
+    out = set()
+    for m in MARKER.finditer(text):
+        out |= expand(m.group(1)) | set(PROP_ID.findall(m.group(1)))
+    return out
 DEF = re.compile(r"(?:\*\*|^\|\s*)(REQ-[A-Z]+-\d{3})", re.M)
 PROP = re.compile(r"^\|\s*(P\d+)\s*\|", re.M)
 CODE_CRATES = ["core", "spec", "harness"]
@@ -55,14 +95,16 @@ def citations():
     code, test = {}, {}
 
     def add(table, text, where):
-        for rid in set(REQ.findall(text)) | set(re.findall(r"\bP\d\b", text)):
+        ids = markers(text) if table is test else expand(text) | set(PROP_ID.findall(text))
+        for rid in ids:
             table.setdefault(rid, set()).add(where)
 
     for crate in CODE_CRATES:
         for f in rust_files(ROOT / crate):
             rel = f.relative_to(ROOT).as_posix()
             text = f.read_text(encoding="utf-8", errors="replace")
-            if "/tests/" in "/" + rel or "/benches/" in "/" + rel:
+            # A `tests.rs` module file is declared under `#[cfg(test)]` by its parent.
+            if "/tests/" in "/" + rel or "/benches/" in "/" + rel or rel.endswith("/tests.rs"):
                 add(test, text, rel)
                 continue
             cut = text.find("#[cfg(test)]")
@@ -101,16 +143,27 @@ def self_test():
         "spec/SPEC.md": spec,
         "spec/req/ab.md": req,
         "docs/verification.md": doc,
-        "core/src/a.rs": "// REQ-AB-001 REQ-AB-002\n#[cfg(test)]\n// REQ-AB-001\n",
-        "proofs/src/p.rs": "// P1 REQ-AB-002\n",
+        "core/src/a.rs": "// REQ-AB-001 REQ-AB-002\n#[cfg(test)]\n    // verifies: REQ-AB-001\n",
+        "proofs/src/p.rs": "// verifies: P1, REQ-AB-002\n",
+    }
+    ranged = {
+        **good,
+        "spec/req/ab.md": req + "- **REQ-AB-003 C.** c\n",
+        "core/src/a.rs": "// implements: REQ-AB-001..003\n#[cfg(test)]\n",
+        "proofs/src/p.rs": "// verifies: P1, REQ-AB-001..REQ-AB-003\n",
     }
     cases = [
         ("all traced", good, 0),
-        ("test missing", {**good, "proofs/src/p.rs": "// P1\n"}, 1),
+        ("ranges expanded", ranged, 0),
+        ("range end missing", {**ranged, "proofs/src/p.rs": "// verifies: P1, REQ-AB-001..002\n"}, 1),
+        ("test missing", {**good, "proofs/src/p.rs": "// verifies: P1\n"}, 1),
+        ("mention is no marker", {**good, "proofs/src/p.rs": "// verifies: P1\n// REQ-AB-002\n"}, 1),
+        ("property mention is no marker", {**good, "proofs/src/p.rs": "// P1\n// verifies: REQ-AB-002\n"}, 1),
         ("code missing", {**good, "core/src/a.rs": "#[cfg(test)]\n// REQ-AB-001 REQ-AB-002\n"}, 1),
-        ("dangling citation", {**good, "proofs/src/q.rs": "// REQ-AB-009\n"}, 1),
+        ("dangling citation", {**good, "proofs/src/q.rs": "// verifies: REQ-AB-009\n"}, 1),
         ("property not in docs", {**good, "docs/verification.md": ""}, 1),
-        ("frozen in snapshot", {**good, "proofs/src/p.rs": "// P1\n", "scripts/trace-untraced.txt": "REQ-AB-002\n"}, 0),
+        ("frozen in snapshot", {**good, "proofs/src/p.rs": "// verifies: P1\n", "scripts/trace-untraced.txt": "REQ-AB-002  # not testable here\n"}, 0),
+        ("frozen without a reason", {**good, "proofs/src/p.rs": "// verifies: P1\n", "scripts/trace-untraced.txt": "REQ-AB-002\n"}, 1),
     ]
     ok = True
     for name, files, want in cases:
@@ -127,7 +180,9 @@ def main():
     args = set(sys.argv[1:])
     if "--self-test" in args:
         return self_test()
+    global DEFINED
     defs = definitions()
+    DEFINED = set(defs)
     code, test = citations()
     matrix = (ROOT / "docs" / "verification.md")
     matrix_text = matrix.read_text(encoding="utf-8") if matrix.exists() else ""
@@ -157,14 +212,31 @@ def main():
         print("cited but not defined in spec/: " + ", ".join(cited_undefined))
 
     if "--update" in args:
+        reasons = {}
+        if SNAPSHOT.exists():
+            for l in SNAPSHOT.read_text(encoding="utf-8").splitlines():
+                rid, _, why = l.partition("#")
+                if rid.strip():
+                    reasons[rid.strip()] = why.strip()
         frozen = sorted(set(untraced) | set(cited_undefined))
-        SNAPSHOT.write_text("".join(f"{r}\n" for r in frozen), encoding="utf-8")
+        SNAPSHOT.write_text(
+            "".join(f"{r}  # {reasons.get(r) or 'TODO: reason'}\n" for r in frozen), encoding="utf-8"
+        )
         print(f"wrote {SNAPSHOT.relative_to(ROOT)} ({len(frozen)} ids)")
         return 0
     if "--check" in args:
         allowed = set()
         if SNAPSHOT.exists():
-            allowed = {l.strip() for l in SNAPSHOT.read_text(encoding="utf-8").splitlines() if l.strip() and not l.startswith("#")}
+            allowed = set()
+            for l in SNAPSHOT.read_text(encoding="utf-8").splitlines():
+                rid, _, why = l.partition("#")
+                rid = rid.strip()
+                if not rid:
+                    continue
+                if not why.strip():
+                    print(f"FAIL: {rid} is frozen in the snapshot without a reason (`ID  # why`)")
+                    return 1
+                allowed.add(rid)
         new = sorted(set(untraced) - allowed)
         shrunk = sorted(allowed - set(untraced) - set(cited_undefined))
         if shrunk:

@@ -12,6 +12,8 @@
 //! 10 ns latch quantisation), so the bench measures the real computation on a valid tree.
 //!
 //! Times are this thread's CPU time (`common::ThreadCpu`: the machine is shared).
+//!
+//! verifies: REQ-DC-012, REQ-DC-013, REQ-DC-014, REQ-DC-015, REQ-DC-016, REQ-DC-017, REQ-DC-018
 
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 

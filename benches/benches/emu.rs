@@ -8,6 +8,8 @@
 //! `thrpt` in Gelem/s *is* the simulated/real-time ratio (50 Gelem/s = 50×). Before them, three
 //! one-off runs of 1 s simulated per size print the ratio against wall time and against this
 //! thread's CPU time (the CPU figure is the one that holds on a loaded machine).
+//!
+//! verifies: REQ-ESC-101
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use ecdc_core::wire::{Address, Command, FrameBuilder};

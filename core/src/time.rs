@@ -227,6 +227,7 @@ mod tests {
     use super::*;
 
     /// REQ-TIME-002.
+    // verifies: REQ-TIME-002
     #[test]
     fn epoch_conversion() {
         // 2000-01-01T00:00:00Z is Unix 946684800 s.
@@ -240,6 +241,7 @@ mod tests {
     }
 
     /// REQ-TIME-001 (distinct wrapping types), REQ-TIME-003/004/013.
+    // verifies: REQ-TIME-001, REQ-TIME-003
     #[test]
     fn system_time_wrap() {
         let t = SystemTime(u64::MAX - 1);
@@ -276,6 +278,7 @@ mod tests {
     }
 
     /// REQ-TIME-014, checked against an independent calendar implementation.
+    // verifies: REQ-TIME-014
     #[test]
     fn display_is_utc_calendar() {
         use std::string::ToString;

@@ -258,6 +258,11 @@ typedef enum ecdc_fault_kind {
    */
   ECDC_FAULT_RESUME_CHECK_FAILED = 14,
   /**
+   * An internal consistency check of the machine failed in the step `state`; the machine
+   * stopped instead of panicking.
+   */
+  ECDC_FAULT_INTERNAL = 15,
+  /**
    * A fault this header predates; only `ecdc_event.text` describes it.
    */
   ECDC_FAULT_OTHER = 255,

@@ -678,6 +678,9 @@ pub enum ecdc_fault_kind {
     /// (`station`), SLAVE_RESET (`actual` = AL status OR now, `expected` = before), BOUND
     /// (`diff_ns`).
     ECDC_FAULT_RESUME_CHECK_FAILED = 14,
+    /// An internal consistency check of the machine failed in the step `state`; the machine
+    /// stopped instead of panicking.
+    ECDC_FAULT_INTERNAL = 15,
     /// A fault this header predates; only `ecdc_event.text` describes it.
     ECDC_FAULT_OTHER = 255,
 }
@@ -1047,6 +1050,10 @@ pub fn fault_to_c(e: &Error) -> ecdc_fault {
                 _ => R::ECDC_RESUME_OTHER,
             };
             f.command = code as u8;
+        }
+        Error::Internal { state } => {
+            f.kind = K::ECDC_FAULT_INTERNAL;
+            f.state = state_to_c(state);
         }
         // `Error` is non-exhaustive: a newer core's fault keeps ECDC_FAULT_OTHER and its text.
         _ => {}

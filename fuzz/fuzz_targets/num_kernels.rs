@@ -3,6 +3,7 @@
 //! clamp, saturate, halve, sign-magnitude, low32) against their i128 definitions.
 //! Bodies: `ecdc_proofs::num::prop_*`. The 8/16-bit widths are covered exhaustively by
 //! `proofs/tests/exhaustive.rs`, so they are not fuzzed here.
+//! verifies: REQ-TIME-003, REQ-TIME-004, REQ-TIME-005, REQ-TIME-006, REQ-TIME-007, REQ-TIME-008, REQ-TIME-009, REQ-TIME-010, REQ-TIME-011, REQ-TIME-012, REQ-TIME-013
 #![no_main]
 
 use arbitrary::Arbitrary;

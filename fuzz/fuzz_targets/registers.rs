@@ -3,6 +3,7 @@
 //! 0x0900..0x091F, each from arbitrary bytes as a slave might return them, plus the word-level
 //! bodies on the first words. Body: `ecdc_proofs::wire::registers_target` (replayed on stable by
 //! proofs/tests/exhaustive_fuzz_inputs.rs).
+//! verifies: REQ-WIRE-071, REQ-WIRE-072, REQ-WIRE-073, REQ-WIRE-074
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;

@@ -3,6 +3,7 @@
 //! overflow side-conditions, engine and master loops over an arbitrary input sequence, the
 //! seed 004 filter step, the carry quantiser, the counter compensator's long run, gain
 //! soundness and lock hysteresis. Bodies: `ecdc_proofs::servo::prop_*`.
+//! verifies: REQ-SERVO-002
 #![no_main]
 
 use arbitrary::Arbitrary;

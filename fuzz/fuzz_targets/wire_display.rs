@@ -2,6 +2,7 @@
 //! bare EtherCAT payload and after a 14-byte Ethernet header.
 //! Body: `ecdc_proofs::wire::display_any` (REQ-WIRE-020). Kept apart from `wire_parse`
 //! because formatting allocates and slows that target down.
+//! verifies: REQ-WIRE-020
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;

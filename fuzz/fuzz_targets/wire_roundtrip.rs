@@ -1,5 +1,6 @@
 //! Fuzz target: structured datagram lists through the builder and back.
 //! Body: `ecdc_proofs::wire::roundtrip` (P1, REQ-WIRE-030, REQ-WIRE-040..042).
+//! verifies: REQ-WIRE-030, REQ-WIRE-040, REQ-WIRE-041, REQ-WIRE-042
 #![no_main]
 
 use arbitrary::Arbitrary;

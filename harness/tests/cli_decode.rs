@@ -1,5 +1,7 @@
 //! `ecdc decode` end to end: runs the built binary on hex strings and on a pcap file
 //! (REQ-WIRE-016: a bad frame is reported with its typed error).
+//!
+//! verifies: REQ-WIRE-016
 
 use ecdc_core::wire::{Address, Command, FrameBuilder};
 use ecdc_harness::capture::pcap;

@@ -16,6 +16,7 @@ fn host_station(pos: u16) -> u16 {
 
 #[test]
 fn adopted_addresses_are_used_and_kept() {
+    // verifies: REQ-DC-140
     let sc = Scenario::line(4);
     let mut net = Network::new(&sc).expect("scenario");
     // The host's addressing, one APWR 0x0010 per position, before the machine starts.
@@ -61,6 +62,7 @@ fn adopted_addresses_are_used_and_kept() {
 /// Unaddressed slaves (0x0010 still at its reset value 0) are refused, not silently addressed.
 #[test]
 fn adopt_without_host_addresses_faults() {
+    // verifies: REQ-DC-140
     let cfg = ecdc_core::dc::Config {
         stations: Stations::Adopt,
         auto_restart: false,

@@ -5,6 +5,8 @@
 //! cycle) of the reference clock, a 32-bit port-time wrap in the middle of the delay
 //! measurement; plus: a re-initialisation with slaves in OP leaves their 0x0920 and SYNC unit
 //! alone (REQ-DC-103), and a requested delay re-measurement rewrites only 0x0928 (REQ-DC-107).
+//!
+//! verifies: REQ-DC-103, REQ-DC-107
 
 mod dc_support;
 

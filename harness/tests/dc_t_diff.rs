@@ -3,6 +3,8 @@
 //! slave's own t_Diff set on the machine, the measured delays equal the emulator's true frame
 //! path; with one common value for all, they are off by the accumulated t_Diff error — the
 //! second half shows this test can tell the two apart.
+//!
+//! verifies: REQ-DC-015
 
 mod dc_support;
 
@@ -61,6 +63,7 @@ fn per_slave_t_diff_gives_exact_delays_on_a_mixed_line() {
     assert!(worst <= 10, "delay error {worst} ns with per-slave t_Diff");
 }
 
+// verifies: REQ-DC-121
 #[test]
 fn one_common_t_diff_is_wrong_on_a_mixed_line() {
     // Every second slave's t_Diff is 160 ns off: the error accumulates along the line
@@ -82,6 +85,7 @@ fn one_common_t_diff_is_wrong_on_a_mixed_line() {
 /// share one type code here, so slave 0 gets 240 instead of its 80 ns and every delay behind
 /// it is off by (240 − 80)/2 = 80 ns: the limit of the type rule, against 240 ns with one
 /// common value.
+// verifies: REQ-DC-121, REQ-DC-122
 #[test]
 fn measured_t_diff_gives_exact_delays_on_a_mixed_line() {
     let mut cfg = config();

@@ -36,6 +36,7 @@ fn hundred_slave_tree_locks() {
 /// Without PHY jitter (the emulator's jitter has a mean of half its range per cable, which the
 /// jitter-free path oracle does not include), every delay equals the true EPU arrival time
 /// difference to the reference within the 10 ns stamp quantisation.
+// verifies: REQ-DC-121
 #[test]
 fn tree_delays_match_emulator_path() {
     let sc = tree_100().ideal();

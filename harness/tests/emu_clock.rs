@@ -2,6 +2,8 @@
 //!
 //! Offsets and delays are set from the emulator's *truth* here (not by master maths), so these
 //! tests check the slave model alone.
+//!
+//! verifies: REQ-ESC-040, REQ-ESC-041, REQ-ESC-042, REQ-ESC-043, REQ-ESC-044, REQ-ESC-050, REQ-ESC-051, REQ-ESC-052, REQ-ESC-053, REQ-ESC-054, REQ-ESC-055, REQ-ESC-056
 
 mod emu_support;
 
@@ -107,6 +109,7 @@ fn needed_ppm(ppm_r: f64, ppm_s: f64) -> f64 {
 
 /// REQ-ESC-040: an uncompensated slave drifts at its configured rate (seed 000 Fig. 9: the
 /// error of an uncompensated slave grows steadily).
+// verifies: REQ-ESC-040
 #[test]
 fn uncompensated_slave_drifts_at_configured_ppm() {
     let mut net = Network::new(&scenario(&[0.0, 30.0, -45.0])).unwrap();
@@ -128,6 +131,7 @@ fn uncompensated_slave_drifts_at_configured_ppm() {
 /// REQ-ESC-052/055: repeated FRMW drives |0x092C| below 100 ns and 0x0932 to the value that
 /// cancels the configured frequency error (0x0932 is averaged over the last 500 samples: like
 /// the hardware's, it dithers by a few LSB around its mean).
+// verifies: REQ-ESC-052
 #[test]
 fn frmw_converges() {
     let ppms = [0.0, 40.0, -25.0, 60.0, -80.0];
@@ -171,6 +175,7 @@ fn frmw_converges() {
 
 /// REQ-ESC-052: the loop is a rate correction with memory — after convergence the slave keeps
 /// the reference's rate when the FRMW frames stop.
+// verifies: REQ-ESC-052
 #[test]
 fn loop_remembers_rate() {
     let mut net = Network::new(&scenario(&[0.0, 70.0])).unwrap();
@@ -185,6 +190,7 @@ fn loop_remembers_rate() {
 
 /// REQ-ESC-056: the slew is limited (≈ 0.76 µs per ms at S = 0x1000): a 100 µs offset error
 /// cannot be removed faster.
+// verifies: REQ-ESC-056
 #[test]
 fn slew_is_limited() {
     let mut net = Network::new(&scenario(&[0.0, 0.0])).unwrap();
@@ -210,6 +216,7 @@ fn slew_is_limited() {
 }
 
 /// REQ-ESC-053: any write to 0x0930 clears 0x092C and 0x0932.
+// verifies: REQ-ESC-053
 #[test]
 fn speed_counter_start_write_resets() {
     let mut net = Network::new(&scenario(&[0.0, 50.0])).unwrap();
@@ -234,6 +241,7 @@ fn speed_counter_start_write_resets() {
 
 /// REQ-ESC-051: 0x092C is sign-magnitude, bit 31 set when the local copy is behind; depth
 /// 0x0934 = 1 (after a 0x0930 reset) shows each sample as is.
+// verifies: REQ-ESC-051
 #[test]
 fn difference_sign_magnitude() {
     let mut sc = scenario(&[0.0, 0.0]);
@@ -303,6 +311,7 @@ fn difference_sign_magnitude() {
 }
 
 /// REQ-ESC-042: an ECAT read of 0x0910 returns local + offset − delay latched at SOF.
+// verifies: REQ-ESC-042
 #[test]
 fn system_time_read_subtracts_delay() {
     let mut sc = scenario(&[0.0, 0.0]);
@@ -339,6 +348,7 @@ fn system_time_read_subtracts_delay() {
 
 /// REQ-ESC-041: observed local time moves in whole ticks of the raw counter (10 ns by default,
 /// floor of the raw value), and a 1 ns quantum shows the raw counter itself.
+// verifies: REQ-ESC-041
 #[test]
 fn local_time_quantised_to_tick() {
     for tick in [10u64, 1] {
@@ -362,6 +372,7 @@ fn local_time_quantised_to_tick() {
 
 /// REQ-ESC-043: a write to 0x0920 moves the local copy of system time at once (by exactly the
 /// change of offset) and leaves the loop alone (0x092C, 0x0932 and the clock rate unchanged).
+// verifies: REQ-ESC-043
 #[test]
 fn offset_write_moves_local_copy_at_once() {
     let mut sc = scenario(&[0.0, 50.0]).ideal();

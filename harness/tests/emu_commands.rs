@@ -1,5 +1,7 @@
 //! WKC and ADP behaviour of every command (REQ-ESC-001..REQ-ESC-006), checked through frames
 //! built and parsed with `ecdc_core::wire`.
+//!
+//! verifies: REQ-ESC-001, REQ-ESC-002, REQ-ESC-003, REQ-ESC-004, REQ-ESC-005, REQ-ESC-006
 
 mod emu_support;
 
@@ -14,6 +16,7 @@ fn net3() -> (Network, u64) {
 }
 
 /// REQ-ESC-002: APRD acts at ADP 0, every slave increments ADP.
+// verifies: REQ-ESC-002
 #[test]
 fn aprd_auto_increment() {
     let (mut net, t) = net3();
@@ -41,6 +44,7 @@ fn aprd_auto_increment() {
 }
 
 /// REQ-ESC-002: APWR writes only the addressed slave; APRW returns the old value, WKC 3.
+// verifies: REQ-ESC-002
 #[test]
 fn apwr_aprw() {
     let (mut net, t) = net3();
@@ -67,6 +71,7 @@ fn apwr_aprw() {
 }
 
 /// REQ-ESC-002: FPxx match the configured address, ADP is left untouched.
+// verifies: REQ-ESC-002
 #[test]
 fn configured_address_commands() {
     let (mut net, t) = net3();
@@ -106,6 +111,7 @@ fn configured_address_commands() {
 }
 
 /// REQ-ESC-003: the station alias answers only when DL control bit 24 is set.
+// verifies: REQ-ESC-003
 #[test]
 fn alias_addressing() {
     let sc = Scenario::default().ideal().with_slave(SlaveSpec {
@@ -140,6 +146,7 @@ fn alias_addressing() {
 }
 
 /// REQ-ESC-002: BRD ORs every slave's memory into the data; BWR/BRW count every slave.
+// verifies: REQ-ESC-002
 #[test]
 fn broadcast_commands() {
     let (mut net, mut t) = net3();
@@ -199,6 +206,7 @@ fn fmmu(log: u32, len: u16, phys: u16, typ: u8) -> Vec<u8> {
 }
 
 /// REQ-ESC-002: logical commands go through the FMMU table; LRW counts +1 read, +2 write.
+// verifies: REQ-ESC-002
 #[test]
 fn logical_commands() {
     let (mut net, t) = net3();
@@ -266,6 +274,7 @@ fn logical_commands() {
 
 /// REQ-ESC-006: ARMW/FRMW — the addressed slave reads, every other slave (before and after it
 /// in the path) writes; each counts 1.
+// verifies: REQ-ESC-006
 #[test]
 fn read_multiple_write() {
     let (mut net, t) = net3();
@@ -298,6 +307,7 @@ fn read_multiple_write() {
 }
 
 /// REQ-ESC-006: FRMW to 0x0910 counts only slaves with system time.
+// verifies: REQ-ESC-006
 #[test]
 fn frmw_counts_dc_slaves_only() {
     let mut sc = Scenario::default().ideal();
@@ -370,6 +380,7 @@ fn nop_and_unknown() {
 
 /// REQ-ESC-004/REQ-ESC-001: the first slave sets 0x02 in the source MAC; frames shorter than
 /// 60 bytes are processed and come back at the same length.
+// verifies: REQ-ESC-001, REQ-ESC-004
 #[test]
 fn mac_bit_and_short_frames() {
     let (mut net, t) = net3();
@@ -398,6 +409,7 @@ fn foreign_frames_forwarded() {
 
 /// REQ-ESC-005: a frame caught behind a link that breaks while it is downstream circulates
 /// once (circulating bit set by the slave whose port 0 closed) and is then destroyed.
+// verifies: REQ-ESC-005
 #[test]
 fn circulating_frame_destroyed() {
     let mut net = Network::new(&Scenario::line(4).ideal()).unwrap();

@@ -1,4 +1,6 @@
 //! Faults, determinism and scenario files (REQ-ESC-090..REQ-ESC-096, REQ-ESC-100).
+//!
+//! verifies: REQ-ESC-090, REQ-ESC-091, REQ-ESC-092, REQ-ESC-093, REQ-ESC-094, REQ-ESC-095, REQ-ESC-096, REQ-ESC-100
 
 mod emu_support;
 
@@ -16,6 +18,7 @@ fn brd_wkc(net: &mut Network, t: u64) -> Option<u16> {
 
 /// REQ-ESC-092: injected loss drops about the configured fraction of frames, and a rate
 /// change scheduled mid-run takes effect.
+// verifies: REQ-ESC-092
 #[test]
 fn frame_loss_rate() {
     let mut sc = Scenario::line(3);
@@ -41,6 +44,7 @@ fn frame_loss_rate() {
 
 /// REQ-ESC-091: a link break mid-run shortens the chain (the slave before the break closes
 /// its port); restoring it brings the slaves back.
+// verifies: REQ-ESC-091
 #[test]
 fn link_break_and_restore() {
     let mut net = Network::new(&Scenario::line(4)).unwrap();
@@ -55,6 +59,7 @@ fn link_break_and_restore() {
 
 /// REQ-ESC-090: a power cycle removes the slave (and everything behind it) while off; on
 /// power-up its local time restarts at 0 and every register takes its reset value.
+// verifies: REQ-ESC-090
 #[test]
 fn power_cycle_resets_slave() {
     let mut net = Network::new(&Scenario::line(3)).unwrap();
@@ -114,6 +119,7 @@ fn power_cycle_resets_slave() {
 
 /// REQ-ESC-093: loss of the reference slave: FRMW to it is no longer answered by it, and the
 /// slaves behind it disappear from the chain.
+// verifies: REQ-ESC-093
 #[test]
 fn reference_loss() {
     let mut net = Network::new(&Scenario::line(3)).unwrap();
@@ -140,6 +146,7 @@ fn reference_loss() {
 
 /// REQ-ESC-100: the same scenario and the same frames give bit-identical results; another
 /// seed gives different ones.
+// verifies: REQ-ESC-100
 #[test]
 fn deterministic_from_seed() {
     let run = |seed: u64| {
@@ -222,6 +229,7 @@ fn bad_scenarios_rejected() {
 
 /// REQ-ESC-095: a wire silence loses every frame sent in it, and the reply of a frame sent
 /// just before it (the slaves did process that frame); before and after, frames return.
+// verifies: REQ-ESC-095
 #[test]
 fn wire_silence_loses_both_ways() {
     let mut net = Network::new(&Scenario::line(3)).unwrap();
@@ -256,6 +264,7 @@ fn wire_silence_loses_both_ways() {
 
 /// REQ-ESC-096: a master stall is a window the master's driver asks about; the network itself
 /// keeps answering (the stall is on the master's side).
+// verifies: REQ-ESC-096
 #[test]
 fn master_stall_window() {
     let mut net = Network::new(&Scenario::line(2)).unwrap();

@@ -2,6 +2,8 @@
 //! (REQ-ESC-020, REQ-ESC-025..REQ-ESC-027): invalid transitions, error flag and code,
 //! acknowledge, PREOP→SAFEOP refused without a valid SyncManager configuration, working
 //! counters per command and outputs reaching the device only in OP.
+//!
+//! verifies: REQ-ESC-020, REQ-ESC-025, REQ-ESC-026, REQ-ESC-027
 
 mod emu_support;
 
@@ -76,6 +78,7 @@ fn fmmu(net: &mut Network, t: &mut u64, st: u16, n: u16, m: Map) {
 
 /// REQ-ESC-020: invalid transitions set the error flag and 0x0011; with the flag set a
 /// higher state waits for the acknowledge while a lower one is still taken.
+// verifies: REQ-ESC-020
 #[test]
 fn invalid_transitions_and_acknowledge() {
     let (mut net, mut t) = net_of(&[Device::Bare], false);
@@ -121,6 +124,7 @@ fn invalid_transitions_and_acknowledge() {
 /// REQ-ESC-025: PREOP→SAFEOP needs the process-data SyncManagers as the SII describes them
 /// (0x001D outputs, 0x001E inputs); INIT→PREOP needs the mailbox ones when there is a
 /// mailbox (0x0016).
+// verifies: REQ-ESC-025
 #[test]
 fn safeop_refused_without_a_valid_sm_configuration() {
     let (mut net, mut t) = net_of(&[Device::Io8], false);
@@ -230,6 +234,7 @@ fn logical(net: &mut Network, t: &mut u64, c: Command, data: &[u8]) -> (Vec<u8>,
 /// REQ-ESC-026/027: no process data before SAFEOP; in SAFEOP and OP the working counter
 /// follows LRW +1 read +2 write per slave, LRD +1, LWR +1; outputs reach the device only in
 /// OP, and its inputs come back.
+// verifies: REQ-ESC-026
 #[test]
 fn process_data_working_counters_and_outputs() {
     let (mut net, mut t) = net_of(&[Device::Io8, Device::Servo], false);
@@ -305,6 +310,7 @@ fn logical_at(net: &mut Network, t: &mut u64, at: u32, len: usize) -> u16 {
 /// REQ-ESC-025 for an image file: the checks follow the file's SyncManager category, including
 /// a buffer in register space where the SII puts it (as digital-output terminals do at
 /// 0x0F00).
+// verifies: REQ-ESC-025
 #[test]
 fn checks_follow_an_image_file() {
     let (net, _) = net_of(&[Device::Io8], false);

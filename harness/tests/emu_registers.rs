@@ -1,5 +1,7 @@
 //! Register contract: reset values, access rules, widths, AL and DL status, receive-time latch
 //! rules (REQ-ESC-010..REQ-ESC-032, REQ-ESC-061).
+//!
+//! verifies: REQ-ESC-010, REQ-ESC-011, REQ-ESC-012, REQ-ESC-013, REQ-ESC-014, REQ-ESC-015, REQ-ESC-020, REQ-ESC-021, REQ-ESC-022, REQ-ESC-023, REQ-ESC-024, REQ-ESC-025, REQ-ESC-026, REQ-ESC-027, REQ-ESC-030, REQ-ESC-031, REQ-ESC-032, REQ-ESC-061
 
 mod emu_support;
 
@@ -21,6 +23,7 @@ fn kinds_net(kinds: &[EscKind]) -> (Network, u64) {
 }
 
 /// REQ-ESC-011/014: type, features per kind and DC reset values as the master reads them.
+// verifies: REQ-ESC-011, REQ-ESC-060
 #[test]
 fn reset_values_per_kind() {
     let kinds = [
@@ -78,6 +81,7 @@ fn reset_values_per_kind() {
 }
 
 /// REQ-ESC-013: read-only bytes ignore ECAT writes, yet the write counts in the WKC.
+// verifies: REQ-ESC-013
 #[test]
 fn read_only_registers() {
     let (mut net, t) = kinds_net(&[EscKind::Dc64]);
@@ -108,6 +112,7 @@ fn read_only_registers() {
 }
 
 /// REQ-ESC-061: a 32-bit DC keeps only the low halves of 64-bit DC registers.
+// verifies: REQ-ESC-061
 #[test]
 fn dc32_widths() {
     let (mut net, t) = kinds_net(&[EscKind::Dc32]);
@@ -139,6 +144,7 @@ fn dc32_widths() {
 
 /// REQ-ESC-020: valid AL requests are reflected in 0x0130; invalid ones set the error flag and
 /// code 0x0011 until acknowledged.
+// verifies: REQ-ESC-020
 #[test]
 fn al_state_machine() {
     let (mut net, t) = kinds_net(&[EscKind::Dc64]);
@@ -170,6 +176,7 @@ fn al_state_machine() {
 }
 
 /// REQ-ESC-015: DL status matches the topology (link, loop, communication per port).
+// verifies: REQ-ESC-015
 #[test]
 fn dl_status_matches_topology() {
     let mut net = Network::new(&Scenario::line(3).ideal()).unwrap();
@@ -205,6 +212,7 @@ fn dl_status_matches_topology() {
 /// REQ-ESC-030/031: BWR to 0x0900 latches every port; the new values are not visible in the
 /// same frame; APWR does not latch; ports the frame does not reach keep their old values.
 /// REQ-ESC-032: 0x0918 reads port 0's stamp.
+// verifies: REQ-ESC-030, REQ-ESC-032
 #[test]
 fn receive_time_latch_rules() {
     let mut sc = Scenario::line(3).ideal();

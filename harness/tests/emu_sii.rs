@@ -2,6 +2,8 @@
 //! (REQ-ESC-021..REQ-ESC-024): word-by-word reads in 4- and 8-byte mode, busy, error bits,
 //! write protection, reload, bad images, and the category layout of built images checked
 //! with a parser written here (not the emulator's).
+//!
+//! verifies: REQ-ESC-021, REQ-ESC-022, REQ-ESC-023, REQ-ESC-024
 
 mod emu_support;
 
@@ -125,6 +127,7 @@ fn crc8_table(b: &[u8]) -> u8 {
 /// entry with exactly these parameters (CRC-8/ROHC reflects), so the check value over
 /// "123456789", 0xFB, is the one computed by the bit loop and the table formulation here
 /// (and by a separate Python loop when this test was written).
+// verifies: REQ-ESC-024
 #[test]
 fn crc8_check_value() {
     assert_eq!(sii::crc8(b"123456789"), 0xFB);
@@ -169,6 +172,7 @@ fn strings(b: &[u8]) -> Vec<String> {
 
 /// REQ-ESC-021/024: the whole image read word by word in both read modes is the same, and
 /// its configuration area, identity and categories say what an io8 slave is.
+// verifies: REQ-ESC-021
 #[test]
 fn image_read_through_the_interface_in_4_and_8_byte_mode() {
     let mut seen = Vec::new();
@@ -276,6 +280,7 @@ fn servo_image_maps_control_word_and_position() {
 
 /// REQ-ESC-022: a master that polls sees busy for the configured time; the data does not
 /// depend on that time; writes while busy are ignored.
+// verifies: REQ-ESC-022
 #[test]
 fn busy_is_visible_and_the_data_does_not_hinge_on_it() {
     let mut data = Vec::new();
@@ -350,6 +355,7 @@ fn file_net(path: &std::path::Path) -> (Network, u64) {
 /// and 12 set, DL status bit 0 clear, the alias not taken over, process RAM inaccessible and
 /// no firmware answering AL control. Truncated images fail the same way; an odd length
 /// alone does not; word 7 = 0x88A4 skips the check.
+// verifies: REQ-ESC-023
 #[test]
 fn bad_images_show_the_checksum_error() {
     let good = built_io8_bytes(0x0BAD);
@@ -420,6 +426,7 @@ fn bad_images_show_the_checksum_error() {
 
 /// REQ-ESC-022: write protection (write enable in the same frame, ECAT ownership), the
 /// error bits and how they clear.
+// verifies: REQ-ESC-022
 #[test]
 fn writes_need_enable_and_ecat_access() {
     let (mut net, mut t) = net_with(io8_scenario(SiiTiming::default()));
@@ -478,6 +485,7 @@ fn writes_need_enable_and_ecat_access() {
 
 /// REQ-ESC-023: reload re-checks the CRC and takes over the configuration area except the
 /// alias; the EEPROM keeps written words over a power cycle, which then loads the new alias.
+// verifies: REQ-ESC-023
 #[test]
 fn reload_and_power_cycle_effects() {
     let (mut net, mut t) = net_with(io8_scenario(SiiTiming::default()));
@@ -584,6 +592,7 @@ fn scenario_fields_and_validation() {
 /// REQ-ESC-021: other masters' access shapes work too: a 4-byte write of control (with the
 /// read-only bit 7 set) and a 16-bit address, then one 10-byte read of status, address and
 /// data; and position addressing (before station addresses exist).
+// verifies: REQ-ESC-021
 #[test]
 fn other_access_shapes() {
     let mut net = Network::new(&io8_scenario(SiiTiming::default())).unwrap();

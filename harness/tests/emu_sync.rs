@@ -1,6 +1,8 @@
 //! SYNC unit: activation rules, start time, cycles, single shot, past start times, SYNC1,
 //! edges in true time, and the slave-to-slave skew after drift compensation
 //! (REQ-ESC-070..REQ-ESC-079).
+//!
+//! verifies: REQ-ESC-070, REQ-ESC-071, REQ-ESC-072, REQ-ESC-073, REQ-ESC-074, REQ-ESC-075, REQ-ESC-076, REQ-ESC-077, REQ-ESC-078, REQ-ESC-079
 
 mod emu_support;
 
@@ -44,6 +46,7 @@ fn rd(net: &mut Network, t: u64, ado: u16, len: usize) -> (Vec<u8>, u64) {
 /// programmed system times and at their true times (system time − L0 without drift),
 /// generated without frames; 0x0990 reads the next pulse; 0x0984 bit 0 clears after the first
 /// pulse.
+// verifies: REQ-ESC-070, REQ-ESC-072, REQ-ESC-073, REQ-ESC-078
 #[test]
 fn cyclic_sync0() {
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
@@ -72,6 +75,7 @@ fn cyclic_sync0() {
 }
 
 /// REQ-ESC-076: cycle time 0 gives a single pulse.
+// verifies: REQ-ESC-076
 #[test]
 fn single_shot() {
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
@@ -85,6 +89,7 @@ fn single_shot() {
 
 /// REQ-ESC-075, REQ-ESC-074: a start time in the past never fires on a 64-bit DC without the
 /// plausibility check; with the check (0x0981 bit 5) it fires at once and 0x0984 bit 2 is set.
+// verifies: REQ-ESC-074, REQ-ESC-075
 #[test]
 fn start_time_in_the_past() {
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
@@ -108,6 +113,7 @@ fn start_time_in_the_past() {
 
 /// REQ-ESC-075: on a 32-bit DC a start time just in the past fires after the counter wraps
 /// round to it (≈ 4.29 s later).
+// verifies: REQ-ESC-075
 #[test]
 fn past_start_on_32bit_fires_after_wrap() {
     let (mut net, t) = one_slave(EscKind::Dc32, 100_000_000);
@@ -151,6 +157,7 @@ fn start_sync0(net: &mut Network, start: u64) {
 /// of one of the clock's linear pieces fires there, and the cycle goes on. Without drift the
 /// local copy steps from L0 + 100 ms − 10 to L0 + 100 ms at true time 100 ms, the first piece
 /// boundary; the pulses sit 3 ns before the 10 ns grid, so that step passes over one.
+// verifies: REQ-ESC-075, REQ-ESC-076
 #[test]
 fn pulse_stepped_over_at_a_piece_boundary_fires() {
     let mut net = one_slave_in_pieces(0.0, L0);
@@ -211,6 +218,7 @@ fn drifting_pulse_stepped_over_at_a_piece_boundary_fires() {
 
 /// REQ-ESC-077: SYNC1 mirrors SYNC0 (cycle 0), follows each SYNC0 by its cycle, or with a
 /// cycle that is a multiple of SYNC0's, fires every n-th cycle.
+// verifies: REQ-ESC-077
 #[test]
 fn sync1_modes() {
     for (c1, want) in [
@@ -239,6 +247,7 @@ fn sync1_modes() {
 
 /// REQ-ESC-071: with the cyclic unit assigned to the PDI (0x0980 bit 0), ECAT writes to the
 /// activation register are ignored.
+// verifies: REQ-ESC-071
 #[test]
 fn pdi_owned_unit_ignores_ecat() {
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
@@ -252,6 +261,7 @@ fn pdi_owned_unit_ignores_ecat() {
 }
 
 /// REQ-ESC-079: auto-activation on a start-time write, with the 32→64-bit extension.
+// verifies: REQ-ESC-079
 #[test]
 fn auto_activation_with_extension() {
     let (mut net, t) = one_slave(EscKind::Dc64, 5 * (1 << 32) + 1_000);

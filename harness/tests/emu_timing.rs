@@ -1,5 +1,7 @@
 //! Frame-path timing: processing order, t_P ≠ t_F, cable delays, non-DC slaves, 32-bit port
 //! time wrap (REQ-ESC-080..REQ-ESC-083, REQ-ESC-094).
+//!
+//! verifies: REQ-ESC-080, REQ-ESC-081, REQ-ESC-082, REQ-ESC-083, REQ-ESC-094
 
 mod emu_support;
 
@@ -33,6 +35,7 @@ fn latch_and_read(net: &mut Network, t: u64, station: u16) -> [u32; 4] {
 
 /// REQ-ESC-081/082: a cross (4-port) slave stamps ports in the order 0 → 3 → 1 → 2 with the
 /// configured t_P, t_F and cable delays, exactly when jitter is off.
+// verifies: REQ-ESC-081
 #[test]
 fn cross_topology_stamps_reproduce_delays() {
     let sc = exact(Scenario::default())
@@ -70,6 +73,7 @@ fn cross_topology_stamps_reproduce_delays() {
 
 /// REQ-ESC-082: in a line, port 1 − port 0 of each slave is the round trip behind it, and
 /// t_P ≠ t_F shows up in the differences (the master's t_Diff).
+// verifies: REQ-ESC-082
 #[test]
 fn line_round_trips() {
     let mut sc = exact(Scenario::line(3));
@@ -116,6 +120,7 @@ fn return_time_and_non_dc_delay() {
 
 /// REQ-ESC-094: a 32-bit port-time wrap in the middle of a delay measurement — the stamps
 /// wrap, and the wrapping difference still gives the configured round trip.
+// verifies: REQ-ESC-094
 #[test]
 fn port_time_wrap_during_measurement() {
     let wrap_at = 50_000_000;

@@ -2,6 +2,8 @@
 //! nothing (`t_diff_ns` 0) and must find every ESC's t_P − t_F within ±5 ns of the emulator's
 //! truth on seed 000's 6-slave line, the 100-slave tree and the 512-slave line; every slave's
 //! value carries its source; DL control is restored exactly; a running slave stops the step.
+//!
+//! verifies: REQ-DC-120, REQ-DC-121, REQ-DC-122, REQ-DC-123, REQ-DC-124, REQ-DC-125, REQ-DC-126
 
 mod dc_support;
 
@@ -179,6 +181,7 @@ fn dl_control<const N: usize>(s: &ecdc_harness::sim::Sim<N>, i: usize) -> u16 {
 
 /// REQ-DC-123: with a slave in OP no port is closed; the configured value is used and the
 /// source says why.
+// verifies: REQ-DC-123
 #[test]
 fn running_slave_stops_the_step() {
     use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
@@ -255,6 +258,7 @@ fn forced_loop_delay_shifts_the_measurement() {
 /// REQ-DC-124: a value outside the plausible range is not used. A forced loop 600 ns slower than
 /// an open end makes every measurement 680 ns, above `max_ns` (500): each measured slave falls
 /// back to `Config::t_diff_ns` with the rejected value in its source.
+// verifies: REQ-DC-124
 #[test]
 fn implausible_measurement_falls_back() {
     let mut sc = Scenario::line(4).ideal();
@@ -278,6 +282,7 @@ fn implausible_measurement_falls_back() {
 }
 
 /// REQ-DC-126: `ecdc scan`'s table carries each slave's t_Diff and its source.
+// verifies: REQ-DC-126
 #[test]
 fn scan_report_lists_t_diff_and_source() {
     let mut s = sim::<16>(&Scenario::line(3), nothing_told());
@@ -299,6 +304,7 @@ fn scan_report_lists_t_diff_and_source() {
 
 /// REQ-DC-124: a bring-up interrupted while a port is closed (here: `start` again) first
 /// reopens it, so the next count sees every slave and DL control ends as it was.
+// verifies: REQ-DC-124
 #[test]
 fn restart_while_closed_restores_the_port_first() {
     let sc = Scenario::line(5);

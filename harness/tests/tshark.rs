@@ -9,6 +9,8 @@
 //!
 //! tshark is installed by CI (.ci/install.sh). If it is absent the test prints a skip message
 //! and returns.
+//!
+//! verifies: REQ-WIRE-001, REQ-WIRE-002, REQ-WIRE-003, REQ-WIRE-004, REQ-WIRE-005, REQ-WIRE-031, REQ-WIRE-041, REQ-WIRE-060
 
 use ecdc_core::wire::{
     Address, Addressing, Command, DatagramRepr, EthernetFrame, FrameBuilder, MASTER_MAC,

@@ -10,6 +10,8 @@
 //! non-negative delays), because for arbitrary numbers "delay ≥ 0" is not a property of any
 //! formula: the core must then return a typed error instead, which [`p3_arbitrary_latches`]
 //! checks.
+//!
+//! verifies: P3, P4
 
 // Index loops mirror the physical description and keep Kani's unwinding obvious.
 #![allow(clippy::needless_range_loop)]

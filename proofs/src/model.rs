@@ -36,9 +36,11 @@
 //! Limits: the ring has no clocks (offset *values* are checked elsewhere: P3/P4 and the harness
 //! end-to-end tests), AL states change only by a slave reset, and the depth bound is per seed.
 //! The seeds are the states of the fault-free bring-up, so every phase is a root of the search.
+//!
+//! verifies: P3, P4, P6, REQ-CONV-008, REQ-DC-032, REQ-DC-103, REQ-DC-110, REQ-DC-113
 
 use crate::machine::{al_truth, check_tx, script_config, Model, Outcome, Violation, CAP};
-use ecdc_core::dc::{Config, Event, Machine, State};
+use ecdc_core::dc::{Config, Error, Event, Machine, State};
 use ecdc_core::time::SystemTime;
 use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
 use std::collections::hash_map::DefaultHasher;
@@ -78,6 +80,9 @@ pub enum Action {
     ToDeadline,
     /// The slave at this position power-cycles: station address lost, AL back to INIT.
     SlaveReset(u8),
+    /// Someone else (another master, a configuration tool) moves the slave at this position
+    /// to SAFE-OP (even positions) or OP (odd): an AL change at any point of the bring-up.
+    SlaveRun(u8),
     /// The next latch round's 32-bit port times straddle 2^32 ns.
     Wrap,
     /// `reset()`.
@@ -110,6 +115,7 @@ impl Action {
         ];
         for j in 0..k.min(CAP as u16) {
             v.push(Action::SlaveReset(j as u8));
+            v.push(Action::SlaveRun(j as u8));
         }
         v
     }
@@ -121,6 +127,8 @@ struct OnWire {
     reply: Vec<u8>,
     /// Master time at transmission.
     sent_at: u64,
+    /// Bit j: slave j changed AL state after this reply was produced (its AL answer is old).
+    moved: u8,
 }
 
 /// One global state of the model.
@@ -130,6 +138,11 @@ pub struct World {
     cfg: Config,
     line: Model,
     al: [u16; CAP],
+    /// The AL status of each slave in the last reply to an FPRD 0x0130 the machine used in this
+    /// bring-up (cleared whenever the machine is back before the slave count).
+    known_al: [Option<u16>; CAP],
+    /// Bit j: slave j changed AL state (reset or run) after the last such read.
+    al_moved: u8,
     now: u64,
     /// Replies of the last two transmitted frames, newest last.
     wire: Vec<OnWire>,
@@ -178,6 +191,9 @@ pub enum ModelViolation {
     AwaitingPastDeadline,
     /// The fault-free continuation did not reach `Cyclic` (state reached).
     NoProgress(State),
+    /// The machine reported `Error::Internal` (one of its consistency guards fired) in this
+    /// state.
+    Internal(State),
 }
 
 impl World {
@@ -198,6 +214,8 @@ impl World {
                 wrap_base: 0,
             },
             al,
+            known_al: [None; CAP],
+            al_moved: 0,
             now,
             wire: Vec::new(),
             live: false,
@@ -242,10 +260,12 @@ impl World {
     /// 128-bit fingerprint of the state (machine control state, ring, wire, clock, flags).
     pub fn fingerprint(&self) -> u128 {
         let text = format!(
-            "{:?}|{:?}|{:?}|{}|{:?}|{}|{}|{}",
+            "{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}|{}|{}|{}",
             self.m.control_state(),
             self.line,
             self.al,
+            self.known_al,
+            self.al_moved,
             self.now,
             self.wire,
             self.live,
@@ -294,14 +314,22 @@ impl World {
     }
 
     fn transmitted(&mut self, frame: Vec<u8>, foreign: Option<u8>) -> Result<(), ModelViolation> {
-        check_tx(&frame, &self.cfg, &self.al, &mut self.out, foreign)
-            .map_err(ModelViolation::Frame)?;
+        check_tx(
+            &frame,
+            &self.cfg,
+            &self.al,
+            &mut self.out,
+            foreign,
+            Some((&self.known_al, self.al_moved)),
+        )
+        .map_err(ModelViolation::Frame)?;
         self.out.frames += 1;
         let reply = self.process(&frame);
         self.last_tx = Some((self.m.state(), frame));
         self.wire.push(OnWire {
             reply,
             sent_at: self.now,
+            moved: 0,
         });
         if self.wire.len() > 2 {
             self.wire.remove(0);
@@ -336,8 +364,40 @@ impl World {
         }
         if used {
             self.live = false;
+            // The reply (possibly with altered working counters) to the newest or older frame.
+            let src = if newest {
+                self.wire.last()
+            } else {
+                self.wire.first()
+            };
+            let since = src.map_or(0xFF, |w| w.moved);
+            self.note_al_reads(bytes, since);
         }
         Ok(())
+    }
+
+    /// Records the AL states that a used reply told the machine (FPRD 0x0130, WKC 1).
+    /// `since`: the slaves that changed AL state after the reply was produced.
+    fn note_al_reads(&mut self, bytes: &[u8], since: u8) {
+        let Ok(eth) = EthernetFrame::new_checked(bytes) else {
+            return;
+        };
+        let Ok(ecat) = eth.ecat_frame() else {
+            return;
+        };
+        for d in ecat.iter().flatten() {
+            if d.command_raw() == Command::Fprd.code() && d.ado() == 0x0130 && d.wkc() == 1 {
+                let pos = d.adp().wrapping_sub(self.cfg.station_base);
+                if let (Some(k), [lo, hi, ..]) = (self.known_al.get_mut(usize::from(pos)), d.data())
+                {
+                    *k = Some(u16::from_le_bytes([*lo, *hi]));
+                    if pos < 8 {
+                        let bit = 1u8 << pos;
+                        self.al_moved = (self.al_moved & !bit) | (since & bit);
+                    }
+                }
+            }
+        }
     }
 
     fn altered_newest(&self, f: impl Fn(u16) -> u16) -> Option<Vec<u8>> {
@@ -461,6 +521,24 @@ impl World {
                 if let Some(x) = self.al.get_mut(usize::from(j)) {
                     *x = 0x0001;
                     self.line.unaddressed |= 1u8 << j;
+                    self.al_moved |= 1u8 << j;
+                    for w in &mut self.wire {
+                        w.moved |= 1u8 << j;
+                    }
+                }
+            }
+            Action::SlaveRun(j) => {
+                // A slave already in SAFE-OP or OP stays as it is (no new state to explore).
+                if let Some(x) = self
+                    .al
+                    .get_mut(usize::from(j))
+                    .filter(|x| !matches!(**x & 0x0F, 4 | 8))
+                {
+                    *x = if j % 2 == 0 { 0x0004 } else { 0x0008 };
+                    self.al_moved |= 1u8 << j;
+                    for w in &mut self.wire {
+                        w.moved |= 1u8 << j;
+                    }
                 }
             }
             Action::Wrap => {
@@ -480,6 +558,22 @@ impl World {
         }
         while let Some(e) = self.m.poll_event() {
             self.last_events.push(e);
+        }
+        // A new bring-up must read the AL states again before it may write 0x0920.
+        if matches!(
+            self.m.state(),
+            State::Idle | State::RestartWait | State::Failed | State::CountSlaves
+        ) {
+            self.known_al = [None; CAP];
+            self.al_moved = 0;
+        }
+        // The machine's own consistency guards (REQ-CONV-008) must never fire.
+        if let Some(Event::Error(Error::Internal { state })) = self
+            .last_events
+            .iter()
+            .find(|e| matches!(e, Event::Error(Error::Internal { .. })))
+        {
+            return Err(ModelViolation::Internal(*state));
         }
         self.out.reached_cyclic |= self.m.state() == State::Cyclic;
         Ok(())
@@ -549,6 +643,9 @@ pub struct Report {
     pub machine_states: u32,
     /// Transmitted frames that wrote 0x0920 (checked against the ring's AL states).
     pub offset_writes: u64,
+    /// Of those, writes to a slave that started running after the machine read its AL state
+    /// (the explored AL races).
+    pub al_races: u64,
     /// States whose fault-free continuation was followed to `Cyclic` (liveness).
     pub liveness_checked: u64,
     /// Deepest level searched.
@@ -594,12 +691,13 @@ pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexamp
             }
             for a in Action::all(w.line.k) {
                 let mut w2 = w.clone();
-                let writes = w2.out.offset_writes;
+                let (writes, races) = (w2.out.offset_writes, w2.out.al_races);
                 let mut t = trace.clone();
                 t.push(a);
                 guarded(|| w2.step(a)).map_err(|v| fail((v, 0), *si, &t))?;
                 r.transitions += 1;
                 r.offset_writes += u64::from(w2.out.offset_writes - writes);
+                r.al_races += u64::from(w2.out.al_races - races);
                 if seen.insert(w2.fingerprint()) {
                     next.push((w2, *si, t));
                 }

@@ -9,6 +9,8 @@
 //!
 //! The full-width proofs run on the *same kernel code* instantiated with a z3 bit-vector
 //! (`crate::smt`, feature `smt`), with the properties restated over wide bit-vectors.
+//!
+//! verifies: P2, REQ-TIME-003, REQ-TIME-004, REQ-TIME-005, REQ-TIME-006, REQ-TIME-007, REQ-TIME-008, REQ-TIME-009, REQ-TIME-010, REQ-TIME-011, REQ-TIME-012
 
 use core::fmt::Debug;
 use ecdc_core::num::{self as k, Word};

@@ -6,6 +6,8 @@
 //! `kani_shim`) and, for users with Kani installed, by the `#[kani::proof]` harnesses at the end
 //! (symbolic inputs). Kani is not available on this project's build machine: the harnesses
 //! have been *run* only under the shim, never model-checked.
+//!
+//! verifies: P5, REQ-SERVO-002, REQ-SERVO-012
 
 use ecdc_core::servo::carry::{Carry, CARRY_X_MAX};
 use ecdc_core::servo::counter::CounterCompensator;

@@ -1,5 +1,7 @@
 //! Property tests for P3 (delay) and P4 (offset) and the SYNC start, calling the same bodies as
 //! the Kani harnesses (`proofs/src/dc_math.rs`). Random tests, not proofs.
+//!
+//! verifies: P3, P4
 
 use ecdc_core::dc::port::PortSet;
 use ecdc_core::dc::topology::{Latches, SlaveSample};
@@ -19,6 +21,7 @@ proptest! {
     #![proptest_config(cfg(2000))]
 
     /// P3 on the fork shape with per-ESC t_Diff.
+    // verifies: P3
     #[test]
     fn p3_fork(
         t_f in 0u16..=2_000,
@@ -30,6 +33,7 @@ proptest! {
     }
 
     /// P3 on lines of up to 16 ESCs, any clock phases (wraps anywhere).
+    // verifies: P3
     #[test]
     fn p3_line(
         n in 1usize..=16,
@@ -42,6 +46,7 @@ proptest! {
     }
 
     /// P3 robustness: arbitrary DL status bits and latch values never panic.
+    // verifies: P3
     #[test]
     fn p3_arbitrary(
         raw in prop::collection::vec((0u8..16, any::<[u32; 4]>(), any::<u64>(), any::<bool>(), -500i32..500), 0..8),
@@ -59,6 +64,7 @@ proptest! {
     }
 
     /// P4 over the whole input space.
+    // verifies: P4
     #[test]
     fn p4_offset(master in any::<u64>(), delay in any::<i64>(), local in any::<u64>(), bits64 in any::<bool>()) {
         dc_math::p4_offset(master, delay, local, bits64);
@@ -101,6 +107,7 @@ proptest! {
     #![proptest_config(cfg(300))]
 
     /// P3 on generated trees (lines, forks, crosses, any entry port, non-DC ESCs, 32/64-bit).
+    // verifies: P3
     #[test]
     fn p3_tree(seed in any::<u64>(), count in 1usize..=64, shape in 0u8..4, non_dc in 0u64..=30) {
         let shape = [Shape::Line, Shape::Fork, Shape::Cross, Shape::Any][usize::from(shape)];
@@ -170,6 +177,7 @@ proptest! {
     /// The P3 line transcription proved by SMT (`dc_math::p3_line_kernel`) equals
     /// `delay::compute` on 1–3 slave lines: physically generated stamps (any phase, so wraps
     /// inside the latch) and arbitrary stamps (errors must coincide).
+    // verifies: P3
     #[test]
     fn p3_line_kernel_matches_compute(n in 1usize..=3, phase in any::<[u32; 3]>(),
                                       x1 in 0u32..1_000_000, hop in 0u32..1_000_000,

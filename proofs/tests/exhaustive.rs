@@ -36,6 +36,7 @@ fn s16(v: u16) -> i16 {
 }
 
 /// P2, REQ-TIME-003/004: every true time b (one full period plus a wrap) × every |Δ| < 2^(N−1).
+// verifies: P2, REQ-TIME-003
 #[test]
 #[ignore]
 fn p2_wrapping_diff_8_16() {
@@ -63,6 +64,7 @@ fn p2_wrapping_diff_8_16() {
 /// P2, REQ-TIME-005: 8-bit, 2 ports fully (every base, offset pair, mask), 3 ports with every
 /// offset triple and mask for 8 bases, and the no-window form on every third triple; 16-bit,
 /// 4 ports with boundary offsets over every base.
+// verifies: P2, REQ-TIME-005
 #[test]
 #[ignore]
 fn p2_earliest_8_16() {
@@ -126,6 +128,7 @@ fn p2_earliest_8_16() {
 
 /// REQ-TIME-006: 8-bit all (low, ref, k); 16-bit every ref × every low byte at k = 8, and every
 /// (low, ref) pair sampled at every k.
+// verifies: REQ-TIME-006
 #[test]
 #[ignore]
 fn extend_near_8_16() {
@@ -157,6 +160,7 @@ fn extend_near_8_16() {
 }
 
 /// P2, REQ-TIME-007/008: 8-bit every (x, p); 16-bit every x × boundary-rich periods.
+// verifies: P2, REQ-TIME-007
 #[test]
 #[ignore]
 fn p2_fold_phase_8_16() {
@@ -179,6 +183,7 @@ fn p2_fold_phase_8_16() {
 }
 
 /// REQ-TIME-009/010: 8-bit every (x, lo, hi) and (a, b); 16-bit every x × boundary sets.
+// verifies: REQ-TIME-009
 #[test]
 #[ignore]
 fn clamp_saturate_8_16() {
@@ -209,6 +214,7 @@ fn clamp_saturate_8_16() {
 }
 
 /// REQ-TIME-011/012: every value at 8 and 16 bits (encode, decode, both round trips).
+// verifies: REQ-TIME-011
 #[test]
 #[ignore]
 fn half_sign_magnitude_8_16() {

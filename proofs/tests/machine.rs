@@ -1,6 +1,8 @@
 //! Property test for REQ-PROP P6 (`ecdc_proofs::machine::run_script`): random scripts of
 //! replies, garbage, loss, reordering and commands never make the DC machine panic, break
 //! index matching, step 0x0920 of a running slave or write a wrong register width.
+//!
+//! verifies: P6
 
 use ecdc_proofs::machine::{run_script, Outcome};
 use proptest::prelude::*;
@@ -26,6 +28,7 @@ fn script() -> impl Strategy<Value = Vec<u8>> {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
     /// P6 on random scripts.
+    // verifies: P6
     #[test]
     fn machine_script_holds(s in script()) {
         let r = run_script(&s);
@@ -34,6 +37,7 @@ proptest! {
 }
 
 /// P6 on fully arbitrary bytes (no structure at all).
+// verifies: P6
 #[test]
 fn machine_script_arbitrary_bytes() {
     let mut x: u64 = 0x1234_5678_9ABC_DEF0;

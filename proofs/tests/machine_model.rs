@@ -15,6 +15,8 @@
 //! index-matching properties on every step). After every input the machine's state, its lock
 //! and the kinds of the events it emitted must equal the model's, and every datagram it sent
 //! must be one the model allows in the state it was sent in.
+//!
+//! verifies: P6, REQ-DC-030, REQ-DC-031, REQ-DC-032, REQ-DC-033, REQ-DC-034, REQ-DC-035, REQ-DC-036, REQ-DC-100, REQ-DC-104, REQ-DC-106, REQ-DC-110, REQ-DC-111, REQ-DC-113
 
 use ecdc_core::dc::{Error, Event, State};
 use ecdc_core::wire::EthernetFrame;

@@ -24,6 +24,8 @@
 //! enumerated exhaustively. The model line has no clocks, so a reset slave's clock jump is
 //! covered by the harness end-to-end tests on the ESC emulator, not here.
 //! `#[ignore]`d: run by `.ci/layers/30-model-check.sh` in release mode.
+//!
+//! verifies: P6, REQ-DC-103, REQ-DC-113
 
 use ecdc_proofs::machine::{run_script, Outcome};
 use std::time::Instant;
@@ -107,6 +109,7 @@ fn check(header: &[u8; 5], faults: &[(usize, usize)], t: &mut Tally) {
 }
 
 /// Every header × every placement of ≤ 2 faults (11 kinds) in the first R rounds.
+// verifies: P6
 #[test]
 #[ignore]
 fn p6_all_placements_of_two_faults() {
@@ -139,6 +142,7 @@ fn p6_all_placements_of_two_faults() {
 /// (The all-INIT header, 1.5 M more runs, was dropped to keep the layer within a few minutes:
 /// the explicit-state search in `model_check_bfs.rs` covers multi-fault interleavings from every
 /// bring-up state of an all-INIT line.)
+// verifies: P6
 #[test]
 #[ignore]
 fn p6_all_placements_of_three_faults() {
@@ -191,6 +195,7 @@ const D: u32 = 5;
 
 /// Every sequence of `D` actions (14^5 = 537 824) after 0, 8, 16 and 20 nominal rounds (start,
 /// offsets/drift phase, SYNC set-up, cyclic), for all-INIT and mixed-AL lines of 4 slaves.
+// verifies: P6
 #[test]
 #[ignore]
 fn p6_all_interleavings_after_bringup_prefixes() {

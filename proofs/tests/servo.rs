@@ -1,6 +1,8 @@
 //! Servo property tests (P5 and REQ-SERVO-*): proptest drivers for the bodies in
 //! `ecdc_proofs::servo`, model tests of `ecdc_core::servo` against `ecdc_spec::servo`, and
 //! closed-loop simulations of the master-follows-reference loop on a drifting, jittery master.
+//!
+//! verifies: P5
 
 use ecdc_core::servo::filter::OffsetFilter;
 use ecdc_core::servo::gains::{PiGains, Pole, ONE};
@@ -38,6 +40,7 @@ proptest! {
 
     /// P5 / REQ-SERVO-012, REQ-SERVO-013: one-step inductive bound and equality with the i128
     /// rule of the law (REQ-SERVO-010); no intermediate overflows (checked arithmetic).
+    // verifies: P5, REQ-SERVO-010, REQ-SERVO-012, REQ-SERVO-013
     #[test]
     fn pi_step_bounded_and_exact(kp in q32(), ki in q32(), y in 1i64..=(1 << 60), frac in 0.0f64..=1.0,
                                  i in any::<i64>(), th in theta()) {
@@ -49,12 +52,14 @@ proptest! {
     }
 
     /// REQ-SERVO-002: accepted gains are stable.
+    // verifies: REQ-SERVO-002
     #[test]
     fn gains_sound(kp in q32(), ki in q32()) {
         p::prop_gains_sound(kp, ki);
     }
 
     /// REQ-SERVO-001: pole placement lands the poles where asked (largest root = max pole).
+    // verifies: REQ-SERVO-001
     #[test]
     fn poles_placed(a in 0u32..=u32::MAX - (1 << 24), b in 0u32..=u32::MAX - (1 << 24)) {
         if let Ok(g) = PiGains::from_poles(Pole::from_q32(a), Pole::from_q32(b)) {
@@ -65,6 +70,7 @@ proptest! {
     }
 
     /// P5 / REQ-SERVO-031: filter one-step bound and hull property.
+    // verifies: P5, REQ-SERVO-031
     #[test]
     fn filter_step(u in any::<i64>(), y in any::<i64>(), x in theta()) {
         let m = 1i64 << 61;
@@ -72,6 +78,7 @@ proptest! {
     }
 
     /// REQ-SERVO-030: the fixed-point cascade tracks the direct-form eq. 9 within 1 ns.
+    // verifies: REQ-SERVO-030
     #[test]
     fn filter_matches_direct_form(xs in proptest::collection::vec(-1_000_000i64..1_000_000, 1..200)) {
         let mut f = OffsetFilter::new();
@@ -83,12 +90,14 @@ proptest! {
     }
 
     /// P5 / REQ-SERVO-040: nothing lost by the carry.
+    // verifies: P5, REQ-SERVO-040
     #[test]
     fn carry_exact(r in any::<i64>(), x in theta()) {
         p::prop_carry_exact(r, x);
     }
 
     /// REQ-SERVO-041: counter compensation has the exact long-run rate.
+    // verifies: REQ-SERVO-041
     #[test]
     fn counter_long_run(hz in 1u64..200_000_000, npll in 1u32..64,
                         ds in proptest::collection::vec(prop_oneof![-100_000i64..100_000, any::<i64>()], 0..300)) {
@@ -96,6 +105,7 @@ proptest! {
     }
 
     /// REQ-SERVO-060: lock hysteresis.
+    // verifies: REQ-SERVO-060
     #[test]
     fn lock_hysteresis(low in 0u64..500, extra in 0u64..500, count in 0u16..20,
                        ths in proptest::collection::vec(-1000i64..1000, 0..300)) {
@@ -103,6 +113,7 @@ proptest! {
     }
 
     /// P5 through the engine: arbitrary sample/loss/time/error sequences.
+    // verifies: P5, REQ-SERVO-080, REQ-SERVO-081, REQ-SERVO-090
     #[test]
     fn engine_bounded(ins in proptest::collection::vec((any::<bool>(), 0u64..50_000_000, theta()), 0..400),
                       monotone in any::<bool>(), step_ns in prop_oneof![Just(0u64), 1u64..1_000_000],
@@ -125,6 +136,7 @@ proptest! {
     /// P5 / REQ-SERVO-101, REQ-SERVO-102 through the master adapter, 32- and 64-bit references:
     /// θ = fold(raw, P) with raw = (app − ref) − target wrap-safe in the reference's width
     /// (REQ-SERVO-100, sign measured − target: REQ-CONV-007), app steps whole periods.
+    // verifies: P5, REQ-CONV-007, REQ-SERVO-100, REQ-SERVO-101, REQ-SERVO-102
     #[test]
     fn master_bounded(ins in proptest::collection::vec((any::<bool>(), any::<u64>(), any::<u64>(),
                           prop_oneof![any::<u64>(), Just(1u64 << 63), Just((1u64 << 63) - 1), Just(0u64),
@@ -141,6 +153,7 @@ proptest! {
     }
 
     /// REQ-SERVO-020, REQ-SERVO-021: 1588 offset and delay equal the i128 definitions (no wrap).
+    // verifies: REQ-SERVO-020, REQ-SERVO-021
     #[test]
     fn ptp_offset_delay(t1 in any::<u64>(), d_ms in -(1i64 << 40)..(1 << 40), gap in 0i64..(1 << 40), d_sm in -(1i64 << 40)..(1 << 40)) {
         let t2 = t1.wrapping_add_signed(d_ms);
@@ -160,6 +173,7 @@ proptest! {
     }
 
     /// REQ-SERVO-022: eq. 6 rate ratio within 1 ppb of the f64 definition.
+    // verifies: REQ-SERVO-022
     #[test]
     fn ptp_rate_ratio(m0 in any::<u64>(), dm in 1_000_000u64..10_000_000_000, ppb in -1_000_000i64..1_000_000) {
         let ds = (dm as i128 * (1_000_000_000 + ppb as i128) / 1_000_000_000) as u64;
@@ -233,6 +247,7 @@ fn simulate(
 /// within 1000 cycles (a sub-period offset is slewed at ≤ P/1000 per cycle: up to 500 µs takes
 /// ~560 cycles against 100 ppm) and then holds |θ| ≤ 1 ns (type-2 loop: zero error to a constant
 /// drift). The wake-up is never stepped: only whole periods of app time are.
+// verifies: REQ-SERVO-104
 #[test]
 fn master_loop_converges_noise_free() {
     for &(ppb, init) in &[
@@ -273,6 +288,7 @@ proptest! {
 
 /// Outliers (REQ-SERVO-050): a heavy-tailed burst (every 50th sample +200 µs) is rejected in
 /// tracking and the loop stays locked; the learned drift is not dragged.
+// verifies: REQ-SERVO-050
 #[test]
 fn master_gate_rejects_outliers() {
     let p = 1_000_000i128;
@@ -313,6 +329,7 @@ fn master_gate_rejects_outliers() {
 
 /// Holdover: 50 lost FRMWs in a row keep the learned rate, so the error grows by far less than
 /// the raw drift would (60 ppm·50 ms = 3 µs).
+// verifies: REQ-SERVO-071, REQ-SERVO-103
 #[test]
 fn master_holdover_keeps_rate() {
     let p = 1_000_000i128;
@@ -357,6 +374,7 @@ fn master_holdover_keeps_rate() {
 }
 
 /// REQ-SERVO-002 refusal examples (the linuxptp corner) and acceptance of the defaults.
+// verifies: REQ-SERVO-002
 #[test]
 fn stability_region_refusal() {
     assert!(PiGains::from_q32(ONE, 2 * ONE).is_err());
@@ -388,6 +406,7 @@ fn kani_harnesses_under_shim() {
 
 /// Prints the loop's numbers for the report (`cargo test -p ecdc-proofs --test servo
 /// master_loop_numbers -- --nocapture`); asserts only what the other tests already bound.
+// verifies: REQ-SERVO-085
 #[test]
 fn master_loop_numbers() {
     for &(ppb, jitter) in &[
@@ -485,6 +504,7 @@ fn counter_run(
 /// and a phase error below one fine count (its phase/periods column is a bounded phase over n, not
 /// a bias: it shrinks as 1/n). Prints the table of docs/seed004.md
 /// (`cargo test -p ecdc-proofs --release --test servo counter_seed_vs_carry -- --nocapture`).
+// verifies: REQ-SERVO-041
 #[test]
 fn counter_seed_vs_carry() {
     use ecdc_core::servo::counter::CounterCompensator;

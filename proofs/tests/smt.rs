@@ -19,6 +19,7 @@ fn check(name: &str, goal: props::Goal) {
 }
 
 /// P2, REQ-TIME-003, REQ-TIME-004.
+// verifies: P2, REQ-TIME-003, REQ-TIME-004
 #[test]
 fn p2_wrapping_diff_32() {
     check(
@@ -27,6 +28,7 @@ fn p2_wrapping_diff_32() {
     );
 }
 /// P2, REQ-TIME-003, REQ-TIME-004; 64-bit system time wrapping modulo 2^64 (REQ-CONV-002).
+// verifies: P2, REQ-CONV-002, REQ-TIME-003, REQ-TIME-004
 #[test]
 fn p2_wrapping_diff_64() {
     check(
@@ -35,12 +37,14 @@ fn p2_wrapping_diff_64() {
     );
 }
 /// P2, REQ-TIME-005: four ports (an ESC's maximum), any mask.
+// verifies: P2, REQ-TIME-005
 #[test]
 fn p2_earliest_32() {
     check("earliest of 4 @32", props::earliest_true_min::<32, 4>());
 }
 /// REQ-TIME-005 at 64 bits: 3 ports with the times as free leaves (`earliest_leaves`; the
 /// base + offset form does not finish in minutes at 64 bits), and 2 ports in the offset form.
+// verifies: REQ-TIME-005
 #[test]
 fn p2_earliest_64() {
     check(
@@ -51,6 +55,7 @@ fn p2_earliest_64() {
 }
 /// REQ-TIME-005 at 64 bits with 4 ports: proved in 143–241 s here under load, so kept out of CI
 /// (`cargo test -p ecdc-proofs --release --features smt --test smt -- --ignored`).
+// verifies: REQ-TIME-005
 #[test]
 #[ignore]
 fn p2_earliest_64_four_ports() {
@@ -60,6 +65,7 @@ fn p2_earliest_64_four_ports() {
     );
 }
 /// REQ-TIME-006: widening 32 → 64 (the shipped use) and every k at 32 bits.
+// verifies: REQ-TIME-006
 #[test]
 fn extend_near_all_k() {
     check("extend_near k=32 @64", props::extend_near::<64>(32));
@@ -72,6 +78,7 @@ fn extend_near_all_k() {
 }
 /// P2, REQ-TIME-008 at 32 and 64 bits with the divider abstracted (only m < p and "u − m is a
 /// multiple of p" assumed of `urem`; everything else is the kernel's code).
+// verifies: P2, REQ-TIME-008
 #[test]
 fn p2_fold_32_64() {
     check("fold (urem abstracted) @32", props::fold::<32>());
@@ -79,11 +86,13 @@ fn p2_fold_32_64() {
 }
 /// P2, REQ-TIME-008 with the divider bit-blasted at 8 bits: cross-checks the abstraction
 /// above on a width where z3 can also reason about the real divider (12 bits: > 60 s).
+// verifies: P2, REQ-TIME-008
 #[test]
 fn p2_fold_bitblasted_8() {
     check("fold (bit-blasted) @8", props::fold_bitblasted::<8>());
 }
 /// REQ-TIME-009.
+// verifies: REQ-TIME-009
 #[test]
 fn clamp_32_64() {
     check("clamp @32", props::clamp::<32>());
@@ -92,24 +101,28 @@ fn clamp_32_64() {
     check("clamp_magnitude @64", props::clamp_magnitude::<64>());
 }
 /// REQ-TIME-010.
+// verifies: REQ-TIME-010
 #[test]
 fn saturating_32_64() {
     check("saturating add/sub @32", props::saturating::<32>());
     check("saturating add/sub @64", props::saturating::<64>());
 }
 /// REQ-DC-014 overflow checks of the delay step: signed overflow flags at 32 and 64 bits.
+// verifies: REQ-DC-014
 #[test]
 fn overflowing_32_64() {
     check("overflowing add/sub @32", props::overflowing::<32>());
     check("overflowing add/sub @64", props::overflowing::<64>());
 }
 /// REQ-TIME-011.
+// verifies: REQ-TIME-011
 #[test]
 fn half_32_64() {
     check("half_toward_zero @32", props::half::<32>());
     check("half_toward_zero @64", props::half::<64>());
 }
 /// REQ-TIME-012 (0x092C encoding; bit 31 set ⇔ Δt < 0, REQ-CONV-006).
+// verifies: REQ-CONV-006, REQ-TIME-012
 #[test]
 fn sign_magnitude_32_64() {
     check("sign-magnitude @32", props::sign_magnitude::<32>());
@@ -223,6 +236,7 @@ fn wrapper_matches_machine_words() {
 
 /// The kernels themselves, run on z3 constants and simplified, agree with the `u32`/`u64`
 /// instances on boundary and pseudo-random inputs (a second faithfulness check, at kernel level).
+// verifies: P3, P5
 #[test]
 fn kernels_agree_on_constants() {
     fn v32(s: Sym<32>) -> u32 {
@@ -396,6 +410,7 @@ fn kernels_agree_on_constants() {
 
 /// P4, REQ-DC-021..024 (REQ-DC-022, REQ-DC-023, REQ-DC-024): the offset kernels
 /// `core/src/dc/offset.rs` calls, at full width; local + offset ≡ system time (REQ-CONV-004).
+// verifies: P4, REQ-CONV-004, REQ-DC-021, REQ-DC-022, REQ-DC-023, REQ-DC-024
 #[test]
 fn p4_offset_arithmetic() {
     check("offset_to @32", props::offset_to::<32>());
@@ -412,6 +427,7 @@ fn p4_offset_arithmetic() {
 /// P5, REQ-SERVO-011..013: one-step inductive bound at 64 bits of the shipped PI update
 /// `ecdc_core::servo::pi::pi_update` (what `pi_step` runs after its two products; the products
 /// are free values within their ranges, checked by `prop_pi_intermediates_fit` in tests/servo.rs).
+// verifies: P5, REQ-SERVO-011, REQ-SERVO-012, REQ-SERVO-013
 #[test]
 fn p5_pi_update_bounded() {
     check("pi_update bound @64", props::pi_update_bounded());
@@ -420,6 +436,7 @@ fn p5_pi_update_bounded() {
 /// P3, REQ-DC-014, REQ-DC-016, REQ-DC-020: the delay formula on a 3-slave line at 64 bits, any
 /// clock phases; hop arithmetic = the shipped `delay::twice_delay_step`, the line glue around it
 /// is checked against `delay::compute` in tests/dc_math.rs.
+// verifies: P3, REQ-DC-014, REQ-DC-016, REQ-DC-020
 #[test]
 fn p3_line_delay_formula() {
     check("p3 line kernel, 3 slaves @64", props::p3_line_kernel());

@@ -43,6 +43,7 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
 
     /// P2, REQ-TIME-003/004 at 32 and 64 bits.
+    // verifies: P2, REQ-TIME-003
     #[test]
     fn p2_wrapping_diff(tb in u64s(), d32 in i32s(), a in u64s(), b in u64s()) {
         p::prop_wrapping_diff_true::<u32>(i128::from(tb), i128::from(d32));
@@ -52,6 +53,7 @@ proptest! {
     }
 
     /// P2, REQ-TIME-005 at 32 bits with 4 ports.
+    // verifies: P2, REQ-TIME-005
     #[test]
     fn p2_earliest(base in u32s(), o in proptest::array::uniform4(0u32..0x8000_0000), m in any::<[bool; 4]>(), t in proptest::array::uniform4(u32s())) {
         p::prop_earliest_true_min::<u32, 4>(base, o, m);
@@ -59,6 +61,7 @@ proptest! {
     }
 
     /// P2, REQ-TIME-007/008 at 32 and 64 bits (64-bit division: here and at reduced width).
+    // verifies: P2, REQ-TIME-007
     #[test]
     fn p2_fold_phase(x in i64s(), per in u64s(), x32 in i32s(), p32 in u32s()) {
         p::prop_fold::<u64>(x, per);
@@ -68,6 +71,7 @@ proptest! {
     }
 
     /// REQ-TIME-006/009..013 at 64 bits.
+    // verifies: REQ-TIME-006
     #[test]
     fn other_kernels(x in i64s(), y in i64s(), z in i64s(), m in u64s(), low in u32s(), r in u64s()) {
         p::prop_extend_near::<u64>(u64::from(low), r, 32);
@@ -82,6 +86,7 @@ proptest! {
 
     /// REQ-TIME-003/004/006/013 through the typed API: SystemTime and PortTime agree with the
     /// kernels and with i128 arithmetic.
+    // verifies: REQ-TIME-003
     #[test]
     fn typed_api(t in u64s(), step in i64s(), low in u32s(), a in u32s(), b in u32s()) {
         let s = SystemTime(t);
@@ -97,6 +102,7 @@ proptest! {
     }
 
     /// REQ-TIME-005 typed: entry port across a wrap, given the port times span < 2^31.
+    // verifies: REQ-TIME-005
     #[test]
     fn typed_earliest(base in u32s(), o in proptest::array::uniform4(0u32..0x8000_0000), m in any::<[bool; 4]>()) {
         let ports: Vec<Option<PortTime>> = (0..4).map(|i| m[i].then(|| PortTime(base.wrapping_add(o[i])))).collect();
@@ -106,6 +112,7 @@ proptest! {
 
     /// REQ-TIME-014: the calendar text parses back (with the forward days-from-civil formula,
     /// an independent computation) to exactly the same nanosecond count, for any u64.
+    // verifies: REQ-TIME-014
     #[test]
     fn typed_display_round_trips(t in u64s()) {
         let text = SystemTime(t).to_string();
@@ -113,6 +120,7 @@ proptest! {
     }
 
     /// REQ-TIME-007: cycle alignment yields a multiple at or after t (when no 2^64 wrap).
+    // verifies: REQ-TIME-007
     #[test]
     fn typed_phase(t in 0u64..(1u64 << 62), cycle in 1u64..10_000_000_000) {
         let s = SystemTime(t);

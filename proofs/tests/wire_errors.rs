@@ -2,6 +2,8 @@
 //! working counters (spec/req/wire.md): REQ-WIRE-002, REQ-WIRE-011, REQ-WIRE-012,
 //! REQ-WIRE-014, REQ-WIRE-032, REQ-WIRE-051. Frames are built by hand (not with our builder)
 //! and checked on both sides of each limit; the command tables are written out independently.
+//!
+//! verifies: REQ-WIRE-002, REQ-WIRE-011, REQ-WIRE-012, REQ-WIRE-014, REQ-WIRE-032, REQ-WIRE-051
 
 use ecdc_core::wire::Address;
 use ecdc_core::wire::{Command, Error, EthernetFrame, FrameBuilder};
@@ -46,6 +48,7 @@ fn parse(bytes: &[u8]) -> Result<usize, Error> {
 }
 
 /// REQ-WIRE-011: a datagram of 1486 data bytes is fine, 1487 is `DatagramTooLong`.
+// verifies: REQ-WIRE-011
 #[test]
 fn datagram_length_limit() {
     let ok = datagram(1486);
@@ -59,6 +62,7 @@ fn datagram_length_limit() {
 
 /// REQ-WIRE-012: a header length of 1498 (one maximal datagram) parses; 1499 is `FrameTooLong`
 /// with the header length, whatever the buffer holds.
+// verifies: REQ-WIRE-012
 #[test]
 fn frame_length_limit() {
     let ok = datagram(1486);
@@ -73,6 +77,7 @@ fn frame_length_limit() {
 }
 
 /// REQ-WIRE-014: every type other than 1 is `NotDlpdu` with that type, never interpreted.
+// verifies: REQ-WIRE-014
 #[test]
 fn frame_type_other_than_dlpdu() {
     let d = datagram(2);
@@ -93,6 +98,7 @@ fn frame_type_other_than_dlpdu() {
 }
 
 /// REQ-WIRE-002: one 802.1Q tag is skipped and its TCI exposed; two tags are not EtherCAT.
+// verifies: REQ-WIRE-002
 #[test]
 fn vlan_tag() {
     let mut buf = [0u8; 128];
@@ -124,6 +130,7 @@ fn vlan_tag() {
 
 /// REQ-WIRE-032: exactly the position-addressed (APRD, APWR, APRW, ARMW) and broadcast (BRD,
 /// BWR, BRW) commands have their ADP incremented by every ESC; configured, logical and NOP not.
+// verifies: REQ-WIRE-032
 #[test]
 fn adp_increment_by_command() {
     use Command::*;
@@ -134,6 +141,7 @@ fn adp_increment_by_command() {
 }
 
 /// REQ-WIRE-051: expected working counters for n fully participating slaves, saturating.
+// verifies: REQ-WIRE-051
 #[test]
 fn expected_wkc_table() {
     use Command::*;

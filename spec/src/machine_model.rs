@@ -388,6 +388,7 @@ mod tests {
 
     /// REQ-DC-127, 128: lost cycles in `Cyclic` start a hold-over, not a restart; the next
     /// complete cycle ends it and the lock is back.
+    // verifies: REQ-DC-127
     #[test]
     fn silence_in_cyclic_holds_over() {
         let cfg = ModelConfig {

@@ -18,6 +18,7 @@
 //! true time during the latch); the delay formulas assume equal rates, so tests with non-zero
 //! rates measure that error (100 ppm over a 100 µs round trip is 10 ns). Not modelled:
 //! asymmetric cables, PHY jitter.
+// implements: REQ-DC-060
 
 use crate::esc_dc::{hop_is_processing, next_port};
 use crate::register::wrap;

@@ -12,6 +12,8 @@
 //!   than `3g` per DC hop: |error| ≤ 1.5·g·hops + 0.5 (rounding). The measured maximum is printed.
 //! - `t_Diff` unknown (0): each ESC's `t_Diff` enters at most twice with factor ½, so
 //!   |error| ≤ Σ|t_Diff| over the ESCs on the path + 0.5.
+//!
+//! verifies: REQ-DC-014, REQ-DC-060, REQ-DC-061
 
 use ecdc_core::dc::delay::{self, DelayError};
 use ecdc_core::dc::offset::{self, ClockWidth};
@@ -185,6 +187,7 @@ proptest! {
 
     /// REQ-DC-012..018, 021..023, 061: exact stamps and true t_Diff give exact delays, the exact
     /// tree and exact offsets, on every shape, with non-DC ESCs and 32/64-bit mixes.
+    // verifies: REQ-DC-012, REQ-DC-013, REQ-DC-014, REQ-DC-015, REQ-DC-016, REQ-DC-017, REQ-DC-018
     #[test]
     fn exact_model_agreement(
         seed in any::<u64>(),
@@ -199,6 +202,7 @@ proptest! {
     }
 
     /// REQ-DC-015: with t_Diff unknown the error stays within Σ|t_Diff| on the path.
+    // verifies: REQ-DC-015
     #[test]
     fn unknown_t_diff_bounded(seed in any::<u64>(), count in 1usize..=64, shape in any::<u8>()) {
         let net = generate(&mut SplitMix::new(seed), &params(count, shape_of(shape), 15, 30));
@@ -207,6 +211,7 @@ proptest! {
 
     /// REQ-DC-020: on a line with one common t_Diff the result equals seed 000 eq. 23 (derived
     /// form) computed over i128 from the same stamps, and the model.
+    // verifies: REQ-DC-020
     #[test]
     fn lines_equal_seed000_eq23(seed in any::<u64>(), count in 1usize..=64, d in -80i128..=400) {
         let p = GenParams { t_diff: (d, d), ..params(count, Shape::Line, 0, 30) };
@@ -242,6 +247,7 @@ proptest! {
 
 /// REQ-DC-061: stamps quantised to 10 ns (a real ESC's tick). Deterministic seeds so the printed
 /// worst case is reproducible (`cargo test -p ecdc-spec --test dc_model -- --nocapture`).
+// verifies: REQ-DC-061
 #[test]
 fn quantised_stamps_within_bound() {
     let mut worst = Worst::default();
@@ -270,6 +276,7 @@ fn quantised_stamps_within_bound() {
 
 /// REQ-DC-019: averaging K latch rounds (clock phases move between rounds) shrinks the
 /// quantisation error: mean |error| over many slaves with K = 16 is well below K = 1.
+// verifies: REQ-DC-019
 #[test]
 fn averaging_reduces_quantisation_error() {
     let mut rng = SplitMix::new(0xA7E5);
@@ -327,6 +334,7 @@ fn esc(parent: Option<(usize, u8)>, dc: Dc, phase: u64) -> Esc {
 
 /// REQ-DC-017: a non-DC junction between DC slaves is a typed error, not a wrong delay; a
 /// non-DC junction whose branches hold no DC slave is fine.
+// verifies: REQ-DC-017
 #[test]
 fn non_dc_junction() {
     // DC0 - nonDC1 (ports 0,1,2) - DC2 on port 1, DC3 on port 2
@@ -358,6 +366,7 @@ fn non_dc_junction() {
 }
 
 /// REQ-DC-013/016: every clock wraps inside the latch frame (low 32 bits just below 2^32).
+// verifies: REQ-DC-013
 #[test]
 fn every_clock_wraps_during_latch() {
     let mut escs = vec![esc(None, Dc::Bits64, 0xFFFF_FFFF_FFFF_FF00)];
@@ -376,6 +385,7 @@ fn every_clock_wraps_during_latch() {
 /// violate the formulas' equal-rate assumption. Measured here, bounded loosely: every stamp
 /// difference used is at most the whole latch round trip R and is off by ≤ |rate|·R + 1 ns, a
 /// hop uses four of them with total weight 4 in 2·D, so |error| ≤ hops·(2·|rate|·R + 2) ns.
+// verifies: REQ-DC-060
 #[test]
 fn rate_error_during_latch_measured() {
     let mut rng = SplitMix::new(0x0100_0000);
@@ -417,6 +427,7 @@ fn rate_error_during_latch_measured() {
 /// REQ-DC-013 limitation, measured: a non-DC ESC wired upstream on port 1 (not port 0) cannot be
 /// recognised (no latches), so core assumes port 0 and swaps its processing and forwarding hops;
 /// the slaves behind it are off by exactly that ESC's t_Diff (here 150 ns) — nothing else.
+// verifies: REQ-DC-013
 #[test]
 fn non_dc_wired_backwards_costs_its_t_diff() {
     let mut mid = esc(Some((0, 1)), Dc::None, 0);

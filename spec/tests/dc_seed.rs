@@ -1,6 +1,8 @@
 //! The seed formulas (spec::seed000, spec::seed003, spec::esc_dc) and the register contract
 //! (spec::register) checked against the network model, and the seed errata demonstrated
 //! (REQ-DC-014, 020, 025, 090).
+//!
+//! verifies: REQ-DC-014
 
 use ecdc_core::dc::{delay, offset, topology::Topology};
 use ecdc_core::time::SystemTime;
@@ -75,6 +77,7 @@ fn seed000_hops_on_model_line() {
 
 /// REQ-DC-090 (a): eq. 23 as printed for i = n (`+ i·t_DIFF`) contradicts eq. 22 and the model
 /// whenever t_DIFF ≠ 0; the derived `(n − 2)·t_DIFF` matches. Over many random lines.
+// verifies: REQ-DC-090
 #[test]
 fn seed000_eq23_last_case_erratum() {
     let mut rng = SplitMix::new(23);
@@ -115,6 +118,7 @@ fn seed000_eq23_last_case_erratum() {
 /// with `k` = the number of eq. 13 hops = `n − 2`; eq. 22 is that with n = 4 (`k = 2`). The
 /// printed `k = i = n` matches eq. 22 for no n (`n = n − 2` never holds), and the case
 /// `1 < i < n` keeps the `(i − 1)` eq. 13 hops it has.
+// verifies: REQ-DC-090
 #[test]
 fn seed000_eq23_derived_from_eq22() {
     let mut rng = SplitMix::new(22);
@@ -158,6 +162,7 @@ fn seed000_eq23_derived_from_eq22() {
 
 /// REQ-DC-090 (b), REQ-DC-025: the printed eq. 24 sign leaves a drift of 2·(local − ref) in
 /// eq. 25; the datasheet sign (used by ecdc) gives zero. Seed 003 eq. 5/6 agree with the latter.
+// verifies: REQ-DC-025, REQ-DC-090
 #[test]
 fn seed000_eq24_sign_erratum_and_drift() {
     let (local, sys_ref, delay) = (5_000_000i128, 1_234_567i128, 0i128);
@@ -235,6 +240,7 @@ fn datasheet_tree_formulas() {
 /// Register contract (REQ-DC-021, REQ-DC-040): after core's offsets and delays, an ECAT read of
 /// 0x0910 at any slave returns the reference's system time at the instant the frame passed the
 /// reference, and the drift loop input is zero; widths are 8/4 bytes.
+// verifies: REQ-DC-021, REQ-DC-040
 #[test]
 fn register_contract_after_offsets() {
     let mut rng = SplitMix::new(910);

@@ -5,6 +5,8 @@
 //! is a forwarding hop (always so for an ESC entered at port 0) and exactly 0 otherwise; and
 //! the delay formula uses the t_Diff of both the first slave and the line end, so those must
 //! come from somewhere even though they cannot be measured this way.
+//!
+//! verifies: REQ-DC-121, REQ-DC-122
 
 use ecdc_core::dc::delay;
 use ecdc_core::dc::topology::Topology;

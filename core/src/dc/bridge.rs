@@ -289,6 +289,7 @@ mod tests {
     /// entry instant slave 0's system time is M, and slave 1's is M + its delay when the frame
     /// reaches it. The old bridge used 0x0918 directly (slave 0 then `x` ns behind) or, for
     /// `x` > 1 µs, rejected the plausible EPU time.
+    // verifies: REQ-DC-013, REQ-DC-021, REQ-DC-022
     #[test]
     fn offset_uses_entry_port_not_epu_when_entered_on_port_3() {
         for x in [800u32, 1_210, 250_000] {
@@ -318,6 +319,7 @@ mod tests {
 
     /// REQ-DC-112: with entry on port 3 the EPU time is checked against port 0's stamp (where
     /// the EPU sits), not the entry port's; a 0x0918 far from it is rejected, no offset derived.
+    // verifies: REQ-DC-112
     #[test]
     fn garbage_epu_rejected_when_entered_on_port_3() {
         let mut m = pair(open(0) | closed(1) | closed(2) | open(3));
@@ -339,6 +341,7 @@ mod tests {
     /// REQ-DC-019: K rounds are averaged from their exact doubled sums, rounded once. Round
     /// trips 1209, 1209, 1208, 1208 ns give 604.25 ns → 604; rounding each round first
     /// (605, 605, 604, 604) and averaging those gives 605.
+    // verifies: REQ-DC-019
     #[test]
     fn rounds_averaged_exactly() {
         let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
@@ -362,6 +365,7 @@ mod tests {
 
     /// REQ-DC-050, REQ-DC-105: a start that would lie 2^31 ns or more ahead of the reference's
     /// time is refused (the caller turns it into `OutOfRange`), never written.
+    // verifies: REQ-DC-050, REQ-DC-105
     #[test]
     fn sync_start_outside_window_refused() {
         let m = Machine::<4>::new(Config::default()).unwrap();

@@ -9,6 +9,8 @@
 //! Oracle tests compare each path with the general one (`cyclic.rs` tests).
 
 use crate::dc::cyclic::{diff_reply, rr_after};
+use crate::dc::error::Error;
+use crate::dc::event::Event;
 use crate::dc::machine::{index_after, Machine};
 use crate::dc::request::{Op, Payload, Pending, Tag};
 use crate::wire::register::reg;
@@ -199,8 +201,15 @@ impl<const N: usize> Machine<N> {
         self.cyc.rr = new_rr;
         self.next_index = next;
         ok &= self.inflight.mark_filled(n);
-        // The sizes above make every write fit; `ok` only documents it.
-        debug_assert!(ok && rest.is_empty(), "cyclic block layout");
+        // Unreachable by construction: `rest` was exactly `total` bytes, the sum of the pieces
+        // written above, and `n` fits the table (checked before `append_block`). Should the
+        // sums ever disagree, the block is already in the frame, so the cycle goes out with
+        // nothing in flight: its replies count as foreign, the cycle is lost the ordinary way,
+        // and the fault is reported instead of a panic (REQ-CONV-008).
+        if !ok || !rest.is_empty() {
+            self.inflight.clear();
+            self.push_event(Event::Error(Error::Internal { state: self.state }));
+        }
         true
     }
 

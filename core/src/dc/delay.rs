@@ -235,6 +235,7 @@ impl<const N: usize> Delays<N> {
     }
 }
 
+// implements: REQ-DC-061
 /// REQ-DC-014..018: computes every latched slave's propagation delay relative to `reference`
 /// (usually the first slave with a system time) from one latch round.
 pub fn compute<const N: usize>(

@@ -132,6 +132,7 @@ impl<const N: usize> Machine<N> {
             }
             State::ProbeSystemTime => {
                 let mut sys = 0u16;
+                // implements: REQ-DC-003
                 let mut reference = None;
                 for pos in self.positions() {
                     if let Some(s) = self.slave(pos) {

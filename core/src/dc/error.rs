@@ -95,6 +95,13 @@ pub enum Error {
         /// What did not match.
         failure: ResumeFailure,
     },
+    /// An internal consistency check of the machine failed in `state` (a transition outside
+    /// [`State::can_go`], or a cyclic block whose layout did not add up). The machine stops
+    /// there instead of panicking (REQ-CONV-008); no input is known to reach it.
+    Internal {
+        /// The state the machine was in when the check failed.
+        state: State,
+    },
 }
 
 impl Error {
@@ -166,6 +173,7 @@ impl core::fmt::Display for Error {
                     write!(f, "resume check: |0x092C| bound {bound_ns} ns")
                 }
             },
+            Error::Internal { state } => write!(f, "internal consistency check failed in {state}"),
         }
     }
 }

@@ -438,9 +438,19 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// Enters `to` with a fresh cursor. Internal transitions always follow [`State::can_go`].
+    /// Enters `to` with a fresh cursor. Internal transitions follow [`State::can_go`]; one that
+    /// does not is a machine bug, reported as [`Error::Internal`] with the machine stopped in
+    /// `Failed` (every state may go to `Failed`, so this cannot recurse) rather than a panic
+    /// (REQ-CONV-008). The model check asserts that no explored run reports it.
     pub(crate) fn enter(&mut self, to: State) {
-        debug_assert!(self.state.can_go(to), "{} -> {}", self.state, to);
+        let to = if self.state.can_go(to) {
+            to
+        } else {
+            self.push_event(Event::Error(Error::Internal { state: self.state }));
+            self.inflight.clear();
+            self.busy = false;
+            State::Failed
+        };
         self.state = to;
         self.cursor = 0;
         self.chunk_start = 0;

@@ -221,6 +221,7 @@ impl PortSet {
 mod tests {
     use super::*;
 
+    // verifies: REQ-DC-010
     #[test]
     fn processing_order_cycle() {
         let mut p = Port::P0;
@@ -235,6 +236,7 @@ mod tests {
         assert_eq!(seen, [0, 3, 1, 2]);
     }
 
+    // verifies: REQ-DC-010
     #[test]
     fn processing_hops() {
         use Port::*;
@@ -253,6 +255,7 @@ mod tests {
         assert!(P3.hop_is_processing(P3));
     }
 
+    // verifies: REQ-DC-011
     #[test]
     fn dl_status_decoding() {
         // Port 0 and 1 open (loop open + communication), 2 and 3 closed.

@@ -179,6 +179,7 @@ impl Activation {
 mod tests {
     use super::*;
 
+    // verifies: REQ-DC-055
     #[test]
     fn start_on_grid_with_shift() {
         let now = SystemTime(1_000_000_123_456);
@@ -205,6 +206,7 @@ mod tests {
         );
     }
 
+    // verifies: REQ-DC-051, REQ-DC-052
     #[test]
     fn one_start_same_instant_for_32_and_64_bit() {
         // SOEM #354: mastertime64 mod cycle != low32(mastertime64) mod cycle; one 64-bit start
@@ -228,6 +230,7 @@ mod tests {
         );
     }
 
+    // verifies: REQ-DC-054
     #[test]
     fn assign_activate_rules() {
         let a = Activation::from_assign_activate(0x0300, 0).unwrap();

@@ -309,6 +309,7 @@ fn latched_ports_give_delays() {
 /// did not change across the trigger, so the frame never came back through it. The port is
 /// treated as closed, slave 1 then has nowhere to hang, and the round is rejected instead of
 /// yielding a delay from a stale time.
+// verifies: REQ-DC-101
 #[test]
 fn stale_latch_is_not_used() {
     let mut m = two_slave_line();
@@ -324,4 +325,23 @@ fn stale_latch_is_not_used() {
         m.accumulate_round(),
         Err(Error::Measurement { station: 0x1002 })
     );
+}
+
+#[test]
+fn transition_outside_can_go_is_a_typed_error() {
+    // verifies: REQ-CONV-008
+    // No input drives the machine there (the model check asserts that no explored run reports
+    // `Error::Internal`); the engine is called directly to reach the guard.
+    let mut m = machine();
+    m.start(SystemTime(T0));
+    assert_eq!(m.state(), State::CountSlaves);
+    assert!(!State::CountSlaves.can_go(State::Cyclic));
+    m.enter(State::Cyclic);
+    assert_eq!(m.state(), State::Failed);
+    assert!(events(&mut m).contains(&Event::Error(Error::Internal {
+        state: State::CountSlaves
+    })));
+    // An allowed transition still goes where it was asked.
+    m.enter(State::CountSlaves);
+    assert_eq!(m.state(), State::CountSlaves);
 }

@@ -516,6 +516,7 @@ mod tests {
         }
     }
 
+    // verifies: REQ-SERVO-070
     #[test]
     fn time_sanity_rejects_backwards_and_bad_intervals() {
         let mut s = Servo::new(cfg()).unwrap();
@@ -531,6 +532,7 @@ mod tests {
         assert_eq!(s.update(sample(16_000, 5)).verdict, Verdict::Accepted);
     }
 
+    // verifies: REQ-SERVO-080, REQ-SERVO-081
     #[test]
     fn first_step_then_blanking_then_confirmed_step() {
         let mut s = Servo::new(cfg()).unwrap();
@@ -556,6 +558,7 @@ mod tests {
         assert_eq!(s.counters().steps, 2);
     }
 
+    // verifies: REQ-SERVO-071, REQ-SERVO-072
     #[test]
     fn holdover_then_reacquire_keeping_frequency() {
         let mut s = Servo::new(cfg()).unwrap().with_integrator(40 << 32);
@@ -575,6 +578,7 @@ mod tests {
         assert_eq!((o.verdict, o.mode), (Verdict::Stepped, Mode::Acquire));
     }
 
+    // verifies: REQ-SERVO-085
     #[test]
     fn gear_shift_and_lock() {
         let mut s = Servo::new(cfg()).unwrap();
@@ -600,6 +604,7 @@ mod tests {
     }
 
     /// REQ-SERVO-086: fault flag raised once per run of stuck saturation, cleared after it.
+    // verifies: REQ-SERVO-086
     #[test]
     fn fault_when_saturated_and_not_shrinking() {
         let mut c = cfg();

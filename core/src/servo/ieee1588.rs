@@ -176,6 +176,7 @@ mod tests {
         assert_eq!(mean_path_delay(&bad), Err(PtpError::NegativeDelay));
     }
 
+    // verifies: REQ-SERVO-023
     #[test]
     fn rate_ratio_eq6() {
         // Slave runs 100 ppm fast: over 1 s of master time it counts 1.0001 s.

@@ -164,10 +164,13 @@ impl MasterServo {
         if !(1000..=PERIOD_MAX_NS).contains(&cfg.period_ns)
             || cfg.servo.interval_ns != cfg.period_ns
             || cfg.target_ns.unsigned_abs() > u64::from(cfg.period_ns)
+            // The folded phase error (at most P/2) must stay within the engine's θ range;
+            // with P <= PERIOD_MAX_NS this always holds, and the check keeps it so if either
+            // bound changes.
+            || i64::from(cfg.period_ns / 2) > THETA_MAX
         {
             return Err(ConfigError::Parameter);
         }
-        debug_assert!(i64::from(cfg.period_ns / 2) <= THETA_MAX);
         Ok(MasterServo {
             period: cfg.period_ns,
             target: cfg.target_ns,
@@ -263,7 +266,7 @@ impl MasterServo {
         (theta, correction, raw.unsigned_abs() >= u128::from(p))
     }
 
-    /// REQ-SERVO-100..105: process one cycle.
+    /// REQ-SERVO-100..104: process one cycle.
     pub fn update(&mut self, input: MasterInput) -> MasterOutput {
         match input {
             MasterInput::Lost => {

@@ -345,6 +345,7 @@ mod tests {
         (lock + 1, worst)
     }
 
+    // verifies: REQ-SERVO-120, REQ-SERVO-121
     #[test]
     fn disciplines_a_drifting_slave() {
         let (off, freq, last, s) = run(PtpServo::new(cfg()).unwrap(), 37_000, 1_000_000, 400);
@@ -386,6 +387,7 @@ mod tests {
     }
 
     /// REQ-SERVO-124: the rate phase measures the crystal with eq. 6 before the loop runs.
+    // verifies: REQ-SERVO-124
     #[test]
     fn rate_before_offset() {
         let mut s = PtpServo::new(PtpConfig {
@@ -445,6 +447,7 @@ mod tests {
     /// baseline (10^9/(n·h₀) ppb, plus 1 for the rounding) of eq. 6's exact ratio, clamped to the
     /// actuator limit; the engine is off for exactly n + 1 exchanges; |freq| ≤ max_ppb
     /// throughout. A refused estimate ends the phase with the frequency unchanged.
+    // verifies: REQ-SERVO-124
     #[test]
     fn rate_phase_grid_and_refusal() {
         let max = i64::from(cfg().max_ppb);

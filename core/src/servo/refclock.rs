@@ -129,6 +129,7 @@ impl RefFollower {
 mod tests {
     use super::*;
 
+    // verifies: REQ-SERVO-110, REQ-SERVO-111, REQ-SERVO-112
     #[test]
     fn schedule_value_and_jump_refusal() {
         let mut r = RefFollower::new(RefFollowConfig {

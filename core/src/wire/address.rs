@@ -143,6 +143,7 @@ mod tests {
 
     /// REQ-WIRE-031: ADP is the low half of the logical address (tshark: ADP 0, ADO 1 shows as
     /// lad 0x00010000).
+    // verifies: REQ-WIRE-031
     #[test]
     fn raw_roundtrip_all_kinds() {
         let raw = 0x0001_0000;

@@ -529,6 +529,7 @@ mod tests {
 
     /// REQ-WIRE-040/041/060: the builder reproduces the hand-written base frame of
     /// docs/background/wire-format.md §2.3 byte for byte (into a 0xa5-filled buffer).
+    // verifies: REQ-WIRE-040
     #[test]
     fn builds_base_frame() {
         let mut buf = [0xa5u8; 100];
@@ -559,6 +560,7 @@ mod tests {
 
     /// REQ-WIRE-040: a push that does not fit changes nothing; capacity is the buffer and
     /// 1498 EtherCAT bytes.
+    // verifies: REQ-WIRE-040
     #[test]
     fn capacity() {
         let mut buf = [0u8; 64];

@@ -237,6 +237,7 @@ mod tests {
     use super::*;
 
     /// REQ-WIRE-017: codes 0..=14 decode to the command with that code, 15..=255 are errors.
+    // verifies: REQ-WIRE-017
     #[test]
     fn every_code() {
         for code in 0..=255u8 {
@@ -254,6 +255,7 @@ mod tests {
     }
 
     /// REQ-WIRE-031: the addressing table, written out independently of `addressing()`.
+    // verifies: REQ-WIRE-031
     #[test]
     fn addressing_table() {
         use Addressing::*;
@@ -274,6 +276,7 @@ mod tests {
     }
 
     /// REQ-WIRE-050/051: WKC rules from ESC datasheet Table 5.
+    // verifies: REQ-WIRE-050
     #[test]
     fn wkc_rules() {
         assert_eq!(Command::Nop.expected_wkc(5), 0);

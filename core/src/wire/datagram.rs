@@ -478,6 +478,7 @@ mod tests {
     ];
 
     /// REQ-WIRE-004: every field read from a hand-written datagram.
+    // verifies: REQ-WIRE-004
     #[test]
     fn deconstruct() {
         let d = Datagram::new_checked(&FRMW[..]).unwrap();
@@ -582,6 +583,7 @@ mod tests {
 
     /// REQ-WIRE-004/013: the len/flags word decodes the same for all 2^16 values, checked
     /// against a formula written independently with shifts.
+    // verifies: REQ-WIRE-004
     #[test]
     fn all_len_flag_words() {
         let mut buf = [0u8; 12 + 2047];

@@ -257,6 +257,7 @@ mod tests {
     }
 
     /// REQ-WIRE-001/002: untagged and single-tagged frames decode alike.
+    // verifies: REQ-WIRE-001
     #[test]
     fn deconstruct() {
         for tagged in [false, true] {
@@ -306,6 +307,7 @@ mod tests {
     }
 
     /// REQ-WIRE-061: the processed bit round trip.
+    // verifies: REQ-WIRE-061
     #[test]
     fn processed_bit() {
         let mut b = frame(false);

@@ -15,6 +15,7 @@
 use super::datagram::field as dfield;
 use super::{get_u16_le, put, Datagram, Error, Result, MAX_DATAGRAM_DATA, MAX_ECAT_PAYLOAD};
 
+// implements: REQ-WIRE-005
 /// Byte layout of the EtherCAT header.
 pub(crate) mod field {
     use core::ops::Range;
@@ -187,6 +188,7 @@ impl<T: AsRef<[u8]>> EcatFrame<T> {
         self.buffer.as_ref().get(self.ecat_len()..).unwrap_or(&[])
     }
 
+    // implements: REQ-WIRE-021, REQ-WIRE-022
     /// Iterates over the datagrams, validating as [`EcatFrame::check_len`] describes. After
     /// the first `Err` the iterator ends. Every yielded view spans exactly one datagram inside
     /// the buffer.
@@ -770,6 +772,7 @@ mod tests {
     }
 
     /// REQ-WIRE-015: the base frame walks to exactly the header length.
+    // verifies: REQ-WIRE-015
     #[test]
     fn deconstruct() {
         let b = base();
@@ -872,6 +875,7 @@ mod tests {
     }
 
     /// REQ-WIRE-010..017: one hand-made corruption per error.
+    // verifies: REQ-WIRE-010, REQ-WIRE-011, REQ-WIRE-012, REQ-WIRE-013, REQ-WIRE-014, REQ-WIRE-015, REQ-WIRE-016, REQ-WIRE-017
     #[test]
     fn negative() {
         assert_eq!(err(&[]), Error::Truncated);
@@ -984,6 +988,7 @@ mod tests {
     }
 
     /// REQ-WIRE-003: the same view works on a UDP payload (no Ethernet header in front).
+    // verifies: REQ-WIRE-003
     #[test]
     fn udp_payload() {
         let b = base();

@@ -1,4 +1,4 @@
-//! ESC registers the DC code touches: addresses, widths, and typed codecs (REQ-WIRE-070..075).
+//! ESC registers the DC code touches: addresses, widths, and typed codecs (REQ-WIRE-070..074).
 //!
 //! Sources: docs/background/esc-registers.md §2 (ESC datasheet Section II tables, Infineon XMC SVD, IgH).
 //! [`reg`] holds plain `u16` addresses; [`typed`] pairs each DC register with its value type,
@@ -449,6 +449,7 @@ mod tests {
     use super::*;
 
     /// REQ-WIRE-073: sign-magnitude, bit 31 = local behind = negative.
+    // verifies: REQ-WIRE-073
     #[test]
     fn system_time_difference() {
         assert_eq!(SystemTimeDifference::from_raw(0x0000_0010).to_ns(), 16);
@@ -492,6 +493,7 @@ mod tests {
     }
 
     /// REQ-WIRE-072: all 2^16 DL status words against bit arithmetic written independently.
+    // verifies: REQ-WIRE-072
     #[test]
     fn dl_status_exhaustive() {
         for w in 0..=u16::MAX {
@@ -515,6 +517,7 @@ mod tests {
 
     /// REQ-WIRE-071: features seen on real devices (KickCAT default 0x01CC: DC, 64-bit,
     /// enhanced sync).
+    // verifies: REQ-WIRE-071
     #[test]
     fn esc_features() {
         let f = EscFeatures::parse(&[0xCC, 0x01]).unwrap();
@@ -526,6 +529,7 @@ mod tests {
     }
 
     /// REQ-WIRE-074: a hand-written 32-byte block.
+    // verifies: REQ-WIRE-074
     #[test]
     fn receive_times() {
         let block: [u8; 32] = [
@@ -546,6 +550,7 @@ mod tests {
         assert_eq!(ReceiveTimes::parse(&block[..31]), Err(Error::Truncated));
     }
 
+    // verifies: REQ-WIRE-070
     #[test]
     fn typed_registers() {
         assert_eq!(typed::SYSTEM_TIME.width(), 8);

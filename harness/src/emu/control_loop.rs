@@ -271,6 +271,7 @@ mod test {
     }
 
     /// REQ-ESC-051: bit 31 set means the local copy is behind (Δt < 0).
+    // verifies: REQ-ESC-051
     #[test]
     fn sign_magnitude() {
         assert_eq!(encode_difference(-5), 0x8000_0005);
@@ -281,6 +282,7 @@ mod test {
     }
 
     /// REQ-ESC-054: D stays within ±(S − 0x7F) however large the error.
+    // verifies: REQ-ESC-054
     #[test]
     fn d_bounded() {
         let mut l = ControlLoop::new(LoopGains::default());
@@ -311,6 +313,7 @@ mod test {
     /// REQ-ESC-055: 0x0932 is the mean (rounded half away from zero) of the last
     /// max(1, 0x0935) D commands. The commands do not depend on the speed filter, so a depth-1
     /// loop fed the same samples shows them one by one.
+    // verifies: REQ-ESC-055
     #[test]
     fn speed_diff_is_mean_of_last_commands() {
         let samples: Vec<i32> = (0..60).map(|k| ((k * 7919) % 4001) - 1500).collect();

@@ -592,6 +592,7 @@ impl Esc {
             }
             cmd::FPRD | cmd::FPWR | cmd::FPRW | cmd::FRMW => {
                 let station = self.regs.get_u16(addr::STATION_ADDRESS);
+                // implements: REQ-ESC-003
                 let alias_on = self.regs.get_u8(addr::DL_CONTROL + 3) & 0x01 != 0;
                 let alias = self.regs.get_u16(addr::STATION_ALIAS);
                 let hit = adp == station || (alias_on && adp == alias);

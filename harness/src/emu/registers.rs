@@ -345,6 +345,7 @@ mod test {
     use super::*;
 
     /// REQ-ESC-014: DC reset values.
+    // verifies: REQ-ESC-014
     #[test]
     fn reset_values() {
         let r = RegisterFile::new(EscKind::Dc64, 4096, 2, 0x11, 100);
