@@ -184,7 +184,6 @@ fn dl_control<const N: usize>(s: &ecdc_harness::sim::Sim<N>, i: usize) -> u16 {
 // verifies: REQ-DC-123
 #[test]
 fn running_slave_stops_the_step() {
-    use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
     let mut sc = Scenario::line(4);
     // Slave 2 was addressed and put into OP by an application before this bring-up.
     sc.slaves[0].repeat = 2;
@@ -198,23 +197,7 @@ fn running_slave_stops_the_step() {
         ..Config::default()
     };
     let mut s = sim::<8>(&sc, cfg);
-    for req in [2u16, 4, 8] {
-        let mut buf = [0u8; 128];
-        let mut b = FrameBuilder::new(&mut buf).unwrap();
-        b.push(
-            Command::Fpwr,
-            0x01,
-            Address::configured(0x2000, 0x0120),
-            &req.to_le_bytes(),
-        )
-        .unwrap();
-        let n = b.finish().unwrap();
-        let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
-        let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
-        let f = eth.ecat_frame().unwrap();
-        let d = f.iter().next().unwrap().unwrap();
-        assert_eq!(d.wkc(), 1);
-    }
+    to_op(&mut s, 0x2000);
     s.drive_until(10_000_000_000, |e| {
         matches!(e, Event::DelaysMeasured { .. })
     })
@@ -390,7 +373,6 @@ fn one_frame_per_round() {
 #[test]
 fn restart_while_running_keeps_the_measured_values() {
     // verifies: REQ-DC-123
-    use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
     use ecdc_harness::emu::Fault;
     let sc = Scenario::line(4);
     let mut s = sim::<8>(&sc, nothing_told());
@@ -406,23 +388,7 @@ fn restart_while_running_keeps_the_measured_values() {
     // The application takes every slave to OP (INIT → PRE-OP → SAFE-OP → OP).
     let stations: Vec<u16> = s.machine.slaves().iter().map(|x| x.station).collect();
     for st in stations {
-        for req in [2u16, 4, 8] {
-            let mut buf = [0u8; 128];
-            let mut b = FrameBuilder::new(&mut buf).unwrap();
-            b.push(
-                Command::Fpwr,
-                0x01,
-                Address::configured(st, 0x0120),
-                &req.to_le_bytes(),
-            )
-            .unwrap();
-            let n = b.finish().unwrap();
-            let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
-            let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
-            let f = eth.ecat_frame().unwrap();
-            let d = f.iter().next().unwrap().unwrap();
-            assert_eq!(d.wkc(), 1, "station {st:#x} AL control {req}");
-        }
+        to_op(&mut s, st);
     }
     // A silence beyond the hold-over limit: the machine re-initialises.
     let mark = s.events().len();
@@ -451,5 +417,28 @@ fn restart_while_running_keeps_the_measured_values() {
         };
         assert_eq!(x.t_diff_source, want, "slave {i}");
         assert_eq!(dl_control(&s, i), 0x0001, "slave {i}: no port closed");
+    }
+}
+
+/// An application takes the slave at `station` to OP (AL control INIT → PRE-OP → SAFE-OP →
+/// OP over the side channel, each write answered with WKC 1).
+fn to_op<const N: usize>(s: &mut ecdc_harness::sim::Sim<N>, station: u16) {
+    use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
+    for req in [2u16, 4, 8] {
+        let mut buf = [0u8; 128];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        b.push(
+            Command::Fpwr,
+            0x01,
+            Address::configured(station, 0x0120),
+            &req.to_le_bytes(),
+        )
+        .unwrap();
+        let n = b.finish().unwrap();
+        let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
+        let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
+        let f = eth.ecat_frame().unwrap();
+        let d = f.iter().next().unwrap().unwrap();
+        assert_eq!(d.wkc(), 1, "station {station:#x} AL control {req}");
     }
 }
