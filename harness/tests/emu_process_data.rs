@@ -1,9 +1,9 @@
-//! AL state machine with SyncManager checks and process data through LRW/LRD/LWR
-//! (REQ-ESC-020, REQ-ESC-025..REQ-ESC-027): invalid transitions, error flag and code,
-//! acknowledge, PREOP→SAFEOP refused without a valid SyncManager configuration, working
-//! counters per command and outputs reaching the device only in OP.
+//! AL state machine with SyncManager and FMMU checks and process data through LRW/LRD/LWR
+//! (REQ-ESC-020, REQ-ESC-025..REQ-ESC-028): invalid transitions, error flag and code,
+//! acknowledge, PREOP→SAFEOP refused without a valid SyncManager configuration or without
+//! FMMUs mapping it, working counters per command and outputs reaching the device only in OP.
 //!
-//! verifies: REQ-ESC-020, REQ-ESC-025, REQ-ESC-026, REQ-ESC-027
+//! verifies: REQ-ESC-020, REQ-ESC-025, REQ-ESC-026, REQ-ESC-027, REQ-ESC-028
 
 mod emu_support;
 
@@ -149,6 +149,7 @@ fn safeop_refused_without_a_valid_sm_configuration() {
     assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001E));
     // Another place in process RAM is fine: the master chooses the buffer addresses.
     sm(&mut net, &mut t, st, 1, 0x1400, 1, 0x20);
+    map_both(&mut net, &mut t, st, (0x1100, 1), (0x1400, 1));
     assert_eq!(request(&mut net, &mut t, st, 0x14), (0x04, 0));
     assert_eq!(request(&mut net, &mut t, st, 8), (0x08, 0));
 
@@ -165,7 +166,96 @@ fn safeop_refused_without_a_valid_sm_configuration() {
     sm(&mut net, &mut t, st, 2, 0x1100, 6, 0x64);
     assert_eq!(request(&mut net, &mut t, st, 4), (0x12, 0x001E));
     sm(&mut net, &mut t, st, 3, 0x1180, 6, 0x20);
+    map_both(&mut net, &mut t, st, (0x1100, 6), (0x1180, 6));
     assert_eq!(request(&mut net, &mut t, st, 0x14), (0x04, 0));
+}
+
+/// FMMU 0 writes logical 0.. into the outputs buffer, FMMU 1 reads the inputs buffer into
+/// logical 16.. (each given as physical start and length).
+fn map_both(net: &mut Network, t: &mut u64, st: u16, out: (u16, u16), inp: (u16, u16)) {
+    let m = |log, (phys, len), typ| Map {
+        log,
+        len,
+        phys,
+        typ,
+    };
+    fmmu(net, t, st, 0, m(0, out, 2));
+    fmmu(net, t, st, 1, m(16, inp, 1));
+}
+
+/// REQ-ESC-028: with both process-data SyncManagers right, PREOP→SAFEOP still needs an
+/// activated FMMU of each one's direction over its buffer (0x001D outputs, 0x001E inputs);
+/// the refusal sets the error flag, a higher request waits for the acknowledge, and a
+/// read/write FMMU serves both directions.
+// verifies: REQ-ESC-028
+#[test]
+fn safeop_refused_without_fmmus() {
+    let (mut net, mut t) = net_of(&[Device::Io8], false);
+    let st = 0x1000;
+    let m = |log, phys, typ| Map {
+        log,
+        len: 1,
+        phys,
+        typ,
+    };
+    assert_eq!(request(&mut net, &mut t, st, 2), (0x02, 0));
+    sm(&mut net, &mut t, st, 0, 0x1100, 1, 0x64);
+    sm(&mut net, &mut t, st, 1, 0x1180, 1, 0x20);
+    assert_eq!(
+        request(&mut net, &mut t, st, 4),
+        (0x12, 0x001D),
+        "SyncManagers right, no FMMU"
+    );
+    assert_eq!(net.al_state(0), Some(0x02), "the state stays PREOP");
+    // Outputs mapped by a read FMMU: wrong direction.
+    fmmu(&mut net, &mut t, st, 0, m(0, 0x1100, 1));
+    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001D));
+    // A write FMMU beside the buffer, not over it.
+    fmmu(&mut net, &mut t, st, 0, m(0, 0x1101, 2));
+    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001D));
+    // Outputs mapped; inputs not.
+    fmmu(&mut net, &mut t, st, 0, m(0, 0x1100, 2));
+    assert_eq!(
+        request(&mut net, &mut t, st, 0x14),
+        (0x12, 0x001E),
+        "outputs mapped, inputs not"
+    );
+    // An inputs FMMU that is written but not activated.
+    fmmu(&mut net, &mut t, st, 1, m(16, 0x1180, 1));
+    assert_eq!(fpwr(&mut net, &mut t, st, 0x0600 + 16 + 12, &[0]), 1);
+    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001E));
+    // The same entry in FMMU 9, beyond the 8 this ESC has.
+    fmmu(&mut net, &mut t, st, 9, m(16, 0x1180, 1));
+    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001E));
+    // Activated in FMMU 1: the configuration is now right, but SAFEOP waits for the
+    // acknowledge.
+    assert_eq!(fpwr(&mut net, &mut t, st, 0x0600 + 16 + 12, &[1]), 1);
+    assert_eq!(
+        request(&mut net, &mut t, st, 4),
+        (0x12, 0x001E),
+        "no acknowledge"
+    );
+    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x04, 0));
+    assert_eq!(request(&mut net, &mut t, st, 8), (0x08, 0));
+
+    // One read/write FMMU over both buffers (0x1100..0x1180 and 0x1180) serves both.
+    let (mut net, mut t) = net_of(&[Device::Io8], false);
+    request(&mut net, &mut t, st, 2);
+    sm(&mut net, &mut t, st, 0, 0x1100, 1, 0x64);
+    sm(&mut net, &mut t, st, 1, 0x1180, 1, 0x20);
+    fmmu(
+        &mut net,
+        &mut t,
+        st,
+        0,
+        Map {
+            log: 0,
+            len: 0x81,
+            phys: 0x1100,
+            typ: 3,
+        },
+    );
+    assert_eq!(request(&mut net, &mut t, st, 4), (0x04, 0));
 }
 
 /// Configures an io8 (slave 0) and a servo (slave 1) the way a master does from their SII:
@@ -344,5 +434,6 @@ fn checks_follow_an_image_file() {
     sm(&mut net, &mut t, st, 0, 0x0E00, 1, 0x64);
     assert_eq!(request(&mut net, &mut t, st, 4), (0x12, 0x001D));
     sm(&mut net, &mut t, st, 0, 0x0F00, 1, 0x64);
+    map_both(&mut net, &mut t, st, (0x0F00, 1), (0x1180, 1));
     assert_eq!(request(&mut net, &mut t, st, 0x14), (0x04, 0));
 }

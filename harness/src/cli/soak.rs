@@ -435,9 +435,12 @@ fn apwr(s: &mut Sim<N>, i: usize, ado: u16, data: &[u8]) -> Result<(), SimError>
 }
 
 /// Takes every powered slave below SAFEOP to OP as a master's application layer would after
-/// DC is up: the SyncManagers as its SII lists them (start, length, control, activate), then
-/// AL control PREOP, SAFEOP, OP, by auto-increment address.
+/// DC is up: the SyncManagers as its SII lists them (start, length, control, activate), one
+/// FMMU per process-data SyncManager (write for outputs, read for inputs; logical addresses
+/// 256 per slave, which nothing here exchanges), then AL control PREOP, SAFEOP, OP, by
+/// auto-increment address.
 fn to_op(s: &mut Sim<N>) -> Result<(), SimError> {
+    use crate::emu::device::sm_type;
     for i in 0..s.net.slave_count() {
         let Some(al) = s.net.al_state(i) else {
             continue;
@@ -457,6 +460,25 @@ fn to_op(s: &mut Sim<N>) -> Result<(), SimError> {
             reg[4] = sm.control;
             reg[6] = 0x01;
             apwr(s, i, 0x0800 + 8 * n as u16, &reg)?;
+        }
+        let pd = sms
+            .iter()
+            .filter(|sm| matches!(sm.typ, sm_type::PD_OUT | sm_type::PD_IN) && sm.len > 0);
+        let mut log = 256 * i as u32;
+        for (f, sm) in pd.enumerate() {
+            let mut reg = [0u8; 16];
+            reg[..4].copy_from_slice(&log.to_le_bytes());
+            reg[4..6].copy_from_slice(&sm.len.to_le_bytes());
+            reg[7] = 7;
+            reg[8..10].copy_from_slice(&sm.start.to_le_bytes());
+            reg[11] = if sm.typ == sm_type::PD_OUT {
+                0x02
+            } else {
+                0x01
+            };
+            reg[12] = 0x01;
+            apwr(s, i, 0x0600 + 16 * f as u16, &reg)?;
+            log += u32::from(sm.len);
         }
         for state in [0x02u16, 0x04, 0x08] {
             apwr(s, i, 0x0120, &state.to_le_bytes())?;

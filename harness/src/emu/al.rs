@@ -4,7 +4,8 @@
 //! ETG.1000.6 (docs/background/sii-al.md §3).
 //!
 //! The firmware checks the mailbox SyncManagers at INIT→PREOP and the process-data
-//! SyncManagers at PREOP→SAFEOP against the SII's SyncManager category, and keeps the
+//! SyncManagers at PREOP→SAFEOP against the SII's SyncManager category, requires each
+//! process-data SyncManager to be mapped by an FMMU of its direction, and keeps the
 //! SyncManagers it does not use in the current state deactivated from the PDI side (0x0807
 //! bit 0), so process data only flows in SAFEOP and OP. A slave whose SII lists no
 //! SyncManagers (`bare`) has nothing to check.
@@ -62,19 +63,51 @@ fn sm_mismatch(regs: &RegisterFile, n: usize, want: &SmEntry) -> Option<&'static
     None
 }
 
-fn check(regs: &RegisterFile, sms: &[SmEntry], types: &[(u8, u16)]) -> Option<u16> {
-    for (n, e) in sms.iter().enumerate() {
-        // SyncManagers the SII lists as disabled or empty are not used.
-        if e.len == 0 || e.enable & 0x01 == 0 {
-            continue;
-        }
-        if let Some(&(_, c)) = types.iter().find(|(t, _)| *t == e.typ) {
-            if sm_mismatch(regs, n, e).is_some() {
-                return Some(c);
-            }
-        }
+/// Registers of FMMU `n` (datasheet 0x0600 + 16n: logical start u32, length u16, logical
+/// start and stop bit, physical start u16, physical start bit, type, activate).
+pub fn fmmu_base(n: usize) -> u16 {
+    addr::FMMU0 + 16 * (n.min(15) as u16)
+}
+
+/// Whether an activated FMMU whose type has `dir` (0x01 read = inputs, 0x02 write = outputs)
+/// maps some byte of SyncManager `n`'s buffer as its registers place it now. Only the FMMUs
+/// the ESC has (0x0004) count.
+fn fmmu_maps(regs: &RegisterFile, n: usize, dir: u8) -> bool {
+    let b = sm_base(n);
+    let s0 = u32::from(regs.get_u16(b));
+    let s1 = s0 + u32::from(regs.get_u16(b + 2));
+    let nf = usize::from(regs.get_u8(addr::FMMUS_SUPPORTED).min(16));
+    (0..nf).any(|f| {
+        let fb = fmmu_base(f);
+        let p0 = u32::from(regs.get_u16(fb + 8));
+        let p1 = p0 + u32::from(regs.get_u16(fb + 4));
+        regs.get_u8(fb + 12) & 0x01 != 0 && regs.get_u8(fb + 11) & dir != 0 && p0 < s1 && s0 < p1
+    })
+}
+
+/// The code of the first SyncManager of a type in `types` that is not configured as the SII
+/// says; then (when `fmmus`, and all of them are) of the first that no FMMU of its direction
+/// maps.
+fn check(regs: &RegisterFile, sms: &[SmEntry], types: &[(u8, u16)], fmmus: bool) -> Option<u16> {
+    // SyncManagers the SII lists as disabled or empty are not used.
+    let used = || {
+        sms.iter().enumerate().filter_map(|(n, e)| {
+            let &(t, c) = types.iter().find(|(t, _)| *t == e.typ)?;
+            (e.len != 0 && e.enable & 0x01 != 0).then_some((n, e, t, c))
+        })
+    };
+    if let Some((.., c)) = used().find(|&(n, e, ..)| sm_mismatch(regs, n, e).is_some()) {
+        return Some(c);
     }
-    None
+    if !fmmus {
+        return None;
+    }
+    used()
+        .find(|&(n, _, t, _)| {
+            let dir = if t == sm_type::PD_OUT { 0x02 } else { 0x01 };
+            !fmmu_maps(regs, n, dir)
+        })
+        .map(|(.., c)| c)
 }
 
 /// Keeps the SyncManagers the SII lists deactivated from the PDI side unless the state
@@ -92,7 +125,8 @@ pub fn apply_pdi_control(regs: &mut RegisterFile, sms: &[SmEntry], state: u16) {
     }
 }
 
-/// Handles a write to AL control (REQ-ESC-020, SyncManager checks REQ-ESC-025). `sms` is the
+/// Handles a write to AL control (REQ-ESC-020, SyncManager checks REQ-ESC-025, FMMU checks
+/// REQ-ESC-028). `sms` is the
 /// SII's SyncManager category. Returns the new state. Rules (ETG.1000.6): any state → INIT; INIT → PREOP/BOOT; PREOP → SAFEOP; SAFEOP →
 /// OP; back from OP/SAFEOP to lower states; BOOT → INIT; requesting the current state is
 /// fine. While the error flag is set, only an acknowledge or a request for a lower state is
@@ -135,6 +169,7 @@ pub fn control(regs: &mut RegisterFile, sms: &[SmEntry]) -> u16 {
                     (sm_type::MBX_OUT, code::INVALID_MAILBOX_CONFIG),
                     (sm_type::MBX_IN, code::INVALID_MAILBOX_CONFIG),
                 ],
+                false,
             ),
             (PREOP, SAFEOP) => check(
                 regs,
@@ -143,6 +178,7 @@ pub fn control(regs: &mut RegisterFile, sms: &[SmEntry]) -> u16 {
                     (sm_type::PD_OUT, code::INVALID_OUTPUT_CONFIG),
                     (sm_type::PD_IN, code::INVALID_INPUT_CONFIG),
                 ],
+                true,
             ),
             _ => None,
         };
