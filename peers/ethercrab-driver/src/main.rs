@@ -1,7 +1,8 @@
 //! Drives emulated (or real) slaves with the real ethercrab MainDevice, Distributed Clocks set
 //! up exactly as ethercrab's own documentation of `SubDeviceGroup::configure_dc_sync` and
-//! `tx_rx_dc` shows: `MainDeviceConfig::default()` (10 000 static drift-compensation sync
-//! iterations during init), `set_dc_sync(DcSync::Sync0)` on every SubDevice,
+//! `tx_rx_dc` and its examples/dc.rs show: the example's `Timeouts` (PDU 2 s, state
+//! transition 10 s, wait loop 5 ms) and `MainDeviceConfig` (10 000 static drift-compensation
+//! sync iterations during init, no resend), `set_dc_sync(DcSync::Sync0)` on every SubDevice,
 //! `into_pre_op_pdi`, `configure_dc_sync` (SYNC0 starts 100 ms ahead, period = cycle, process
 //! data half way through the cycle), `request_into_op`, then the DC-aware cyclic call
 //! `tx_rx_dc` waiting `next_cycle_wait` each cycle.
@@ -55,7 +56,23 @@ fn run() -> Result<(), String> {
     let (tx, rx, pdu_loop) = PDU_STORAGE
         .try_split()
         .map_err(|_| "PDU storage already split")?;
-    let maindevice = MainDevice::new(pdu_loop, Timeouts::default(), MainDeviceConfig::default());
+    // Timeouts and configuration exactly as ethercrab 0.7.1's examples/dc.rs sets them: its
+    // default PDU timeout (30 ms, no resend) lets one reply delayed by a loaded host end
+    // bring-up with `timeout: PDU`; the example waits 2 s per PDU and 10 s per state
+    // transition and leaves the retry behaviour at its default (no resend).
+    let maindevice = MainDevice::new(
+        pdu_loop,
+        Timeouts {
+            wait_loop_delay: Duration::from_millis(5),
+            state_transition: Duration::from_secs(10),
+            pdu: Duration::from_millis(2000),
+            ..Timeouts::default()
+        },
+        MainDeviceConfig {
+            dc_static_sync_iterations: 10_000,
+            ..MainDeviceConfig::default()
+        },
+    );
     let task =
         ethercrab::std::tx_rx_task(&iface, tx, rx).map_err(|e| format!("opening {iface}: {e}"))?;
     smol::spawn(task).detach();
