@@ -2,7 +2,7 @@
 //! deterministic simulation driver, pcap capture, the Linux raw-socket runtime and the CLI.
 //!
 //! - [`emu`]: the ESC emulator (slave chain with drifting clocks, DC registers, SYNC, faults).
-//! - [`capture`]: classic pcap writing and reading.
+//! - [`capture`]: pcap and pcapng writing and reading.
 //! - [`runtime`]: the Linux AF_PACKET transport and cyclic loop.
 //! - [`cli`]: one module per `ecdc` subcommand.
 //! - [`schemes`]: the DC masters `ecdc simulate` compares (ecdc, seed 000, uncompensated) and

@@ -57,7 +57,7 @@ fn write_then_read_back_equal() {
                 TimeResolution::Nano => ts,
                 TimeResolution::Micro => ts / 1000 * 1000,
             };
-            assert_eq!(r.ts_ns, want);
+            assert_eq!(r.ts_ns, Some(want));
             // and each frame still parses
             let eth = EthernetFrame::new_checked(&r.data[..]).unwrap();
             assert_eq!(eth.into_ecat_frame().unwrap().datagram_count(), Ok(2));
@@ -105,5 +105,72 @@ fn reads_text2pcap_output() {
     for (r, f) in recs.iter().zip(&frames) {
         assert_eq!(&r.data, f);
     }
+    // The same frames as pcapng, Wireshark's default format.
+    let out_ng = dir.join("frames.pcapng");
+    let st = Process::new("text2pcap")
+        .args(["-q", "-F", "pcapng", "-l", "1"])
+        .arg(&txt)
+        .arg(&out_ng)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "text2pcap -F pcapng: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let mut reader = PcapReader::open(&out_ng).unwrap();
+    assert_eq!(reader.format(), pcap::Format::PcapNg);
+    let recs: Vec<_> = reader.by_ref().map(|r| r.unwrap()).collect();
+    assert_eq!(recs.len(), frames.len());
+    for (r, f) in recs.iter().zip(&frames) {
+        assert_eq!(&r.data, f);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Our pcapng (nanosecond interface) is read by tshark with the same times and bytes.
+#[test]
+fn tshark_reads_our_pcapng_with_ns_times() {
+    if Process::new("tshark").arg("-v").output().is_err() {
+        eprintln!("SKIPPED tshark_reads_our_pcapng_with_ns_times: tshark not installed");
+        return;
+    }
+    let frames = sample_frames();
+    let dir = std::env::temp_dir().join(format!("ecdc-capture-ng-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("ours.pcapng");
+    let stamps: Vec<u64> = (0..frames.len() as u64)
+        .map(|i| 1_700_000_000_123_456_789 + i * 1_001)
+        .collect();
+    pcap::write_file(
+        &path,
+        stamps.iter().copied().zip(frames.iter().map(|f| &f[..])),
+    )
+    .unwrap();
+    let out = Process::new("tshark")
+        .arg("-r")
+        .arg(&path)
+        .args(["-T", "fields", "-e", "frame.time_epoch", "-e", "frame.len"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "tshark: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<_> = text.lines().collect();
+    assert_eq!(rows.len(), frames.len(), "{text}");
+    for ((row, ts), f) in rows.iter().zip(&stamps).zip(&frames) {
+        let mut cols = row.split('\t');
+        let epoch = cols.next().unwrap();
+        let want = format!("{}.{:09}", ts / 1_000_000_000, ts % 1_000_000_000);
+        assert_eq!(epoch, want, "{row}");
+        assert_eq!(cols.next().unwrap(), f.len().to_string(), "{row}");
+    }
+    // and we read back what we wrote
+    let recs = pcap::read_file(&path).unwrap();
+    let got: Vec<_> = recs.iter().map(|r| r.ts_ns.unwrap()).collect();
+    assert_eq!(got, stamps);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,8 +1,9 @@
 //! `ecdc decode` on hostile capture files: truncated records, absurd record lengths, a huge
-//! snaplen, pcapng (including a block whose length would loop a reader) and a file of
-//! thousands of records of maximum length. Each fails with a typed message or decodes, never
-//! panics, and the process's peak memory stays bounded (getrusage of the child): a length
-//! field never becomes an allocation beyond the reader's per-record limit.
+//! snaplen, pcapng (a block whose length would loop a reader, a block claiming 1 GiB, a
+//! packet of an undescribed interface) and a 50 MiB file of records of maximum length. Each
+//! fails with a typed message or decodes, never panics, and the process's peak memory stays
+//! bounded (getrusage of the child): a length field never becomes an allocation beyond the
+//! reader's buffer, and the file is streamed, not held.
 
 use std::io::Write;
 use std::process::{Command, Output};
@@ -54,17 +55,27 @@ fn ecat_frame() -> Vec<u8> {
 
 /// Runs `ecdc decode FILE` in a child and returns (output, its peak RSS in KiB).
 fn decode(name: &str, bytes: &[u8]) -> (Output, i64) {
-    let dir = std::env::temp_dir().join(format!("ecdc-hostile-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
+    let path = temp_path(name);
     std::fs::File::create(&path)
         .unwrap()
         .write_all(bytes)
         .unwrap();
+    decode_file(&path)
+}
+
+fn temp_path(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("ecdc-hostile-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// Runs `ecdc decode` on `path` (then removes it). The caller must not hold large buffers:
+/// the child's peak RSS includes what it shared with this process before `exec`.
+fn decode_file(path: &std::path::Path) -> (Output, i64) {
     // /usr/bin/time would add a dependency on the host; the child's rusage is exact.
     let child = Command::new(env!("CARGO_BIN_EXE_ecdc"))
         .arg("decode")
-        .arg(&path)
+        .arg(path)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -75,8 +86,54 @@ fn decode(name: &str, bytes: &[u8]) -> (Output, i64) {
     // process), so an earlier larger child would show here too: each test runs its own files.
     let rc = unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut ru) };
     assert_eq!(rc, 0);
-    let _ = std::fs::remove_file(&path);
+    let _ = std::fs::remove_file(path);
     (out, ru.ru_maxrss)
+}
+
+/// A pcapng Section Header Block (little-endian, no options) and one Ethernet Interface
+/// Description Block (nanosecond timestamps).
+fn pcapng_head() -> Vec<u8> {
+    let mut f = Vec::new();
+    for w in [0x0a0d_0d0au32, 28, 0x1a2b_3c4d] {
+        f.extend_from_slice(&w.to_le_bytes());
+    }
+    f.extend_from_slice(&1u16.to_le_bytes());
+    f.extend_from_slice(&0u16.to_le_bytes());
+    f.extend_from_slice(&(-1i64).to_le_bytes());
+    f.extend_from_slice(&28u32.to_le_bytes());
+    // IDB: type 1, length 32, linktype 1, reserved, snaplen 0, if_tsresol = 9, opt_endofopt.
+    for w in [1u32, 32] {
+        f.extend_from_slice(&w.to_le_bytes());
+    }
+    f.extend_from_slice(&1u16.to_le_bytes());
+    f.extend_from_slice(&0u16.to_le_bytes());
+    f.extend_from_slice(&0u32.to_le_bytes());
+    f.extend_from_slice(&[9, 0, 1, 0, 9, 0, 0, 0]);
+    f.extend_from_slice(&0u32.to_le_bytes());
+    f.extend_from_slice(&32u32.to_le_bytes());
+    f
+}
+
+/// An Enhanced Packet Block for `interface` holding `data`, timestamp 5 ns.
+fn pcapng_epb(interface: u32, data: &[u8]) -> Vec<u8> {
+    let padded = data.len().div_ceil(4) * 4;
+    let total = (32 + padded) as u32;
+    let mut b = Vec::new();
+    for w in [
+        6u32,
+        total,
+        interface,
+        0,
+        5,
+        data.len() as u32,
+        data.len() as u32,
+    ] {
+        b.extend_from_slice(&w.to_le_bytes());
+    }
+    b.extend_from_slice(data);
+    b.resize(28 + padded, 0);
+    b.extend_from_slice(&total.to_le_bytes());
+    b
 }
 
 fn stderr(o: &Output) -> String {
@@ -88,6 +145,7 @@ fn stderr(o: &Output) -> String {
 #[test]
 fn hostile_capture_files() {
     hostile_pcap_files_fail_cleanly_with_bounded_memory();
+    hand_written_pcapng_decodes();
     huge_snaplen_with_real_records_decodes();
     many_maximum_records_decode_without_panic();
 }
@@ -123,6 +181,17 @@ fn hostile_pcap_files_fail_cleanly_with_bounded_memory() {
     f.extend_from_slice(&0x1a2b_3c4du32.to_le_bytes());
     f.extend_from_slice(&[0u8; 16]);
     cases.push(("loop.pcapng", f, Some("pcapng")));
+    // pcapng: a valid section and interface, then an Enhanced Packet Block that claims
+    // 1 GiB and ends: refused without allocating it.
+    let mut f = pcapng_head();
+    f.extend_from_slice(&6u32.to_le_bytes());
+    f.extend_from_slice(&0x4000_0000u32.to_le_bytes());
+    f.extend_from_slice(&[0u8; 64]);
+    cases.push(("huge-block.pcapng", f, Some("pcapng block 2")));
+    // pcapng: a packet of an interface that was never described.
+    let mut f = pcapng_head();
+    f.extend(pcapng_epb(7, &frame));
+    cases.push(("no-interface.pcapng", f, Some("not described")));
     for (name, bytes, want) in &cases {
         let (o, rss) = decode(name, bytes);
         let err = stderr(&o);
@@ -134,6 +203,20 @@ fn hostile_pcap_files_fail_cleanly_with_bounded_memory() {
         assert!(rss < MAX_RSS_KIB, "{name}: peak RSS {rss} KiB");
         eprintln!("{name}: peak RSS {rss} KiB: {}", err.trim());
     }
+}
+
+fn hand_written_pcapng_decodes() {
+    let frame = ecat_frame();
+    let mut f = pcapng_head();
+    for _ in 0..3 {
+        f.extend(pcapng_epb(0, &frame));
+    }
+    let (o, rss) = decode("three.pcapng", &f);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("frame 1  t=0.000000005"), "{out}");
+    assert!(out.contains("3 frame(s): 3 valid"), "{out}");
+    assert!(rss < MAX_RSS_KIB, "peak RSS {rss} KiB");
 }
 
 fn huge_snaplen_with_real_records_decodes() {
@@ -149,17 +232,22 @@ fn huge_snaplen_with_real_records_decodes() {
 }
 
 fn many_maximum_records_decode_without_panic() {
-    // 200 records of MAX_RECORD bytes of junk (50 MiB file). `pcap::read_file` keeps every
-    // record, so peak memory follows the file's size (printed, not bounded here); each
-    // record is one allocation of at most the limit.
-    let mut f = global_header(u32::MAX);
-    let junk = vec![0xEEu8; MAX_RECORD as usize];
-    for _ in 0..200 {
-        f.extend(record_header(MAX_RECORD, MAX_RECORD));
-        f.extend_from_slice(&junk);
+    // 200 records of MAX_RECORD bytes of junk (50 MiB file). `decode` streams one record at
+    // a time, so peak memory stays under the bound although the file is close to it.
+    let path = temp_path("many-max.pcap");
+    {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        f.write_all(&global_header(u32::MAX)).unwrap();
+        let junk = vec![0xEEu8; MAX_RECORD as usize];
+        for _ in 0..200 {
+            f.write_all(&record_header(MAX_RECORD, MAX_RECORD)).unwrap();
+            f.write_all(&junk).unwrap();
+        }
     }
-    let (o, rss) = decode("many-max.pcap", &f);
+    let (o, rss) = decode_file(&path);
     let err = stderr(&o);
     assert!(!err.contains("panicked"), "{err}");
     eprintln!("many-max: exit {:?}, peak RSS {rss} KiB", o.status.code());
+    // A reader that held the 50 MiB file, or its records, would pass 16 MiB.
+    assert!(rss < 16 * 1024, "many-max: peak RSS {rss} KiB");
 }

@@ -1,29 +1,76 @@
-//! Classic pcap files (not pcapng): a 24-byte global header, then one 16-byte record header
-//! plus the captured bytes per frame. Written in host-independent little-endian order; the
-//! reader accepts both byte orders and both timestamp resolutions.
+//! Capture files, classic pcap and pcapng, read and written through the `pcap-file` crate.
 //!
-//! Format: <https://www.ietf.org/archive/id/draft-gharris-opsawg-pcap-01.html>
-//! (magic 0xA1B2C3D4 = µs, 0xA1B23C4D = ns; version 2.4; LINKTYPE_ETHERNET = 1).
+//! - Classic pcap: a 24-byte global header, then a 16-byte record header plus the captured
+//!   bytes per frame (magic 0xA1B2C3D4 = µs, 0xA1B23C4D = ns; either byte order; version 2.4).
+//!   <https://www.ietf.org/archive/id/draft-gharris-opsawg-pcap-01.html>
+//! - pcapng (Wireshark's default): blocks, each with its total length at both ends; packets in
+//!   Enhanced or Simple Packet Blocks, their link type and timestamp unit in the Interface
+//!   Description Block they name (`if_tsresol`, default µs).
+//!   <https://www.ietf.org/archive/id/draft-ietf-opsawg-pcapng-01.html>
+//!
+//! Only Ethernet (LINKTYPE_ETHERNET = 1) is read. The reader streams: the crate's parsers run
+//! on a fixed window of [`MAX_RECORD`] + 64 KiB, one record at a time, so memory does not grow
+//! with the file and no length field becomes an allocation.
+//!
+//! The first bytes are inspected here before the crate sees them, so that an empty file,
+//! a text file or a cut header gets a message a user can act on.
 
+use std::borrow::Cow;
 use std::fmt;
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Read, Write};
 use std::path::Path;
+use std::time::Duration;
+
+use pcap_file::pcap::{PcapHeader, PcapPacket};
+use pcap_file::pcapng::blocks::enhanced_packet::EnhancedPacketBlock;
+use pcap_file::pcapng::blocks::interface_description::{
+    InterfaceDescriptionBlock, InterfaceDescriptionOption,
+};
+use pcap_file::pcapng::Block;
+use pcap_file::{DataLink, Endianness, TsResolution};
 
 /// LINKTYPE_ETHERNET.
 pub const LINKTYPE_ETHERNET: u32 = 1;
-/// Magic of a microsecond-resolution file.
+/// Magic of a microsecond-resolution classic pcap.
 pub const MAGIC_MICROS: u32 = 0xA1B2_C3D4;
-/// Magic of a nanosecond-resolution file.
+/// Magic of a nanosecond-resolution classic pcap.
 pub const MAGIC_NANOS: u32 = 0xA1B2_3C4D;
-/// First word of a pcapng file (Section Header Block), recognised to give a clear error.
-const PCAPNG_MAGIC: u32 = 0x0A0D_0D0A;
+/// First word of a pcapng file (its Section Header Block's type).
+pub const PCAPNG_MAGIC: u32 = 0x0A0D_0D0A;
 /// Snapshot length we write: larger than any Ethernet frame.
 pub const SNAPLEN: u32 = 65_535;
-/// Largest record the reader accepts (guards against allocating on a corrupt length).
+/// Largest captured frame the reader hands out; a larger record is refused, whatever the
+/// file's snapshot length says (the largest jumbo frame is about 9 KiB).
 pub const MAX_RECORD: u32 = 262_144;
 
-/// Timestamp resolution of a file.
+/// The two capture formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Classic pcap.
+    Pcap,
+    /// pcapng.
+    PcapNg,
+}
+
+impl Format {
+    /// The format a file name asks for: `.pcapng` (any case) is pcapng, anything else pcap.
+    pub fn from_path(path: &Path) -> Format {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("pcapng") => Format::PcapNg,
+            _ => Format::Pcap,
+        }
+    }
+
+    fn unit(self) -> &'static str {
+        match self {
+            Format::Pcap => "pcap record",
+            Format::PcapNg => "pcapng block",
+        }
+    }
+}
+
+/// Timestamp resolution of a classic pcap file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TimeResolution {
     /// Microseconds (the classic default, magic 0xA1B2C3D4).
@@ -32,16 +79,16 @@ pub enum TimeResolution {
     Nano,
 }
 
-impl TimeResolution {
-    fn units_per_second(self) -> u64 {
-        match self {
-            TimeResolution::Micro => 1_000_000,
-            TimeResolution::Nano => 1_000_000_000,
+impl From<TimeResolution> for TsResolution {
+    fn from(r: TimeResolution) -> Self {
+        match r {
+            TimeResolution::Micro => TsResolution::MicroSecond,
+            TimeResolution::Nano => TsResolution::NanoSecond,
         }
     }
 }
 
-/// Why a pcap file could not be read or written.
+/// Why a capture file could not be read or written.
 #[derive(Debug)]
 pub enum PcapError {
     /// Underlying I/O error.
@@ -55,23 +102,25 @@ pub enum PcapError {
         /// Whether the bytes present start with a pcap magic number.
         pcap_magic: bool,
     },
-    /// The file does not start with a pcap magic number.
+    /// The file starts with neither a pcap nor a pcapng magic number.
     BadMagic(u32),
-    /// The file is pcapng, which this reader does not handle (convert with
-    /// `editcap -F pcap in.pcapng out.pcap`).
-    Pcapng,
     /// Link type other than Ethernet.
     UnsupportedLinktype(u32),
-    /// A record header says more bytes than [`MAX_RECORD`] or more than the original length.
+    /// A record (pcap) or block (pcapng) that the format does not allow, or a captured frame
+    /// larger than [`MAX_RECORD`].
     BadRecord {
-        /// 0-based record number.
+        /// Which format.
+        format: Format,
+        /// 0-based record or block number.
         index: u64,
-        /// Captured length found.
-        incl_len: u32,
+        /// What is wrong with it.
+        reason: String,
     },
-    /// The file ends inside a record.
+    /// The file ends inside a record or block.
     TruncatedRecord {
-        /// 0-based record number.
+        /// Which format.
+        format: Format,
+        /// 0-based record or block number.
         index: u64,
     },
     /// A frame longer than the snapshot length was given to the writer.
@@ -81,7 +130,7 @@ pub enum PcapError {
 impl fmt::Display for PcapError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            PcapError::Io(e) => write!(f, "pcap I/O: {e}"),
+            PcapError::Io(e) => write!(f, "capture I/O: {e}"),
             PcapError::Empty => f.write_str(
                 "empty file: not a pcap capture (a classic pcap starts with a 24-byte header)",
             ),
@@ -99,30 +148,31 @@ impl fmt::Display for PcapError {
             PcapError::BadMagic(m) => write!(
                 f,
                 "not a pcap capture (magic {m:#010x}; a classic pcap starts with {MAGIC_MICROS:#010x} \
-                 or {MAGIC_NANOS:#010x} in either byte order)"
-            ),
-            PcapError::Pcapng => f.write_str(
-                "pcapng is not supported; convert with `editcap -F pcap in.pcapng out.pcap`",
+                 or {MAGIC_NANOS:#010x} in either byte order, a pcapng with {PCAPNG_MAGIC:#010x})"
             ),
             PcapError::UnsupportedLinktype(l) => {
                 write!(
                     f,
-                    "pcap link type {l} is not Ethernet (1): only Ethernet captures are read; \
+                    "capture link type {l} is not Ethernet (1): only Ethernet captures are read; \
                      capture on the Ethernet interface itself (`tcpdump -i any` writes link \
                      type 113, Linux cooked capture)"
                 )
             }
-            PcapError::BadRecord { index, incl_len } => {
+            PcapError::BadRecord {
+                format,
+                index,
+                reason,
+            } => write!(f, "{} {index}: {reason}", format.unit()),
+            PcapError::TruncatedRecord { format, index } => {
+                let what = match format {
+                    Format::Pcap => "record",
+                    Format::PcapNg => "block",
+                };
                 write!(
                     f,
-                    "pcap record {index}: implausible captured length {incl_len}"
-                )
-            }
-            PcapError::TruncatedRecord { index } => {
-                write!(
-                    f,
-                    "pcap record {index}: file ends inside the record (the capture was cut \
-                     short after {index} complete record(s))"
+                    "{} {index}: file ends inside the {what} (the capture was cut short after \
+                     {index} complete {what}(s))",
+                    format.unit()
                 )
             }
             PcapError::FrameTooLong(n) => write!(f, "frame of {n} bytes exceeds snaplen"),
@@ -145,113 +195,283 @@ impl From<io::Error> for PcapError {
     }
 }
 
-/// Writes a classic pcap stream.
-#[derive(Debug)]
+/// Maps the crate's error for record or block `index` onto ours.
+fn from_crate(e: pcap_file::PcapError, format: Format, index: u64) -> PcapError {
+    match e {
+        pcap_file::PcapError::IoError(e) if e.kind() == io::ErrorKind::UnexpectedEof => {
+            PcapError::TruncatedRecord { format, index }
+        }
+        pcap_file::PcapError::IncompleteBuffer => PcapError::TruncatedRecord { format, index },
+        pcap_file::PcapError::IoError(e) => PcapError::Io(e),
+        other => PcapError::BadRecord {
+            format,
+            index,
+            reason: other.to_string(),
+        },
+    }
+}
+
+/// Writes a capture stream, classic pcap or pcapng.
 pub struct PcapWriter<W: Write> {
-    out: W,
-    resolution: TimeResolution,
+    inner: WriterInner<W>,
+}
+
+enum WriterInner<W: Write> {
+    Pcap(pcap_file::pcap::PcapWriter<W>),
+    PcapNg(pcap_file::pcapng::PcapNgWriter<W>),
+}
+
+impl<W: Write> fmt::Debug for PcapWriter<W> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let format = match self.inner {
+            WriterInner::Pcap(_) => Format::Pcap,
+            WriterInner::PcapNg(_) => Format::PcapNg,
+        };
+        f.debug_struct("PcapWriter")
+            .field("format", &format)
+            .finish()
+    }
 }
 
 impl PcapWriter<BufWriter<File>> {
-    /// Creates (truncates) `path` and writes the global header.
+    /// Creates (truncates) `path` and writes the file header: pcapng when the name ends in
+    /// `.pcapng` (nanosecond timestamps), classic pcap with `resolution` otherwise.
     pub fn create(path: impl AsRef<Path>, resolution: TimeResolution) -> Result<Self, PcapError> {
-        PcapWriter::new(BufWriter::new(File::create(path)?), resolution)
+        let path = path.as_ref();
+        let out = BufWriter::new(File::create(path)?);
+        match Format::from_path(path) {
+            Format::Pcap => PcapWriter::new(out, resolution),
+            Format::PcapNg => PcapWriter::new_pcapng(out),
+        }
     }
 }
 
 impl<W: Write> PcapWriter<W> {
-    /// Writes the global header (version 2.4, snaplen 65535, linktype Ethernet) to `out`.
-    pub fn new(mut out: W, resolution: TimeResolution) -> Result<Self, PcapError> {
-        let magic = match resolution {
-            TimeResolution::Micro => MAGIC_MICROS,
-            TimeResolution::Nano => MAGIC_NANOS,
+    /// Writes a classic pcap global header (version 2.4, little-endian, snaplen 65535,
+    /// linktype Ethernet) to `out`.
+    pub fn new(out: W, resolution: TimeResolution) -> Result<Self, PcapError> {
+        let header = PcapHeader {
+            version_major: 2,
+            version_minor: 4,
+            ts_correction: 0,
+            ts_accuracy: 0,
+            snaplen: SNAPLEN,
+            datalink: DataLink::ETHERNET,
+            ts_resolution: resolution.into(),
+            endianness: Endianness::Little,
         };
-        let mut h = Vec::with_capacity(24);
-        h.extend_from_slice(&magic.to_le_bytes());
-        h.extend_from_slice(&2u16.to_le_bytes());
-        h.extend_from_slice(&4u16.to_le_bytes());
-        h.extend_from_slice(&0i32.to_le_bytes()); // thiszone
-        h.extend_from_slice(&0u32.to_le_bytes()); // sigfigs
-        h.extend_from_slice(&SNAPLEN.to_le_bytes());
-        h.extend_from_slice(&LINKTYPE_ETHERNET.to_le_bytes());
-        out.write_all(&h)?;
-        Ok(PcapWriter { out, resolution })
+        let w = pcap_file::pcap::PcapWriter::with_header(out, header)
+            .map_err(|e| from_crate(e, Format::Pcap, 0))?;
+        Ok(PcapWriter {
+            inner: WriterInner::Pcap(w),
+        })
+    }
+
+    /// Writes a pcapng Section Header Block (little-endian) and one Ethernet interface with
+    /// nanosecond timestamps (`if_tsresol` = 9) to `out`.
+    pub fn new_pcapng(out: W) -> Result<Self, PcapError> {
+        let mut w = pcap_file::pcapng::PcapNgWriter::with_endianness(out, Endianness::Little)
+            .map_err(|e| from_crate(e, Format::PcapNg, 0))?;
+        let interface = InterfaceDescriptionBlock {
+            linktype: DataLink::ETHERNET,
+            snaplen: SNAPLEN,
+            options: vec![InterfaceDescriptionOption::IfTsResol(9)],
+        };
+        w.write_pcapng_block(interface)
+            .map_err(|e| from_crate(e, Format::PcapNg, 1))?;
+        Ok(PcapWriter {
+            inner: WriterInner::PcapNg(w),
+        })
     }
 
     /// Appends one frame (without FCS) with a timestamp in ns since the Unix epoch (or any
-    /// epoch: simulated runs start at 0). µs files round down.
+    /// epoch: simulated runs start at 0). µs files round down; classic pcap seconds are
+    /// 32-bit, so a time past 2106 is written as the last representable second.
     pub fn write_frame(&mut self, ts_ns: u64, frame: &[u8]) -> Result<(), PcapError> {
         let len = u32::try_from(frame.len())
             .ok()
             .filter(|l| *l <= SNAPLEN)
             .ok_or(PcapError::FrameTooLong(frame.len()))?;
-        let secs = ts_ns / 1_000_000_000;
-        let frac_ns = ts_ns % 1_000_000_000;
-        let frac = match self.resolution {
-            TimeResolution::Micro => frac_ns / 1_000,
-            TimeResolution::Nano => frac_ns,
-        };
-        // pcap seconds are 32-bit; saturate rather than wrap for far-future simulated times.
-        let secs = u32::try_from(secs).unwrap_or(u32::MAX);
-        let frac = u32::try_from(frac).unwrap_or(0);
-        let mut h = [0u8; 16];
-        h[0..4].copy_from_slice(&secs.to_le_bytes());
-        h[4..8].copy_from_slice(&frac.to_le_bytes());
-        h[8..12].copy_from_slice(&len.to_le_bytes());
-        h[12..16].copy_from_slice(&len.to_le_bytes());
-        self.out.write_all(&h)?;
-        self.out.write_all(frame)?;
+        match &mut self.inner {
+            WriterInner::Pcap(w) => {
+                let secs = (ts_ns / 1_000_000_000).min(u64::from(u32::MAX));
+                let frac = u32::try_from(ts_ns % 1_000_000_000).unwrap_or(0);
+                let ts = Duration::new(secs, frac);
+                w.write_packet(&PcapPacket::new(ts, len, frame))
+                    .map_err(|e| from_crate(e, Format::Pcap, 0))?;
+            }
+            WriterInner::PcapNg(w) => {
+                // With if_tsresol = 9 the block's 64-bit timestamp is in ns, which is what
+                // the crate writes for a Duration.
+                let block = EnhancedPacketBlock {
+                    interface_id: 0,
+                    timestamp: Duration::from_nanos(ts_ns),
+                    original_len: len,
+                    data: Cow::Borrowed(frame),
+                    options: Vec::new(),
+                };
+                w.write_pcapng_block(block)
+                    .map_err(|e| from_crate(e, Format::PcapNg, 0))?;
+            }
+        }
         Ok(())
     }
 
     /// Flushes and returns the inner writer.
-    pub fn finish(mut self) -> Result<W, PcapError> {
-        self.out.flush()?;
-        Ok(self.out)
+    pub fn finish(self) -> Result<W, PcapError> {
+        let mut out = match self.inner {
+            WriterInner::Pcap(w) => w.into_writer(),
+            WriterInner::PcapNg(w) => w.into_inner(),
+        };
+        out.flush()?;
+        Ok(out)
     }
 }
 
 /// One captured frame.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Record {
-    /// Timestamp in ns (µs files are scaled).
-    pub ts_ns: u64,
+    /// Timestamp in ns (scaled from the file's unit); `None` for a pcapng Simple Packet
+    /// Block, which has none.
+    pub ts_ns: Option<u64>,
     /// Original frame length on the wire (≥ `data.len()` when the capture was cut).
     pub orig_len: u32,
     /// Captured bytes.
     pub data: Vec<u8>,
 }
 
-/// Reads a classic pcap stream record by record (an `Iterator` of `Result<Record>`).
-#[derive(Debug)]
-pub struct PcapReader<R: Read> {
+/// A bounded read window over the input: the crate's parsers work on byte slices, and this
+/// keeps at most one record (plus what one `read` brought) in memory.
+struct Window<R: Read> {
     input: R,
-    big_endian: bool,
-    resolution: TimeResolution,
+    buf: Vec<u8>,
+    /// Start of the unparsed bytes.
+    pos: usize,
+    /// End of the bytes read.
+    len: usize,
+}
+
+/// Window size: the largest record the reader accepts plus its header and some slack, so a
+/// record at the limit always fits.
+const WINDOW: usize = MAX_RECORD as usize + 64 * 1024;
+
+impl<R: Read> Window<R> {
+    fn new(input: R, first: &[u8]) -> Self {
+        let mut buf = vec![0u8; WINDOW];
+        let len = first.len().min(WINDOW);
+        buf[..len].copy_from_slice(&first[..len]);
+        Window {
+            input,
+            buf,
+            pos: 0,
+            len,
+        }
+    }
+
+    fn bytes(&self) -> &[u8] {
+        &self.buf[self.pos..self.len]
+    }
+
+    /// Moves the unparsed bytes to the front and reads more; `Ok(false)` at the end of the
+    /// input or when the window is full.
+    fn fill(&mut self) -> Result<bool, PcapError> {
+        self.buf.copy_within(self.pos..self.len, 0);
+        self.len -= self.pos;
+        self.pos = 0;
+        if self.len == self.buf.len() {
+            return Ok(false);
+        }
+        loop {
+            match self.input.read(&mut self.buf[self.len..]) {
+                Ok(0) => return Ok(false),
+                Ok(n) => {
+                    self.len += n;
+                    return Ok(true);
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(PcapError::Io(e)),
+            }
+        }
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.pos = (self.pos + n).min(self.len);
+    }
+
+    /// True when every byte of the input has been parsed.
+    fn at_end(&mut self) -> Result<bool, PcapError> {
+        Ok(self.pos == self.len && !self.fill()?)
+    }
+}
+
+enum Parser {
+    Pcap(pcap_file::pcap::PcapParser),
+    PcapNg(Box<pcap_file::pcapng::PcapNgParser>),
+}
+
+/// Reads a classic pcap or a pcapng stream record by record (an `Iterator` of
+/// `Result<Record>`); stops after the first error. Memory is one fixed window of
+/// [`MAX_RECORD`] plus 64 KiB, whatever the file or its length fields say.
+pub struct PcapReader<R: Read> {
+    window: Window<R>,
+    parser: Parser,
+    resolution: Option<TimeResolution>,
+    /// Records (pcap) or blocks (pcapng) read so far.
     index: u64,
     done: bool,
 }
 
+impl<R: Read> fmt::Debug for PcapReader<R> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("PcapReader")
+            .field("format", &self.format())
+            .field("index", &self.index)
+            .finish()
+    }
+}
+
 impl PcapReader<BufReader<File>> {
-    /// Opens `path` and reads the global header.
+    /// Opens `path` and reads the file header.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, PcapError> {
         PcapReader::new(BufReader::new(File::open(path)?))
     }
 }
 
+/// Reads up to `buf.len()` bytes, fewer only at the end of the input.
+fn read_up_to(input: &mut impl Read, buf: &mut [u8]) -> Result<usize, PcapError> {
+    let mut got = 0;
+    while let Some(rest) = buf.get_mut(got..).filter(|r| !r.is_empty()) {
+        match input.read(rest) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(PcapError::Io(e)),
+        }
+    }
+    Ok(got)
+}
+
+/// The length field of the record or block at the start of `bytes`, when it is there:
+/// pcap's captured length (bytes 8..12), pcapng's block total length (bytes 4..8).
+fn declared_len(bytes: &[u8], format: Format, big_endian: bool) -> Option<u32> {
+    let at = match format {
+        Format::Pcap => 8,
+        Format::PcapNg => 4,
+    };
+    let w: [u8; 4] = bytes.get(at..at + 4)?.try_into().ok()?;
+    Some(if big_endian {
+        u32::from_be_bytes(w)
+    } else {
+        u32::from_le_bytes(w)
+    })
+}
+
 impl<R: Read> PcapReader<R> {
-    /// Reads and checks the global header.
+    /// Reads and checks the file header (pcap: global header; pcapng: the first Section
+    /// Header Block).
     pub fn new(mut input: R) -> Result<Self, PcapError> {
         let mut h = [0u8; 24];
-        let mut got = 0;
-        while got < h.len() {
-            match input.read(&mut h[got..]) {
-                Ok(0) => break,
-                Ok(n) => got += n,
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(PcapError::Io(e)),
-            }
-        }
+        let got = read_up_to(&mut input, &mut h)?;
         if got == 0 {
             return Err(PcapError::Empty);
         }
@@ -262,92 +482,253 @@ impl<R: Read> PcapReader<R> {
             });
         }
         let magic_le = u32::from_le_bytes([h[0], h[1], h[2], h[3]]);
-        let (big_endian, resolution) = match magic_le {
-            MAGIC_MICROS => (false, TimeResolution::Micro),
-            MAGIC_NANOS => (false, TimeResolution::Nano),
-            m if m.swap_bytes() == MAGIC_MICROS => (true, TimeResolution::Micro),
-            m if m.swap_bytes() == MAGIC_NANOS => (true, TimeResolution::Nano),
-            PCAPNG_MAGIC => return Err(PcapError::Pcapng),
+        let resolution = match magic_le {
+            MAGIC_MICROS => Some(TimeResolution::Micro),
+            MAGIC_NANOS => Some(TimeResolution::Nano),
+            m if m.swap_bytes() == MAGIC_MICROS => Some(TimeResolution::Micro),
+            m if m.swap_bytes() == MAGIC_NANOS => Some(TimeResolution::Nano),
+            PCAPNG_MAGIC => None,
             m => return Err(PcapError::BadMagic(m)),
         };
-        if got < h.len() {
+        if resolution.is_some() && got < h.len() {
             return Err(PcapError::ShortHeader {
                 len: got,
                 pcap_magic: true,
             });
         }
-        let r = PcapReader {
-            input,
-            big_endian,
-            resolution,
-            index: 0,
-            done: false,
+        let mut window = Window::new(input, &h[..got]);
+        let format = if resolution.is_some() {
+            Format::Pcap
+        } else {
+            Format::PcapNg
         };
-        let linktype = r.u32_at(&h, 20);
-        if linktype != LINKTYPE_ETHERNET {
-            return Err(PcapError::UnsupportedLinktype(linktype));
+        let parser = loop {
+            let parsed = match format {
+                Format::Pcap => pcap_file::pcap::PcapParser::new(window.bytes())
+                    .map(|(rest, p)| (rest.len(), Parser::Pcap(p))),
+                Format::PcapNg => pcap_file::pcapng::PcapNgParser::new(window.bytes())
+                    .map(|(rest, p)| (rest.len(), Parser::PcapNg(Box::new(p)))),
+            };
+            match parsed {
+                Ok((rest, p)) => {
+                    let used = window.bytes().len() - rest;
+                    window.consume(used);
+                    break p;
+                }
+                Err(pcap_file::PcapError::IncompleteBuffer) if window.fill()? => {}
+                Err(e) => return Err(from_crate(e, format, 0)),
+            }
+        };
+        if let Parser::Pcap(p) = &parser {
+            let linktype = u32::from(p.header().datalink);
+            if linktype != LINKTYPE_ETHERNET {
+                return Err(PcapError::UnsupportedLinktype(linktype));
+            }
         }
-        Ok(r)
+        Ok(PcapReader {
+            window,
+            parser,
+            resolution,
+            // pcapng: the Section Header Block was block 0.
+            index: u64::from(resolution.is_none()),
+            done: false,
+        })
     }
 
-    /// Timestamp resolution of the file.
-    pub fn resolution(&self) -> TimeResolution {
+    /// The file's format.
+    pub fn format(&self) -> Format {
+        match self.parser {
+            Parser::Pcap(_) => Format::Pcap,
+            Parser::PcapNg(_) => Format::PcapNg,
+        }
+    }
+
+    /// Timestamp resolution of a classic pcap file (`None` for pcapng, where each interface
+    /// has its own).
+    pub fn resolution(&self) -> Option<TimeResolution> {
         self.resolution
     }
 
-    fn u32_at(&self, b: &[u8], at: usize) -> u32 {
-        let w = [b[at], b[at + 1], b[at + 2], b[at + 3]];
-        if self.big_endian {
-            u32::from_be_bytes(w)
-        } else {
-            u32::from_le_bytes(w)
+    fn big_endian(&self) -> bool {
+        match &self.parser {
+            Parser::Pcap(p) => p.header().endianness == Endianness::Big,
+            Parser::PcapNg(p) => p.section().endianness == Endianness::Big,
+        }
+    }
+
+    /// Parses the next record or block out of the window: `Ok(None)` at a clean end.
+    fn next_item(&mut self) -> Result<Option<Item>, PcapError> {
+        let (format, index, big_endian) = (self.format(), self.index, self.big_endian());
+        if self.window.at_end()? {
+            return Ok(None);
+        }
+        loop {
+            let bytes = self.window.bytes();
+            let parsed = match &mut self.parser {
+                Parser::Pcap(p) => p.next_packet(bytes).map(|(rest, pkt)| {
+                    let ts = u64::try_from(pkt.timestamp.as_nanos()).unwrap_or(u64::MAX);
+                    let item = copy_out(format, index, &pkt.data).map(|data| {
+                        Item::Frame(Record {
+                            ts_ns: Some(ts),
+                            orig_len: pkt.orig_len,
+                            data,
+                        })
+                    });
+                    (rest.len(), item)
+                }),
+                Parser::PcapNg(p) => p.next_block(bytes).map(|(rest, block)| {
+                    let item = match block {
+                        Block::EnhancedPacket(b) => {
+                            copy_out(format, index, &b.data).map(|data| Item::NgFrame {
+                                interface: b.interface_id,
+                                raw_ts: Some(b.timestamp),
+                                orig_len: b.original_len,
+                                data,
+                            })
+                        }
+                        Block::SimplePacket(b) => {
+                            copy_out(format, index, &b.data).map(|data| Item::NgFrame {
+                                interface: 0,
+                                raw_ts: None,
+                                orig_len: b.original_len,
+                                data,
+                            })
+                        }
+                        // Section and interface blocks are kept by the parser; statistics,
+                        // name resolution and unknown blocks carry no frame.
+                        _ => Ok(Item::Other),
+                    };
+                    (rest.len(), item)
+                }),
+            };
+            match parsed {
+                Ok((rest, item)) => {
+                    let used = self.window.bytes().len() - rest;
+                    self.window.consume(used);
+                    self.index += 1;
+                    return item.map(Some);
+                }
+                Err(pcap_file::PcapError::IncompleteBuffer) => {
+                    // pcap: the captured length; pcapng: the whole block (headers, options).
+                    let limit = match format {
+                        Format::Pcap => MAX_RECORD as usize,
+                        Format::PcapNg => WINDOW,
+                    };
+                    if let Some(n) = declared_len(self.window.bytes(), format, big_endian)
+                        .filter(|n| *n as usize > limit)
+                    {
+                        return Err(PcapError::BadRecord {
+                            format,
+                            index,
+                            reason: format!(
+                                "length field {n} above the reader's limit ({limit} bytes)"
+                            ),
+                        });
+                    }
+                    if !self.window.fill()? {
+                        return Err(PcapError::TruncatedRecord { format, index });
+                    }
+                }
+                Err(e) => return Err(from_crate(e, format, index)),
+            }
         }
     }
 
     fn read_record(&mut self) -> Result<Option<Record>, PcapError> {
-        let mut h = [0u8; 16];
-        // A clean end of file is allowed only before a record header.
-        let mut got = 0;
-        while got < h.len() {
-            let n = self.input.read(&mut h[got..])?;
-            if n == 0 {
-                return if got == 0 {
-                    Ok(None)
-                } else {
-                    Err(PcapError::TruncatedRecord { index: self.index })
-                };
+        loop {
+            let index = self.index;
+            let (interface, raw_ts, orig_len, data) = match self.next_item()? {
+                None => return Ok(None),
+                Some(Item::Frame(r)) => return Ok(Some(r)),
+                Some(Item::Other) => continue,
+                Some(Item::NgFrame {
+                    interface,
+                    raw_ts,
+                    orig_len,
+                    data,
+                }) => (interface, raw_ts, orig_len, data),
+            };
+            let Parser::PcapNg(p) = &self.parser else {
+                return Ok(None);
+            };
+            let Some(idb) = p.interfaces().get(interface as usize) else {
+                return Err(PcapError::BadRecord {
+                    format: Format::PcapNg,
+                    index,
+                    reason: format!("packet of interface {interface}, which is not described"),
+                });
+            };
+            let linktype = u32::from(idb.linktype);
+            if linktype != LINKTYPE_ETHERNET {
+                return Err(PcapError::UnsupportedLinktype(linktype));
             }
-            got += n;
+            return Ok(Some(Record {
+                ts_ns: raw_ts.map(|t| ng_timestamp_ns(t, idb)),
+                orig_len,
+                data,
+            }));
         }
-        let secs = u64::from(self.u32_at(&h, 0));
-        let frac = u64::from(self.u32_at(&h, 4));
-        let incl_len = self.u32_at(&h, 8);
-        let orig_len = self.u32_at(&h, 12);
-        if incl_len > MAX_RECORD {
-            return Err(PcapError::BadRecord {
-                index: self.index,
-                incl_len,
-            });
-        }
-        let mut data = vec![0u8; incl_len as usize];
-        self.input.read_exact(&mut data).map_err(|e| {
-            if e.kind() == io::ErrorKind::UnexpectedEof {
-                PcapError::TruncatedRecord { index: self.index }
-            } else {
-                PcapError::Io(e)
-            }
-        })?;
-        let per_unit = 1_000_000_000 / self.resolution.units_per_second();
-        let ts_ns = secs
-            .saturating_mul(1_000_000_000)
-            .saturating_add(frac.saturating_mul(per_unit));
-        self.index += 1;
-        Ok(Some(Record {
-            ts_ns,
-            orig_len,
-            data,
-        }))
     }
+}
+
+/// What one record or block held.
+enum Item {
+    /// A classic pcap record.
+    Frame(Record),
+    /// A pcapng packet; its interface gives the link type and the timestamp's unit.
+    NgFrame {
+        interface: u32,
+        raw_ts: Option<Duration>,
+        orig_len: u32,
+        data: Vec<u8>,
+    },
+    /// A pcapng block without a frame.
+    Other,
+}
+
+/// The captured bytes of record or block `index`, refused above [`MAX_RECORD`].
+fn copy_out(format: Format, index: u64, data: &[u8]) -> Result<Vec<u8>, PcapError> {
+    if data.len() > MAX_RECORD as usize {
+        return Err(PcapError::BadRecord {
+            format,
+            index,
+            reason: format!(
+                "captured length {} above the reader's limit of {MAX_RECORD} bytes",
+                data.len()
+            ),
+        });
+    }
+    Ok(data.to_vec())
+}
+
+/// An Enhanced Packet Block's timestamp in ns. The crate (2.0) hands out the block's raw
+/// 64-bit count as if it were ns; its unit is the interface's `if_tsresol`: 10^-v s when the
+/// top bit is clear, 2^-v s when it is set, 10^-6 s when the option is absent.
+fn ng_timestamp_ns(raw_as_ns: Duration, idb: &InterfaceDescriptionBlock<'_>) -> u64 {
+    let raw = raw_as_ns.as_nanos();
+    let tsresol = idb
+        .options
+        .iter()
+        .find_map(|o| match o {
+            InterfaceDescriptionOption::IfTsResol(v) => Some(*v),
+            _ => None,
+        })
+        .unwrap_or(6);
+    let v = u32::from(tsresol & 0x7F);
+    let ns = if tsresol & 0x80 == 0 {
+        if v <= 9 {
+            raw.saturating_mul(10u128.pow(9 - v))
+        } else {
+            // 10^38 is the largest power of ten a u128 holds; beyond, every count is 0 ns.
+            10u128.checked_pow(v - 9).map_or(0, |d| raw / d)
+        }
+    } else {
+        // raw < 2^64 and 10^9 < 2^30: the product fits in u128.
+        raw.saturating_mul(1_000_000_000)
+            .checked_shr(v)
+            .unwrap_or(0)
+    };
+    u64::try_from(ns).unwrap_or(u64::MAX)
 }
 
 impl<R: Read> Iterator for PcapReader<R> {
@@ -365,7 +746,8 @@ impl<R: Read> Iterator for PcapReader<R> {
     }
 }
 
-/// Writes `frames` (timestamp ns, bytes) to `path` as a nanosecond pcap.
+/// Writes `frames` (timestamp ns, bytes) to `path`: a nanosecond classic pcap, or pcapng
+/// when the name ends in `.pcapng`.
 pub fn write_file<'a>(
     path: impl AsRef<Path>,
     frames: impl IntoIterator<Item = (u64, &'a [u8])>,
@@ -378,7 +760,7 @@ pub fn write_file<'a>(
     Ok(())
 }
 
-/// Reads every record of `path`.
+/// Reads every record of `path` (for small files and tests; `ecdc decode` streams).
 pub fn read_file(path: impl AsRef<Path>) -> Result<Vec<Record>, PcapError> {
     PcapReader::open(path)?.collect()
 }
@@ -400,7 +782,7 @@ mod tests {
         assert_eq!(
             recs[0].as_ref().unwrap(),
             &Record {
-                ts_ns: 5_000_007_000,
+                ts_ns: Some(5_000_007_000),
                 orig_len: 60,
                 data: vec![0xab, 0xcd]
             }
@@ -408,28 +790,65 @@ mod tests {
         assert_eq!(recs.len(), 1);
         // cut inside the record
         let r: Vec<_> = PcapReader::new(&f[..f.len() - 1]).unwrap().collect();
-        assert!(matches!(r[0], Err(PcapError::TruncatedRecord { index: 0 })));
+        assert!(matches!(
+            r[0],
+            Err(PcapError::TruncatedRecord {
+                format: Format::Pcap,
+                index: 0
+            })
+        ));
     }
 
     #[test]
-    fn write_read_roundtrip_both_resolutions() {
-        for res in [TimeResolution::Micro, TimeResolution::Nano] {
-            let mut w = PcapWriter::new(Vec::new(), res).unwrap();
+    fn write_read_roundtrip_both_resolutions_and_pcapng() {
+        for res in [
+            Some(TimeResolution::Micro),
+            Some(TimeResolution::Nano),
+            None,
+        ] {
+            let mut w = match res {
+                Some(r) => PcapWriter::new(Vec::new(), r).unwrap(),
+                None => PcapWriter::new_pcapng(Vec::new()).unwrap(),
+            };
             w.write_frame(1_500_000_123, &[1, 2, 3]).unwrap();
             w.write_frame(0, &[]).unwrap();
             let bytes = w.finish().unwrap();
             let r = PcapReader::new(&bytes[..]).unwrap();
             assert_eq!(r.resolution(), res);
             let recs: Vec<_> = r.map(|x| x.unwrap()).collect();
-            let ts = if res == TimeResolution::Nano {
-                1_500_000_123
-            } else {
+            let ts = if res == Some(TimeResolution::Micro) {
                 1_500_000_000
+            } else {
+                1_500_000_123
             };
-            assert_eq!(recs[0].ts_ns, ts);
+            assert_eq!(recs[0].ts_ns, Some(ts));
             assert_eq!(recs[0].data, [1, 2, 3]);
             assert_eq!(recs[1].data, [0u8; 0]);
+            assert_eq!(recs.len(), 2);
         }
+    }
+
+    /// if_tsresol: absent = µs, decimal and binary exponents.
+    #[test]
+    fn pcapng_timestamp_units() {
+        let idb = |opt: Option<u8>| InterfaceDescriptionBlock {
+            linktype: DataLink::ETHERNET,
+            snaplen: 0,
+            options: opt
+                .map(InterfaceDescriptionOption::IfTsResol)
+                .into_iter()
+                .collect(),
+        };
+        let raw = Duration::from_nanos(1_234);
+        assert_eq!(ng_timestamp_ns(raw, &idb(None)), 1_234_000);
+        assert_eq!(ng_timestamp_ns(raw, &idb(Some(9))), 1_234);
+        assert_eq!(ng_timestamp_ns(raw, &idb(Some(3))), 1_234_000_000);
+        assert_eq!(ng_timestamp_ns(raw, &idb(Some(10))), 123);
+        assert_eq!(ng_timestamp_ns(raw, &idb(Some(0x80 | 10))), 1_205_078_125);
+        assert_eq!(ng_timestamp_ns(raw, &idb(Some(0x7F))), 0);
+        assert_eq!(ng_timestamp_ns(raw, &idb(Some(0xFF))), 0);
+        let big = Duration::from_nanos(u64::MAX);
+        assert_eq!(ng_timestamp_ns(big, &idb(Some(0))), u64::MAX);
     }
 
     #[test]
@@ -466,10 +885,14 @@ mod tests {
     }
 
     #[test]
-    fn rejects_non_pcap() {
+    fn rejects_non_pcap_and_bad_records() {
+        // A pcapng section header whose block length is 0 is refused, not looped on.
         let mut ng = vec![0x0a, 0x0d, 0x0d, 0x0a];
-        ng.resize(24, 0);
-        assert!(matches!(PcapReader::new(&ng[..]), Err(PcapError::Pcapng)));
+        ng.resize(8, 0);
+        ng.extend_from_slice(&0x1a2b_3c4du32.to_le_bytes());
+        ng.resize(28, 0);
+        let e = PcapReader::new(&ng[..]).unwrap_err();
+        assert!(e.to_string().starts_with("pcapng block 0"), "{e}");
         let junk = [0u8; 24];
         assert!(matches!(
             PcapReader::new(&junk[..]),
@@ -477,6 +900,7 @@ mod tests {
         ));
         let mut raw_ip = Vec::new();
         raw_ip.extend_from_slice(&MAGIC_MICROS.to_le_bytes());
+        raw_ip.extend_from_slice(&[2, 0, 4, 0]);
         raw_ip.resize(20, 0);
         raw_ip.extend_from_slice(&101u32.to_le_bytes());
         assert!(matches!(
@@ -486,11 +910,13 @@ mod tests {
         // big-endian header is accepted
         let mut be = Vec::new();
         be.extend_from_slice(&MAGIC_NANOS.to_be_bytes());
-        be.resize(20, 0);
+        be.extend_from_slice(&[0, 2, 0, 4]);
+        be.resize(16, 0);
+        be.extend_from_slice(&SNAPLEN.to_be_bytes());
         be.extend_from_slice(&1u32.to_be_bytes());
         assert_eq!(
             PcapReader::new(&be[..]).unwrap().resolution(),
-            TimeResolution::Nano
+            Some(TimeResolution::Nano)
         );
         // implausible record length
         let mut w = PcapWriter::new(Vec::new(), TimeResolution::Nano)

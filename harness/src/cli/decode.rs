@@ -1,24 +1,27 @@
-//! `ecdc decode FILE.pcap|HEX`: print each frame's datagrams as a table, or the typed
+//! `ecdc decode FILE.pcap|FILE.pcapng|HEX`: print each frame's datagrams as a table, or the typed
 //! `ecdc_core::wire::Error` that makes the frame invalid (REQ-WIRE-016).
 //!
 //! Frames may be EtherCAT over Ethernet (EtherType 0x88A4, one 802.1Q tag tolerated) or over
 //! UDP port 0x88A4. Datagrams before the first error are still shown, so a broken frame can be
 //! diagnosed. Frames that are not EtherCAT at all (ARP, IP traffic in a mixed capture) are
 //! listed as skipped. The command fails (exit status 1) if any EtherCAT frame is invalid or if
-//! no EtherCAT frame was found; an input that is neither a readable pcap capture nor hex is a
-//! usage error (exit status 2) whose message says which.
+//! no EtherCAT frame was found; an input that is neither a readable capture (classic pcap or
+//! pcapng) nor hex is a usage error (exit status 2) whose message says which. A capture is
+//! read and printed a record at a time, so a file cut or corrupted part-way prints the frames
+//! before the damage, then the error.
 
 use super::validate::usage;
 use crate::capture::{pcap, udp};
 use anyhow::bail;
 use ecdc_core::wire::{Command, Datagram, EcatFrame, EthernetFrame, ETHERTYPE_ETHERCAT};
 use std::fmt::Write as _;
+use std::io::Write as IoWrite;
 use std::path::Path;
 
 /// Arguments of `ecdc decode`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A classic pcap file, or one frame as hex (whitespace, ':' and '-' are ignored; an
+    /// A capture file (classic pcap or pcapng), or one frame as hex (whitespace, ':' and '-' are ignored; an
     /// optional leading 0x is allowed).
     pub input: String,
     /// The hex is a bare EtherCAT payload (EtherCAT header + datagrams, e.g. a UDP payload)
@@ -32,24 +35,48 @@ pub struct Args {
 
 /// Runs `ecdc decode`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let frames = load(args)?;
-    let mut out = String::new();
-    let (mut bad, mut skipped) = (0usize, 0usize);
-    for (i, (ts, bytes)) in frames.iter().enumerate() {
-        match render_frame(&mut out, i + 1, *ts, bytes, args.payload, args.full) {
-            Outcome::Valid => {}
-            Outcome::Invalid => bad += 1,
-            Outcome::NotEtherCat => skipped += 1,
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    let mut tally = Tally::default();
+    match open(args)? {
+        Input::Hex(bytes) => tally.frame(&mut out, None, &bytes, args)?,
+        Input::Capture(reader) => {
+            // One record at a time: memory does not grow with the file.
+            for rec in reader {
+                match rec {
+                    Ok(r) => tally.frame(&mut out, r.ts_ns, &r.data, args)?,
+                    Err(e) => {
+                        out.flush()?;
+                        return Err(match e {
+                            pcap::PcapError::Io(e) => {
+                                anyhow::Error::new(e).context(format!("reading {}", args.input))
+                            }
+                            e => usage(format!("{}: {e}", args.input)),
+                        });
+                    }
+                }
+            }
+            if tally.frames == 0 {
+                return Err(usage(format!(
+                    "{}: the capture holds no frames (header only)",
+                    args.input
+                )));
+            }
         }
     }
-    let ecat = frames.len() - skipped;
-    let _ = writeln!(
+    let Tally {
+        frames,
+        bad,
+        skipped,
+        ..
+    } = tally;
+    let ecat = frames - skipped;
+    writeln!(
         out,
-        "{} frame(s): {} valid, {bad} invalid, {skipped} not EtherCAT",
-        frames.len(),
+        "{frames} frame(s): {} valid, {bad} invalid, {skipped} not EtherCAT",
         ecat - bad
-    );
-    print!("{out}");
+    )?;
+    out.flush()?;
     if bad > 0 {
         bail!("{bad} of {ecat} EtherCAT frame(s) invalid");
     }
@@ -59,31 +86,69 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Frames to decode: (timestamp ns if known, bytes).
-fn load(args: &Args) -> anyhow::Result<Vec<(Option<u64>, Vec<u8>)>> {
+/// Counts of what was decoded so far.
+#[derive(Debug, Default)]
+struct Tally {
+    frames: usize,
+    bad: usize,
+    skipped: usize,
+    text: String,
+}
+
+impl Tally {
+    /// Renders one frame to `out` and counts it.
+    fn frame(
+        &mut self,
+        out: &mut impl IoWrite,
+        ts: Option<u64>,
+        bytes: &[u8],
+        args: &Args,
+    ) -> anyhow::Result<()> {
+        self.frames += 1;
+        self.text.clear();
+        match render_frame(
+            &mut self.text,
+            self.frames,
+            ts,
+            bytes,
+            args.payload,
+            args.full,
+        ) {
+            Outcome::Valid => {}
+            Outcome::Invalid => self.bad += 1,
+            Outcome::NotEtherCat => self.skipped += 1,
+        }
+        out.write_all(self.text.as_bytes())?;
+        Ok(())
+    }
+}
+
+/// What `ecdc decode` reads.
+enum Input {
+    /// A capture file, read record by record.
+    Capture(pcap::PcapReader<std::io::BufReader<std::fs::File>>),
+    /// One frame given as hex.
+    Hex(Vec<u8>),
+}
+
+/// Opens the capture or parses the hex.
+fn open(args: &Args) -> anyhow::Result<Input> {
     let path = Path::new(&args.input);
     if path.is_dir() {
         return Err(usage(format!(
-            "{}: is a directory; give a pcap file or a hex string",
+            "{}: is a directory; give a pcap/pcapng file or a hex string",
             args.input
         )));
     }
     // Anything that exists and is not a directory is read as a capture (a FIFO, /dev/stdin).
     if path.exists() {
-        let recs = match pcap::read_file(path) {
-            Ok(r) => r,
+        return match pcap::PcapReader::open(path) {
+            Ok(r) => Ok(Input::Capture(r)),
             Err(pcap::PcapError::Io(e)) => {
-                return Err(anyhow::Error::new(e).context(format!("reading {}", args.input)))
+                Err(anyhow::Error::new(e).context(format!("reading {}", args.input)))
             }
-            Err(e) => return Err(usage(format!("{}: {e}", args.input))),
+            Err(e) => Err(usage(format!("{}: {e}", args.input))),
         };
-        if recs.is_empty() {
-            return Err(usage(format!(
-                "{}: the pcap capture holds no frames (header only)",
-                args.input
-            )));
-        }
-        return Ok(recs.into_iter().map(|r| (Some(r.ts_ns), r.data)).collect());
     }
     let looks_like_path = args.input.contains('/')
         || [".pcap", ".pcapng", ".cap"]
@@ -91,7 +156,7 @@ fn load(args: &Args) -> anyhow::Result<Vec<(Option<u64>, Vec<u8>)>> {
             .any(|x| args.input.to_ascii_lowercase().ends_with(x));
     if looks_like_path {
         return Err(usage(format!(
-            "{}: no such file (give an existing pcap file or a hex string)",
+            "{}: no such file (give an existing pcap/pcapng file or a hex string)",
             args.input
         )));
     }
@@ -101,7 +166,7 @@ fn load(args: &Args) -> anyhow::Result<Vec<(Option<u64>, Vec<u8>)>> {
             args.input
         ))
     })?;
-    Ok(vec![(None, bytes)])
+    Ok(Input::Hex(bytes))
 }
 
 /// Parses hex digits, ignoring whitespace, ':' and '-', and an optional leading "0x".

@@ -36,7 +36,8 @@ pub struct Args {
     /// Seconds of cyclic operation, > 0, then stop with a summary (default: until Ctrl-C).
     #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
-    /// Record every frame sent and received into this pcap file (Wireshark-readable).
+    /// Record every frame sent and received into this capture file (Wireshark-readable):
+    /// pcapng when the name ends in `.pcapng`, classic pcap (ns timestamps) otherwise.
     #[arg(long)]
     pub pcap: Option<PathBuf>,
     /// Print the summary as JSON on stdout (progress and per-second lines stay on stderr).
