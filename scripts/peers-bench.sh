@@ -6,9 +6,10 @@
 #   master ns  [ecm0] <--veth--> [ecs0]  slave ns
 #   MASTER                         ecdc emulate --json --scenario FILE
 #
-# For each scenario, the masters one after the other, each against a fresh `ecdc emulate` with
-# the same scenario file (so the same seed: the same crystals and delays), each for the same
-# SECONDS of cyclic operation at a 1 ms cycle:
+# For each scenario, PEERS_REPEATS rounds of the masters one after the other (so host load
+# drifts over all masters alike), each run against a fresh `ecdc emulate` with the same
+# scenario file (so the same seed: the same crystals and delays), each for the same SECONDS of
+# cyclic operation at a 1 ms cycle:
 #   ethercrab    peers/ethercrab-driver: the real ethercrab crate, DC as its own docs do it
 #   soem         peers/soem-driver: the real SOEM (GPL-2.0, its own crate), DC as its samples do
 #   ecdc         `ecdc run --cycle-us 1000`
@@ -22,13 +23,15 @@
 # believes. Host scheduling makes each run's wire timing different, so runs differ by a few ns.
 #
 # Scenarios (harness/scenarios/peers_*.toml): seed000-line6, seed003-line2, tree32.
-# Writes OUT/peers.json (one record per run, with the commands), and from it OUT/peers.md and
-# OUT/peers.svg (scripts/peers-report.py).
+# Writes OUT/peers.json (one record per run, with the commands, the emulator's frame accounting
+# and reply turnaround), and from it OUT/peers.md and OUT/peers.svg (scripts/peers-report.py:
+# per scenario and master the median and min–max over the runs).
 #
 # Exit 0 = every master ran, 77 = skipped (reason on the last line), anything else = failed.
 # Usage: scripts/peers-bench.sh [SECONDS] [SCENARIO...]      (default 20 s, all three)
-# Environment: PEERS_MASTERS (default "ethercrab soem ecdc"), PEERS_OUT (default
-# benches/results), PEERS_NO_BUILD=1 to use already built binaries.
+# Environment: PEERS_MASTERS (default "ethercrab soem ecdc"), PEERS_REPEATS (runs per scenario
+# and master, default 3), PEERS_OUT (default benches/results), PEERS_NO_BUILD=1 to use already
+# built binaries.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_RUN="${1:-20}"
@@ -37,6 +40,7 @@ SCENARIOS=("$@")
 [ "${#SCENARIOS[@]}" -eq 0 ] && SCENARIOS=(seed000-line6 seed003-line2 tree32)
 read -r -a MASTERS <<<"${PEERS_MASTERS:-ethercrab soem ecdc}"
 OUT="${PEERS_OUT:-benches/results}"
+REPEATS="${PEERS_REPEATS:-3}"
 CYCLE_US=1000
 
 scenario_file() {
@@ -50,6 +54,7 @@ scenario_file() {
 
 # shellcheck source=scripts/netns-pair.sh
 source scripts/netns-pair.sh
+[[ "$REPEATS" =~ ^[1-9][0-9]*$ ]] || fail "PEERS_REPEATS=$REPEATS: a positive integer"
 for s in "${SCENARIOS[@]}"; do
     scenario_file "$s" >/dev/null || fail "unknown scenario $s (seed000-line6, seed003-line2, tree32)"
 done
@@ -101,13 +106,13 @@ bring_up_ms() {
 FAILED=()
 RECORDS="$WORK/records.jsonl"
 : >"$RECORDS"
-# measure SCENARIO MASTER: a fresh emulator, the master in the master namespace, then one JSON
-# record appended to $RECORDS.
+# measure SCENARIO MASTER RUN: a fresh emulator, the master in the master namespace, then one
+# JSON record appended to $RECORDS.
 measure() {
-    local scen="$1" master="$2" file cmd base emu rc
+    local scen="$1" master="$2" run="$3" file cmd base emu rc
     file="$(scenario_file "$scen")"
     cmd="$(master_cmd "$master")" || fail "unknown master $master"
-    base="$WORK/$scen-$master"
+    base="$WORK/$scen-$master-$run"
     local emu_cmd=("$ECDC" emulate --iface ecs0 --json --scenario "$file")
     ip netns exec "$NS_S" "${emu_cmd[@]}" >"$base.json" 2>"$base-emu.err" &
     emu=$!
@@ -129,40 +134,47 @@ measure() {
         # Recorded, not fatal: the other runs still say something, and the row shows the exit.
         tail -n 20 "$base.err"
         echo "FAILED: $master on $scen exited with $rc"
-        FAILED+=("$scen/$master")
+        FAILED+=("$scen/$master#$run")
     fi
-    grep -h "driver:" "$base.err" | sed "s/^/  [$scen $master] /" || true
+    grep -h "driver:" "$base.err" | sed "s/^/  [$scen $master #$run] /" || true
     local bu
     bu="$(bring_up_ms "$master" "$base")"
     jq -c --arg scen "$scen" --arg file "$file" --arg master "$master" \
         --arg cmd "${cmd//$TARGET\/release\//}" --arg emu "ecdc emulate --iface ecs0 --json --scenario $file" \
         --arg bu "${bu:-}" --arg load "$load" --argjson secs "$SECONDS_RUN" --argjson rc "$rc" \
-        --rawfile log "$base.err" --slurpfile run <(if [ "$master" = ecdc ]; then cat "$base.out"; else echo null; fi) '
-        {scenario: $scen, scenario_file: $file, master: $master, seconds: $secs,
+        --argjson run "$run" \
+        --rawfile log "$base.err" --slurpfile ecdc <(if [ "$master" = ecdc ]; then cat "$base.out"; else echo null; fi) '
+        {scenario: $scen, scenario_file: $file, master: $master, run: $run, seconds: $secs,
          cycle_us: '"$CYCLE_US"', command: $cmd, emulate_command: $emu, exit: $rc,
          load_average_at_start: ($load | tonumber),
          bring_up_ms: (if $bu == "" or $bu == "null" then null else ($bu | tonumber) end),
          frames: .frames.received, sync: .sync,
+         emulator: {dropped: .frames.dropped, truncated: .frames.truncated,
+                    send_errors: .frames.send_errors, turnaround_ns: .turnaround},
          al_states: ([.slaves[].al_state] | unique),
          identities: [.slaves[].identity],
          slaves: [.slaves[] | {position, sync0_edges, clock_error_mean_ns, clock_error_max_abs_ns}],
          master_log: ($log | split("\n") | map(select(test("driver:"))))}
-        + (if $run[0] == null then {} else {ecdc_run: ($run[0] | {restarts, bringup_ms,
+        + (if $ecdc[0] == null then {} else {ecdc_run: ($ecdc[0] | {restarts, bringup_ms,
              machine_frames_sent, frames_lost: .frames.lost, overruns: .cyclic.overruns})} end)' \
         "$base.json" >>"$RECORDS" || fail "reading $base.json"
 }
 
 for scen in "${SCENARIOS[@]}"; do
-    for m in "${MASTERS[@]}"; do
-        echo "== $scen: $m"
-        measure "$scen" "$m"
+    for run in $(seq "$REPEATS"); do
+        for m in "${MASTERS[@]}"; do
+            echo "== $scen: $m, run $run of $REPEATS"
+            measure "$scen" "$m" "$run"
+        done
     done
 done
 
 mkdir -p "$OUT"
 jq -s --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg host "$(nproc) CPUs, $(uname -r)" \
-    --arg cmd "${PEERS_MASTERS:+PEERS_MASTERS=\"$PEERS_MASTERS\" }scripts/peers-bench.sh $SECONDS_RUN ${SCENARIOS[*]}" \
-    '{generated: $date, machine: $host, command: $cmd, runs: .}' \
+    --arg cmd "${PEERS_MASTERS:+PEERS_MASTERS=\"$PEERS_MASTERS\" }PEERS_REPEATS=$REPEATS scripts/peers-bench.sh $SECONDS_RUN ${SCENARIOS[*]}" \
+    --arg uptime "$(uptime)" --argjson repeats "$REPEATS" \
+    '{generated: $date, machine: $host, command: $cmd, repeats: $repeats,
+      uptime_at_end: $uptime, runs: .}' \
     "$RECORDS" >"$OUT/peers.json" || fail "writing $OUT/peers.json"
 python3 scripts/peers-report.py "$OUT/peers.json" "$OUT/peers.md" "$OUT/peers.svg" \
     || fail "scripts/peers-report.py"

@@ -2,12 +2,15 @@
 """Renders scripts/peers-bench.sh's JSON as a Markdown table and an SVG bar chart.
 
 Usage: scripts/peers-report.py PEERS.json PEERS.md PEERS.svg
-Every figure comes from the JSON: the emulator's yardstick (true time) and the masters' own
-bring-up lines; nothing is computed here but rounding and layout.
+Every figure comes from the JSON: the emulator's yardstick (true time), its frame accounting
+and the masters' own bring-up lines. Per (scenario, master) the summary table gives the median
+over the runs and, in brackets, the smallest and largest run; nothing else is computed here but
+those, rounding and layout. Every run also has its own row.
 """
 import html
 import math
 import json
+import statistics
 import sys
 
 
@@ -20,96 +23,177 @@ def f(v, nd=1):
     return str(v)
 
 
+def spread(vals, nd=1, none="–"):
+    """Median (min–max) of the values present; runs without one are counted."""
+    have = [v for v in vals if v is not None]
+    missing = len(vals) - len(have)
+    if not have:
+        return none
+    if len(have) == 1:
+        s = f(have[0], nd)
+    else:
+        s = f"{f(statistics.median(have), nd)} ({f(min(have), nd)}–{f(max(have), nd)})"
+    if missing:
+        s += f"; {none} in {missing}"
+    return s
+
+
+def sync(r):
+    return r.get("sync") or {}
+
+
+def lock(r):
+    # Lock is only meaningful where pulses were compared.
+    return sync(r).get("lock_ms") if sync(r).get("pairs") else None
+
+
+def emu(r):
+    return r.get("emulator") or {}
+
+
+def groups(runs):
+    """(scenario, master) in first-seen order, with their runs."""
+    out = {}
+    for r in runs:
+        out.setdefault((r["scenario"], r["master"]), []).append(r)
+    return out
+
+
 def main():
     src, md_path, svg_path = sys.argv[1:4]
     with open(src) as fh:
         data = json.load(fh)
     runs = data["runs"]
+    g = groups(runs)
+    loads = [r.get("load_average_at_start") for r in runs if r.get("load_average_at_start") is not None]
 
     lines = [
         "# Other masters on the emulator (`scripts/peers-bench.sh`)",
         "",
         f"Generated {data['generated']} by `sudo {data['command']}` on {data['machine']}; "
-        "each row is one run against a fresh `ecdc emulate` with the row's scenario file, "
+        "each run is against a fresh `ecdc emulate` with the row's scenario file, "
         "1 ms cycle, the master and the emulator in two network namespaces joined by veth, "
         "SCHED_OTHER. Skew and lock are the emulator's true-time yardstick over the second "
         "half of the run (docs/emulator.md \"DC yardstick\"); bring-up ms is from the master's "
         "own log (ethercrab: start to all SubDevices in OP; SOEM: `ec_init` to `ec_dcsync0` "
         "done; ecdc: start to its cyclic phase); frames are what the emulator received over "
-        "the whole run. Each master got only the interface and the cycle. The load average "
-        "is the host's 1-minute load when the run started. Discussion: docs/bench.md "
-        "\"Other masters\".",
+        "the whole run; dropped are frames the emulator received and did not answer, "
+        "turnaround max the longest time from a frame's arrival to its reply being handed to "
+        "the kernel. Each master got only the interface and the cycle. Discussion: "
+        "docs/bench.md \"Other masters\".",
         "",
-        "| scenario | master | firing | pairs | mean \\|skew\\| ns | p99 ns | max ns | signed mean ns "
-        "| lock ms after 1st SYNC0 | bring-up ms | frames | AL at exit | master exit | load |",
+        f"Host load: 1-minute load average at the start of the runs {f(min(loads), 2) if loads else '–'}"
+        f"–{f(max(loads), 2) if loads else '–'}; `uptime` at the end: "
+        f"`{(data.get('uptime_at_end') or '–').strip()}`.",
+        "",
+        f"## Summary: median (min–max) over the runs",
+        "",
+        "| scenario | master | runs | firing | mean \\|skew\\| ns | p99 ns | max ns "
+        "| lock ms after 1st SYNC0 | bring-up ms | frames | dropped | turnaround max µs "
+        "| AL at exit | master exits |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in runs:
-        s = r["sync"] or {}
+    for (sc, m), rs in g.items():
+        al = sorted({a for r in rs for a in (r.get("al_states") or [])})
         lines.append(
-            "| {sc} | {m} | {fi} | {pa} | {me} | {p99} | {mx} | {sm} | {lk} | {bu} | {fr} | {al} | {ex} | {ld} |".format(
+            "| " + " | ".join([
+                sc, m, str(len(rs)),
+                spread([sync(r).get("slaves_firing") for r in rs], 0),
+                spread([sync(r).get("skew_mean_ns") for r in rs]),
+                spread([sync(r).get("skew_p99_ns") for r in rs], 0),
+                spread([sync(r).get("skew_max_ns") for r in rs], 0),
+                spread([lock(r) for r in rs], 1, "never"),
+                spread([r.get("bring_up_ms") for r in rs], 0),
+                spread([r.get("frames") for r in rs], 0),
+                spread([emu(r).get("dropped") for r in rs], 0),
+                spread([(emu(r).get("turnaround_ns") or {}).get("max") and
+                        emu(r)["turnaround_ns"]["max"] / 1000 for r in rs], 0),
+                ",".join(al),
+                ",".join(str(r.get("exit")) for r in rs),
+            ]) + " |"
+        )
+    lines += ["", "Commands (binaries in `$CARGO_TARGET_DIR/release`; masters in the master "
+              "namespace, the emulator in the slave namespace; the same for every run of a row):", ""]
+    for (sc, m), rs in g.items():
+        lines.append(f"- {sc} / {m}: `{rs[0]['command']}` against `{rs[0]['emulate_command']}`")
+    lines += [
+        "",
+        "## Every run",
+        "",
+        "| scenario | master | run | firing | pairs | mean \\|skew\\| ns | p99 ns | max ns | signed mean ns "
+        "| lock ms after 1st SYNC0 | bring-up ms | frames | dropped | turnaround p99.9 / max µs "
+        "| AL at exit | master exit | load |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in runs:
+        s = sync(r)
+        ta = emu(r).get("turnaround_ns") or {}
+        us = lambda v: f(v / 1000, 0) if v is not None else "–"
+        lines.append(
+            "| {sc} | {m} | {run} | {fi} | {pa} | {me} | {p99} | {mx} | {sm} | {lk} | {bu} | {fr} | {dr} | {ta} | {al} | {ex} | {ld} |".format(
                 sc=r["scenario"],
                 m=r["master"],
+                run=r.get("run", 1),
                 fi=f(s.get("slaves_firing"), 0),
                 pa=f(s.get("pairs"), 0),
                 me=f(s.get("skew_mean_ns")),
                 p99=f(s.get("skew_p99_ns"), 0),
                 mx=f(s.get("skew_max_ns"), 0),
                 sm=f(s.get("skew_signed_mean_ns")),
-                lk=f(s.get("lock_ms")) if s.get("pairs") else "–",
+                lk=f(lock(r)) if s.get("pairs") else "–",
                 bu=f(r.get("bring_up_ms"), 0),
                 fr=f(r.get("frames"), 0),
+                dr=f(emu(r).get("dropped"), 0),
+                ta=f"{us(ta.get('p999'))} / {us(ta.get('max'))}" if ta else "–",
                 al=",".join(r.get("al_states") or []),
                 ex=r.get("exit"),
                 ld=f(r.get("load_average_at_start"), 2),
             )
         )
-    lines += ["", "Commands (binaries in `$CARGO_TARGET_DIR/release`; masters in the master "
-              "namespace, the emulator in the slave namespace):", ""]
-    for r in runs:
-        lines.append(f"- {r['scenario']} / {r['master']}: `{r['command']}` against "
-                     f"`{r['emulate_command']}`")
     lines += ["", "Per slave clock error vs the reference in the window (signed mean / max |.|, ns):", ""]
     for r in runs:
         per = "  ".join(
             f"{p['position']}: {f(p.get('clock_error_mean_ns'))}/{f(p.get('clock_error_max_abs_ns'), 0)}"
             for p in r.get("slaves", [])
         )
-        lines.append(f"- {r['scenario']} / {r['master']}: {per}")
+        lines.append(f"- {r['scenario']} / {r['master']} #{r.get('run', 1)}: {per}")
     lines += ["", "What each master printed:", ""]
     for r in runs:
+        tag = f"{r['scenario']} {r['master']} #{r.get('run', 1)}"
         for l in r.get("master_log", []):
-            lines.append(f"    [{r['scenario']} {r['master']}] {l}")
+            lines.append(f"    [{tag}] {l}")
         if "ecdc_run" in r:
             e = r["ecdc_run"]
             lines.append(
-                f"    [{r['scenario']} ecdc] restarts {e.get('restarts')}, frames sent "
+                f"    [{tag}] restarts {e.get('restarts')}, frames sent "
                 f"{e.get('machine_frames_sent')}, lost {e.get('frames_lost')}, cyclic overruns "
                 f"{e.get('overruns')}"
             )
     with open(md_path, "w") as fh:
         fh.write("\n".join(lines) + "\n")
 
-    # SVG: per scenario a group of bars (one per master): mean |skew| filled, max as a tick.
-    scen = []
-    for r in runs:
-        if r["scenario"] not in scen:
-            scen.append(r["scenario"])
-    masters = []
-    for r in runs:
-        if r["master"] not in masters:
-            masters.append(r["master"])
-    colours = {"ethercrab": "#d95f02", "soem": "#7570b3", "ecdc": "#1b9e77", "soem-config": "#999"}
-    vals = [v for r in runs for v in ((r["sync"] or {}).get("skew_max_ns"),) if v is not None]
-    top = max(vals + [10.0])
+    # SVG: per scenario a group of bars (one per master): the median of mean |skew| filled, its
+    # min–max over the runs as a thin vertical line, the median of max |skew| as a tick.
+    scen, masters = [], []
+    for sc, m in g:
+        if sc not in scen:
+            scen.append(sc)
+        if m not in masters:
+            masters.append(m)
+    colours = {"ethercrab": "#d95f02", "soem": "#7570b3", "ecdc": "#1b9e77", "soem-config": "#999",
+               "ethercrab+ecdc": "#e7298a"}
+    vals = [sync(r).get("skew_max_ns") for r in runs]
+    top = max([v for v in vals if v is not None] + [10.0])
     w, h, left, bottom, topm = 760, 340, 60, 60, 40
     plot_h = h - bottom - topm
     group_w = (w - left - 20) / max(len(scen), 1)
     bar_w = group_w / (len(masters) + 1)
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">',
            f'<rect width="{w}" height="{h}" fill="white"/>',
-           f'<text x="{left}" y="20" font-size="14">SYNC0 skew in true time (bar: mean |skew|, line: max; log scale), '
-           f'{html.escape(data["generated"])}</text>']
+           f'<text x="{left}" y="16" font-size="13">SYNC0 skew in true time, {html.escape(data["generated"])}, '
+           f'{data.get("repeats", 1)} run(s) each (log scale)</text>',
+           f'<text x="{left}" y="32" font-size="11">bar: median mean |skew|; thin line: its min–max over the runs; '
+           f'thick tick and label: median max |skew|</text>']
     # Log scale: the skews of one chart span 1 ns to tens of µs.
     decades = max(1, math.ceil(math.log10(max(top, 10.0))))
 
@@ -125,17 +209,21 @@ def main():
         gx = left + gi * group_w
         out.append(f'<text x="{gx + group_w / 2:.1f}" y="{h - bottom + 18}" text-anchor="middle">{html.escape(sc)}</text>')
         for mi, m in enumerate(masters):
-            r = next((r for r in runs if r["scenario"] == sc and r["master"] == m), None)
-            if r is None or not r["sync"] or r["sync"].get("skew_mean_ns") is None:
+            rs = g.get((sc, m), [])
+            means = [sync(r).get("skew_mean_ns") for r in rs if sync(r).get("skew_mean_ns") is not None]
+            maxes = [sync(r).get("skew_max_ns") for r in rs if sync(r).get("skew_max_ns") is not None]
+            if not means or not maxes:
                 continue
             x = gx + bar_w * (mi + 0.5)
-            mean, mx = r["sync"]["skew_mean_ns"], r["sync"]["skew_max_ns"]
+            mean, mx = statistics.median(means), statistics.median(maxes)
             c = colours.get(m, "#333")
-            out.append(f'<rect x="{x:.1f}" y="{y(mean):.1f}" width="{bar_w * 0.8:.1f}" height="{y(0) - y(mean):.1f}" fill="{c}"/>')
+            out.append(f'<rect x="{x:.1f}" y="{y(mean):.1f}" width="{bar_w * 0.8:.1f}" height="{y(0) - y(mean):.1f}" fill="{c}" fill-opacity="0.75"/>')
+            cx = x + bar_w * 0.4
+            out.append(f'<line x1="{cx:.1f}" x2="{cx:.1f}" y1="{y(min(means)):.1f}" y2="{y(max(means)):.1f}" stroke="black" stroke-width="1.5"/>')
             out.append(f'<line x1="{x:.1f}" x2="{x + bar_w * 0.8:.1f}" y1="{y(mx):.1f}" y2="{y(mx):.1f}" stroke="{c}" stroke-width="3"/>')
-            out.append(f'<text x="{x + bar_w * 0.4:.1f}" y="{y(mx) - 4:.1f}" text-anchor="middle" font-size="10">{mx:.0f}</text>')
+            out.append(f'<text x="{cx:.1f}" y="{y(mx) - 4:.1f}" text-anchor="middle" font-size="10">{mx:.0f}</text>')
     for mi, m in enumerate(masters):
-        lx = left + mi * 110
+        lx = left + mi * 130
         out.append(f'<rect x="{lx}" y="{h - 22}" width="12" height="12" fill="{colours.get(m, "#333")}"/>')
         out.append(f'<text x="{lx + 16}" y="{h - 12}">{html.escape(m)}</text>')
     out.append("</svg>")

@@ -3,11 +3,11 @@
 # sources from the SOEM-sys crate, built by its build script with cmake + libclang, which
 # .ci/install.sh installs; GPL-2.0, never linked into an ecdc crate). Then, when root and
 # network namespaces work, scripts/peers-bench.sh runs on seed 003's two servo slaves for 2 s
-# each: ethercrab to OP with DC, and SOEM's ec_config_init + ec_config_map + ec_configdc. The
-# layer checks the emulator's JSON (`sync` figures present, SYNC0 firing on both slaves under
-# ethercrab, every slave in OP) and that the identities each master read from SII are the ones
-# the emulated EEPROMs hold. Skips the netns part, with the reason, when not root or without
-# netns/veth.
+# each, one run (PEERS_REPEATS=1): ethercrab to OP with DC, and SOEM's ec_config_init +
+# ec_config_map + ec_configdc. The layer checks the emulator's JSON (`sync` figures present,
+# SYNC0 firing on both slaves under ethercrab, every slave in OP) and that the identities each
+# master read from SII are the ones the emulated EEPROMs hold. Skips the netns part, with the
+# reason, when not root or without netns/veth.
 peers_status=passed
 # SOEM 1.3.3's CMakeLists asks for cmake 2.8.4, which cmake >= 4 refuses without this.
 if cmake --version 2>/dev/null | head -n1 | grep -q 'version [4-9]'; then
@@ -26,7 +26,7 @@ done
 if [ "$peers_status" = passed ]; then
     peers_out="$(mktemp -d)"
     peers_log="$(mktemp)"
-    PEERS_NO_BUILD=1 PEERS_MASTERS="ethercrab soem-config" PEERS_OUT="$peers_out" \
+    PEERS_NO_BUILD=1 PEERS_REPEATS=1 PEERS_MASTERS="ethercrab soem-config" PEERS_OUT="$peers_out" \
         bash -c 'cargo build -q --release -p ecdc-harness --bin ecdc && exec bash scripts/peers-bench.sh 2 seed003-line2' \
         2>&1 | tee "$peers_log"
     peers_rc=${PIPESTATUS[0]}
