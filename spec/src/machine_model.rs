@@ -105,7 +105,12 @@ pub fn allowed_request(state: State, command: Command, register: u16, len: u16) 
         State::LatchReadBefore => command == Fprd && register == 0x0900 && len == 16,
         State::LatchTrigger => command == Bwr && register == 0x0900,
         State::LatchReadAfter => command == Fprd && register == 0x0900 && len == 32,
-        State::ReadAlStatus => command == Fprd && register == 0x0130 && len == 2,
+        // 0x0920 of the slaves found running (REQ-DC-131).
+        State::ReadAlStatus => {
+            command == Fprd
+                && ((register == 0x0130 && len == 2)
+                    || (register == 0x0920 && matches!(len, 4 | 8)))
+        }
         State::WriteOffsets => {
             command == Fpwr
                 && ((register == 0x0920 && matches!(len, 4 | 8))
@@ -157,6 +162,9 @@ pub struct RefMachine {
     pub locked: bool,
     /// In hold-over (cyclic operation silent for `max_lost_cycles` cycles).
     pub holdover: bool,
+    /// The AL states of this `ReadAlStatus` step are in; its 0x0920 reads of the running
+    /// slaves follow in a frame of their own (REQ-DC-131).
+    pub al_read: bool,
 }
 
 impl RefMachine {
@@ -172,6 +180,7 @@ impl RefMachine {
             lost: 0,
             locked: false,
             holdover: false,
+            al_read: false,
         }
     }
 
@@ -191,6 +200,7 @@ impl RefMachine {
             self.locked = false;
         }
         self.holdover = false;
+        self.al_read = false;
     }
 
     /// The state in which the next frame is built: a restart pause ends, and steps with
@@ -241,6 +251,10 @@ impl RefMachine {
                     ev.push(EventKind::DelaysMeasured);
                     ReadAlStatus
                 }
+            }
+            ReadAlStatus if self.writable < self.k && !self.al_read => {
+                self.al_read = true;
+                ReadAlStatus
             }
             ReadAlStatus => WriteOffsets,
             WriteOffsets => {

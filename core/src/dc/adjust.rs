@@ -1,5 +1,6 @@
-//! Offset and delay writes (REQ-DC-103): read AL status, write 0x0920 with the slave's exact
-//! width only to slaves that are provably not running, write 0x0928 to every slave with a
+//! Offset and delay writes (REQ-DC-103): read AL status (and 0x0920 of the slaves that may be
+//! running, to anchor the other offsets on their domain, REQ-DC-131), write 0x0920 with the
+//! slave's exact width only to slaves that are provably not running, write 0x0928 to every slave with a
 //! system time, then reset the loop of every slave whose offset changed (0x0934, then 0x0930,
 //! ETG1020 §22.2.4 order as ethercrab and KickCAT; REQ-DC-031).
 
@@ -13,9 +14,22 @@ use crate::wire::register::reg;
 impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
         match self.state {
-            State::ReadAlStatus => match self.slave(i) {
+            State::ReadAlStatus if i < self.count => match self.slave(i) {
                 Some(s) if s.dc.has_system_time() => {
                     Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
+                }
+                _ => Item::Skip,
+            },
+            // REQ-DC-131: the offset of every slave whose offset stays, after every AL status
+            // of the step is in (`max_per_frame` keeps the two halves in separate frames).
+            State::ReadAlStatus => match self.slave(i.saturating_sub(self.count)) {
+                Some(s) if s.dc.has_system_time() && s.al_status.is_some() => {
+                    if s.may_step_offset() {
+                        Item::Skip
+                    } else {
+                        let w = s.dc.time_width();
+                        Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME_OFFSET, w))
+                    }
                 }
                 _ => Item::Skip,
             },
@@ -70,6 +84,15 @@ impl<const N: usize> Machine<N> {
     ) -> Result<(), Error> {
         self.expect_wkc(p, 1, wkc)?;
         match self.state {
+            State::ReadAlStatus if i >= self.count => {
+                let v = le(data, usize::from(p.len)).ok_or(Error::OutOfRange {
+                    station: p.station,
+                    register: p.register,
+                })?;
+                if let Some(s) = self.slave_mut(i.saturating_sub(self.count)) {
+                    s.running_offset = Some(v);
+                }
+            }
             State::ReadAlStatus => {
                 let v =
                     le(data, 2)
@@ -95,6 +118,7 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_done(&mut self) -> Result<State, Error> {
         match self.state {
             State::ReadAlStatus => {
+                self.anchor_on_running_domain()?;
                 for s in self.slaves.iter_mut() {
                     s.offset_written = false;
                     s.sync_programmed = false;

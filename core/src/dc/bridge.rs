@@ -159,8 +159,63 @@ impl<const N: usize> Machine<N> {
                 return Err(bad);
             }
             let entry_local = offset::entry_local_time(&latches, node.entry);
+            s.entry_local = entry_local;
+            s.running_offset = None;
             s.offset =
                 offset::initial_offset(master, i64::from(s.delay_ns), entry_local, width).as_u64();
+        }
+        Ok(())
+    }
+
+    /// REQ-DC-131: when slaves keep their offset because they may be running (REQ-DC-103),
+    /// the offsets to be written are re-anchored on the running domain's time instead of the
+    /// master's clock. The anchor is the reference if it runs, else the first running slave
+    /// with a system time: its system time when the latch frame entered it, `entry_local +
+    /// 0x0920`, less its delay behind the reference, is the reference's system time `m` when
+    /// the frame passed the reference (the domain's time at the latch). A 32-bit anchor's time
+    /// is widened to the 64-bit value nearest the master's clock (REQ-DC-051). Every writable
+    /// slave then gets [`offset::initial_offset`] of `m`, as [`Self::compute_offsets`] gives it
+    /// of the master's time. No running slave: nothing changes.
+    pub(crate) fn anchor_on_running_domain(&mut self) -> Result<(), Error> {
+        let count = usize::from(self.count);
+        let slaves = self.slaves.get(..count).unwrap_or(&[]);
+        let running = |s: &&SlaveInfo| s.running_offset.is_some() && !s.may_step_offset();
+        let anchor = match self.slave(self.reference).filter(running) {
+            Some(r) => Some(*r),
+            None => slaves.iter().find(running).copied(),
+        };
+        let Some(a) = anchor else {
+            self.domain_shift = 0;
+            return Ok(());
+        };
+        let (Some(width), Some(read)) = (clock_width(a.dc), a.running_offset) else {
+            return Err(Error::OutOfRange {
+                station: a.station,
+                register: reg::SYSTEM_TIME_OFFSET,
+            });
+        };
+        let master = SystemTime(self.latch_time);
+        let at_latch = a
+            .entry_local
+            .wrapping_add(read)
+            .wrapping_sub(u64::from(a.delay_ns));
+        let m = sync::reference_now(at_latch, width, master);
+        let shift = m.wrapping_since(master);
+        if shift.unsigned_abs() > MAX_DOMAIN_SHIFT_NS {
+            // REQ-DC-112: not a drifted domain but a 0x0920 that was never set by a master of
+            // this epoch (or garbage): nothing is derived from it.
+            self.domain_shift = 0;
+            return Ok(());
+        }
+        self.domain_shift = shift;
+        for s in self.slaves.iter_mut().take(count) {
+            let Some(width) = clock_width(s.dc) else {
+                continue;
+            };
+            if s.may_step_offset() {
+                s.offset =
+                    offset::initial_offset(m, i64::from(s.delay_ns), s.entry_local, width).as_u64();
+            }
         }
         Ok(())
     }
@@ -185,9 +240,11 @@ impl<const N: usize> Machine<N> {
         sync: &SyncConfig,
     ) -> Option<u64> {
         let width = clock_width(r.dc)?;
-        let t_ref = sync::reference_now(raw, width, SystemTime(now));
+        // REQ-DC-131: the domain runs `domain_shift` away from the master's clock.
+        let expected = SystemTime(now).wrapping_add_signed(self.domain_shift);
+        let t_ref = sync::reference_now(raw, width, expected);
         if r.offset_written
-            && t_ref.wrapping_since(SystemTime(now)).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
+            && t_ref.wrapping_since(expected).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
         {
             return None;
         }
@@ -234,6 +291,11 @@ fn epu_plausible(latches: &Latches, node: &Node) -> bool {
 /// after the offsets were written. ecdc choice: 1 s (clock rates differ by ≤ 200 ppm, so a real
 /// deviation after a few seconds of bring-up is < 1 ms).
 const PLAUSIBLE_REF_DEVIATION_NS: u64 = 1_000_000_000;
+
+/// Largest distance between a running domain's time and the master's clock that REQ-DC-131
+/// joins. ecdc choice: one day (clock rates differ by ≤ 200 ppm, so that is over 13 years of
+/// uptime since the domain was last set to the master's time).
+const MAX_DOMAIN_SHIFT_NS: u64 = 86_400_000_000_000;
 
 /// Largest accepted distance between the EPU receive time (0x0918) and port 0's receive time
 /// of the same frame. They are stamped on the same frame at the same place (DS S2-74 Tab.99),
@@ -404,5 +466,94 @@ mod tests {
             };
             assert_eq!(m.compute_sync_start(now_on_grid, raw, &r, &long), None);
         }
+    }
+
+    /// Slave 0 (the reference) runs with 0x0920 = `off0` read back, slave 1 is in INIT; both
+    /// entered through port 0 at the given local times, slave 1 `delay` ns behind.
+    fn running_reference(
+        dc0: DcKind,
+        off0: u64,
+        entry0: u64,
+        entry1: u64,
+        delay: u32,
+    ) -> Machine<4> {
+        let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
+        m.slaves[0].dc = dc0;
+        m.slaves[0].al_status = Some(0x08);
+        m.slaves[0].running_offset = Some(off0);
+        m.slaves[0].entry_local = entry0;
+        m.slaves[1].al_status = Some(0x01);
+        m.slaves[1].entry_local = entry1;
+        m.slaves[1].delay_ns = delay;
+        m
+    }
+
+    /// REQ-DC-131: with the reference running 3 ms ahead of the master's clock, the INIT slave
+    /// is written to the reference's time at the latch plus its delay, not to the master's
+    /// time; the running slave's offset is left as read.
+    // verifies: REQ-DC-131
+    #[test]
+    fn writable_slave_anchored_on_running_reference() {
+        let ahead = 3_000_000u64;
+        let entry0 = 0x7_0000_1234u64;
+        let entry1 = 0x2_9000_0000u64;
+        let off0 = (M + ahead).wrapping_sub(entry0);
+        let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
+        m.anchor_on_running_domain().unwrap();
+        assert_eq!(m.domain_shift, ahead as i64);
+        assert_eq!(entry1.wrapping_add(m.slaves[1].offset), M + ahead + 700);
+        // No running slave: the offsets stay those of the master's time.
+        let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
+        m.slaves[0].al_status = Some(0x02);
+        m.slaves[1].offset = 5;
+        m.anchor_on_running_domain().unwrap();
+        assert_eq!((m.domain_shift, m.slaves[1].offset), (0, 5));
+        // A running slave whose 0x0920 was never set (its system time is its local time) is
+        // not a domain to join.
+        let mut m = running_reference(DcKind::Bits64, 0, entry0, entry1, 700);
+        m.slaves[1].offset = 5;
+        m.anchor_on_running_domain().unwrap();
+        assert_eq!((m.domain_shift, m.slaves[1].offset), (0, 5));
+    }
+
+    /// REQ-DC-131, REQ-DC-051: a 32-bit running reference's time is widened around the
+    /// master's time, so a 64-bit slave gets the full 64-bit domain time, also when the domain
+    /// runs behind the master's clock across a 2^32 boundary.
+    // verifies: REQ-DC-131
+    #[test]
+    fn thirty_two_bit_anchor_widened_around_master() {
+        let behind = 5_000_000u64;
+        let entry0 = 0x1234_5678u64;
+        let entry1 = 0x3_0000_0000u64;
+        for master in [M, (M | 0xFFFF_FFFF) - 1_000_000 + behind] {
+            let domain = master - behind;
+            let off0 = u64::from(low32(domain.wrapping_sub(entry0)));
+            let mut m = running_reference(DcKind::Bits32, off0, entry0, entry1, 300);
+            m.latch_time = master;
+            m.anchor_on_running_domain().unwrap();
+            assert_eq!(m.domain_shift, -(behind as i64));
+            assert_eq!(entry1.wrapping_add(m.slaves[1].offset), domain + 300);
+        }
+    }
+
+    /// REQ-DC-131: with the domain 1.5 s ahead of the master's clock the SYNC start's
+    /// plausibility bound is checked against the domain, so a reference written onto it is
+    /// accepted and one on the master's time refused.
+    // verifies: REQ-DC-131, REQ-DC-105
+    #[test]
+    fn sync_start_plausibility_follows_the_domain() {
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        let r = SlaveInfo {
+            dc: DcKind::Bits64,
+            offset_written: true,
+            ..SlaveInfo::default()
+        };
+        let sync = SyncConfig::default();
+        let ahead = 1_500_000_000u64;
+        assert_eq!(m.compute_sync_start(M, M + ahead, &r, &sync), None);
+        m.domain_shift = ahead as i64;
+        let start = m.compute_sync_start(M, M + ahead, &r, &sync).unwrap();
+        assert!(start > M + ahead && start < M + ahead + (1 << 31));
+        assert_eq!(m.compute_sync_start(M, M, &r, &sync), None);
     }
 }

@@ -101,6 +101,9 @@ pub struct Machine<const N: usize> {
     pub(crate) t_diff: [Option<i32>; N],
     /// Master time sampled just before sending the latch trigger (REQ-DC-102).
     pub(crate) latch_time: u64,
+    /// Running DC domain's time minus the master's clock at the latch, ns (REQ-DC-131); 0 when
+    /// no slave was found running.
+    pub(crate) domain_shift: i64,
     pub(crate) drift_frames: u32,
     pub(crate) drift_ok: u8,
     pub(crate) drift_bound: Option<u32>,
@@ -143,6 +146,7 @@ impl<const N: usize> Machine<N> {
             delays: None,
             t_diff: [None; N],
             latch_time: 0,
+            domain_shift: 0,
             drift_frames: 0,
             drift_ok: 0,
             drift_bound: None,

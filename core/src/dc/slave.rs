@@ -65,6 +65,10 @@ pub struct SlaveInfo {
     pub offset: u64,
     /// Whether 0x0920 was written in the last bring-up.
     pub offset_written: bool,
+    /// Local time (64 bit) at which the last latch frame entered the slave (REQ-DC-022).
+    pub(crate) entry_local: u64,
+    /// 0x0920 as read from a slave found running in this bring-up (REQ-DC-131), zero-extended.
+    pub(crate) running_offset: Option<u64>,
     /// Whether the SYNC unit was programmed in the last bring-up.
     pub sync_programmed: bool,
     /// Last 0x092C value decoded to signed ns (negative = local copy behind), if read.

@@ -66,7 +66,9 @@ pub enum State {
     LatchTrigger,
     /// FPRD 0x0900..0x091F per DC slave: port times and the EPU time of the trigger frame.
     LatchReadAfter,
-    /// FPRD 0x0130 per DC slave: AL status, to never step 0x0920 of a running slave.
+    /// FPRD 0x0130 per DC slave: AL status, to never step 0x0920 of a running slave; then
+    /// FPRD 0x0920 of each slave that may be running, whose domain the others join
+    /// (REQ-DC-131).
     ReadAlStatus,
     /// FPWR 0x0920 (exact width) on non-running slaves and 0x0928 on every DC slave.
     WriteOffsets,

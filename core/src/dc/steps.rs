@@ -24,10 +24,12 @@ impl<const N: usize> Machine<N> {
             | State::ProbeSystemTime
             | State::LatchReadBefore
             | State::LatchReadAfter
-            | State::ReadAlStatus
             | State::ClearActivation
             | State::ActivateSync => n,
-            State::ReadInfo | State::WriteOffsets | State::ResetLoops => n.saturating_mul(2),
+            // ReadAlStatus: AL status of every slave, then 0x0920 of the running ones.
+            State::ReadInfo | State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => {
+                n.saturating_mul(2)
+            }
             State::ProgramSync => n.saturating_mul(3),
             State::DriftBurst => self.burst_len(),
             State::DriftCheck => n.saturating_add(1),
@@ -41,6 +43,10 @@ impl<const N: usize> Machine<N> {
             // The restore of an interrupted t_Diff measurement goes alone, before the count.
             State::CountSlaves if self.tdiff.recovering => 1,
             State::DriftBurst => 1,
+            // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two.
+            State::ReadAlStatus if self.cursor < self.count => {
+                usize::from(self.count.saturating_sub(self.cursor))
+            }
             // One entry stays free for the FRMW that closes every check frame.
             State::DriftCheck => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
             _ => usize::MAX,
@@ -164,6 +170,7 @@ impl<const N: usize> Machine<N> {
                 self.drift_frames = 0;
                 self.drift_ok = 0;
                 self.drift_bound = None;
+                self.domain_shift = 0;
                 self.tdiff_reset();
             }
             State::DriftCheck => self.drift_bound = None,
