@@ -84,3 +84,38 @@ fn bad_scenario_is_an_error_not_a_panic() {
     assert!(err.contains("frame_loss_rate"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--duration 500ms` and the older `--duration-ms 500` run the same simulation; giving both
+/// is a usage error.
+#[test]
+fn duration_units_and_the_older_flag_agree() {
+    let run = |args: &[&str], name: &str| {
+        let dir = tmpdir(name);
+        let out = Command::new(env!("CARGO_BIN_EXE_ecdc"))
+            .args(["simulate", "--no-progress", "--slaves", "3"])
+            .args(args)
+            .arg("--out-dir")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        (out, dir)
+    };
+    let (a, dir_a) = run(&["--duration", "500ms"], "dur-units");
+    let (b, dir_b) = run(&["--duration-ms", "500"], "dur-ms");
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    let json = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("ecdc-simulate.json")).unwrap())
+            .unwrap()
+    };
+    let (ja, jb) = (json(&dir_a), json(&dir_b));
+    assert_eq!(ja["setup"]["duration_ns"], 500_000_000u64);
+    assert_eq!(ja, jb);
+    let (both, _) = run(&["--duration", "1s", "--duration-ms", "500"], "dur-both");
+    assert_eq!(both.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&both.stderr).contains("cannot be used with"),
+        "{}",
+        String::from_utf8_lossy(&both.stderr)
+    );
+}

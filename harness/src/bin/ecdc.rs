@@ -32,7 +32,18 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let mut cli = Cli::parse();
+    // `--duration 10s` and the older `--duration-ms 10000` fill one field.
+    match &mut cli.command {
+        Command::Simulate(a) => a.duration_ms = a.duration.take().unwrap_or(a.duration_ms),
+        Command::Bench(cli::bench::Args {
+            cmd: cli::bench::BenchCmd::Dc(a),
+        }) => a.duration_ms = a.duration.take().or(a.duration_ms),
+        Command::Bench(cli::bench::Args {
+            cmd: cli::bench::BenchCmd::Sensitivity(a),
+        }) => a.duration_ms = a.duration.take().or(a.duration_ms),
+        _ => {}
+    }
     let result = match &cli.command {
         Command::Decode(args) => cli::decode::run(args),
         Command::Simulate(args) => cli::simulate::run(args),

@@ -84,7 +84,12 @@ pub struct DcArgs {
     /// Run only these schemes (repeatable) [default: all six].
     #[arg(long = "scheme", value_enum)]
     pub schemes: Vec<SchemeName>,
-    /// Override every scenario's simulated duration, ms (1..=3600000).
+    /// Override every scenario's simulated duration: `10s`, `500ms` (a bare number is seconds),
+    /// whole ms from 1ms to 1h.
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "duration_ms",
+          value_parser = super::validate::duration_ms)]
+    pub duration: Option<u64>,
+    /// The same in ms (1..=3600000): the older spelling of `--duration`.
     #[arg(long, allow_negative_numbers = true,
           value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
     pub duration_ms: Option<u64>,
@@ -101,6 +106,7 @@ impl Default for DcArgs {
             out: PathBuf::from("benches/results"),
             scenarios: Vec::new(),
             schemes: Vec::new(),
+            duration: None,
             duration_ms: None,
             check: false,
         }

@@ -45,7 +45,8 @@ pub struct Args {
     /// Override the scenario's frame loss probability (0..=1).
     #[arg(long, allow_negative_numbers = true, value_parser = validate::f64_in(0.0, 1.0))]
     pub loss_rate: Option<f64>,
-    /// Stop after this many seconds, > 0 (default: until Ctrl-C / SIGTERM).
+    /// Stop after this long: `10s`, `500ms`, `2min` (a bare number is seconds) [default: until
+    /// Ctrl-C / SIGTERM].
     #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
     /// Print a line per second with frame counters and the DC yardstick so far.

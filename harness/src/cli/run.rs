@@ -33,7 +33,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1000, allow_negative_numbers = true,
           value_parser = validate::u64_in(CYCLE_US.0, CYCLE_US.1))]
     pub cycle_us: u64,
-    /// Seconds of cyclic operation, > 0, then stop with a summary (default: until Ctrl-C).
+    /// Cyclic operation for this long, then stop with a summary: `10s`, `500ms`, `2min` (a bare
+    /// number is seconds) [default: until Ctrl-C].
     #[arg(long, allow_negative_numbers = true, value_parser = validate::seconds)]
     pub duration: Option<f64>,
     /// Record every frame sent and received into this capture file (Wireshark-readable):
@@ -105,50 +106,78 @@ struct RunSummary {
     interrupted: bool,
 }
 
-/// Renders the bring-up progress (one updating line on a terminal, a line a second otherwise).
+/// Renders the bring-up progress: on a terminal an indicatif bar (a spinner with the state and
+/// frame count, a bar of FRMW frames during static drift compensation), otherwise a line a
+/// second. Events print above the bar.
 struct ProgressBar {
-    tty: bool,
+    /// The terminal bar; `None` when stderr is not a terminal.
+    tty: Option<indicatif::ProgressBar>,
     quiet: bool,
     last_line: u64,
-    drawn: bool,
+    drifting: bool,
 }
 
 impl ProgressBar {
+    fn new(quiet: bool) -> Self {
+        let tty = (!quiet && std::io::stderr().is_terminal()).then(Self::spinner);
+        ProgressBar {
+            tty,
+            quiet,
+            last_line: 0,
+            drifting: false,
+        }
+    }
+
+    fn spinner() -> indicatif::ProgressBar {
+        let bar = indicatif::ProgressBar::new_spinner();
+        bar.set_style(Self::style(false));
+        bar
+    }
+
+    fn style(drifting: bool) -> indicatif::ProgressStyle {
+        let template = if drifting {
+            "static drift compensation [{bar:30}] {pos} FRMW frames (give up at {len}), {msg}"
+        } else {
+            "{spinner} bring-up: {msg}"
+        };
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner())
+            .progress_chars("#>.")
+    }
+
     fn show(&mut self, p: &Progress) {
         if self.quiet {
             return;
         }
-        let now = clock::now_ns();
         let drifting = matches!(p.state, State::DriftBurst | State::DriftCheck);
-        if !self.tty && now < self.last_line + clock::NS_PER_S {
+        let diff = p.max_diff_ns.map_or("-".to_owned(), |d| format!("{d} ns"));
+        if let Some(bar) = &self.tty {
+            if drifting != self.drifting {
+                bar.set_style(Self::style(drifting));
+                self.drifting = drifting;
+            }
+            if drifting {
+                bar.set_length(u64::from(p.drift_max));
+                bar.set_position(p.drift_frames.min(u64::from(p.drift_max)));
+                bar.set_message(format!("max |0x092C| {diff}"));
+            } else {
+                bar.set_message(format!("{:?}, {} frames", p.state, p.frames));
+                bar.tick();
+            }
             return;
         }
-        // On a terminal, redraw at most every 20 ms.
-        if self.tty && !drifting && now < self.last_line + 20_000_000 {
+        let now = clock::now_ns();
+        if now < self.last_line + clock::NS_PER_S {
             return;
         }
         self.last_line = now;
-        let diff = p.max_diff_ns.map_or("-".to_owned(), |d| format!("{d} ns"));
-        let line = if drifting {
-            let width = 30usize;
-            let filled = ((p.drift_frames.min(u64::from(p.drift_max)) as f64
-                / f64::from(p.drift_max.max(1)))
-                * width as f64) as usize;
-            format!(
-                "static drift compensation [{}{}] {} FRMW frames (give up at {}), max |0x092C| {diff}",
-                "#".repeat(filled),
-                ".".repeat(width - filled),
-                p.drift_frames,
-                p.drift_max
-            )
+        if drifting {
+            eprintln!(
+                "static drift compensation: {} FRMW frames (give up at {}), max |0x092C| {diff}",
+                p.drift_frames, p.drift_max
+            );
         } else {
-            format!("bring-up: {:?}, {} frames", p.state, p.frames)
-        };
-        if self.tty {
-            eprint!("\r\x1b[2K{line}");
-            self.drawn = true;
-        } else {
-            eprintln!("{line}");
+            eprintln!("bring-up: {:?}, {} frames", p.state, p.frames);
         }
     }
 
@@ -156,11 +185,19 @@ impl ProgressBar {
         if self.quiet {
             return;
         }
-        if self.drawn {
-            eprint!("\r\x1b[2K");
-            self.drawn = false;
+        match &self.tty {
+            Some(bar) => bar.println(text),
+            None => eprintln!("{text}"),
         }
-        eprintln!("{text}");
+    }
+
+    /// Removes the bar once DC is up (the cyclic phase prints its own lines); a fresh one,
+    /// not drawn until used, waits for a re-initialisation.
+    fn clear(&mut self) {
+        if let Some(bar) = self.tty.as_mut() {
+            std::mem::replace(bar, Self::spinner()).finish_and_clear();
+        }
+        self.drifting = false;
     }
 }
 
@@ -292,12 +329,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Machine::new(cfg).map_err(|e| anyhow::anyhow!("DC machine configuration: {e:?}"))?,
     );
     let dc = DcClock::from_realtime();
-    let bar = std::cell::RefCell::new(ProgressBar {
-        tty: std::io::stderr().is_terminal(),
-        quiet: args.quiet,
-        last_line: 0,
-        drawn: false,
-    });
+    let bar = std::cell::RefCell::new(ProgressBar::new(args.quiet));
     let total_cycles = args
         .duration
         .map(|s| ((s.max(0.0) * 1e9) as u64) / cycle_ns);
@@ -346,6 +378,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
         let outcome = outcome.map_err(anyhow::Error::new)?;
         bringup_ms += (clock::now_ns() - t0) as f64 / 1e6;
+        bar.borrow_mut().clear();
         if outcome == Outcome::Interrupted {
             interrupted = true;
             break;

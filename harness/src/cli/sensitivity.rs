@@ -36,8 +36,12 @@ pub struct SensitivityArgs {
     /// Output directory (created if missing).
     #[arg(long, default_value = "benches/results")]
     pub out: PathBuf,
-    /// Simulated duration of every run, ms (1..=3600000) [default: 10 000, seed 000's Fig. 10
-    /// length].
+    /// Simulated duration of every run: `10s`, `500ms` (a bare number is seconds), whole ms
+    /// from 1ms to 1h [default: 10s, seed 000's Fig. 10 length].
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "duration_ms",
+          value_parser = super::validate::duration_ms)]
+    pub duration: Option<u64>,
+    /// The same in ms (1..=3600000): the older spelling of `--duration`.
     #[arg(long, allow_negative_numbers = true,
           value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
     pub duration_ms: Option<u64>,
@@ -47,6 +51,7 @@ impl Default for SensitivityArgs {
     fn default() -> Self {
         SensitivityArgs {
             out: PathBuf::from("benches/results"),
+            duration: None,
             duration_ms: None,
         }
     }

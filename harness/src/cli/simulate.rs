@@ -3,7 +3,7 @@
 //! seed 000 Table 2 quantities (text on stdout, JSON and SVG files). Definitions:
 //! docs/simulate.md and [`crate::schemes::measure`].
 
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -47,7 +47,12 @@ pub struct Args {
     #[arg(long, default_value_t = 1_000_000, allow_negative_numbers = true,
           value_parser = validate::u32_in(CYCLE_NS.0, CYCLE_NS.1))]
     pub cycle_ns: u32,
-    /// Simulated duration, ms (1..=3600000; at least one cycle).
+    /// Simulated duration: a number and a unit (`10s`, `500ms`, `1min`; a bare number is
+    /// seconds), whole ms from 1ms to 1h, at least one cycle [default: 10s].
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "duration_ms",
+          value_parser = validate::duration_ms)]
+    pub duration: Option<u64>,
+    /// Simulated duration in ms (1..=3600000): the older spelling of `--duration`.
     #[arg(long, default_value_t = 10_000, allow_negative_numbers = true,
           value_parser = validate::u64_in(1, MAX_DURATION_MS))]
     pub duration_ms: u64,
@@ -89,6 +94,7 @@ impl Default for Args {
             slaves: None,
             topology: None,
             cycle_ns: 1_000_000,
+            duration: None,
             duration_ms: 10_000,
             ppm: None,
             loss: None,
@@ -164,23 +170,31 @@ pub fn scenario(args: &Args) -> anyhow::Result<(Scenario, String)> {
     Ok((sc, topo))
 }
 
-/// A progress bar on stderr, shown only on a terminal and only once a run has taken > 1 s.
+/// A progress bar on stderr (indicatif), shown only on a terminal and only once a run has
+/// taken > 1 s, so short runs and piped output stay clean.
 struct Progress {
+    bar: indicatif::ProgressBar,
     start: Instant,
-    total: u64,
     enabled: bool,
     shown: bool,
-    last: Instant,
 }
 
 impl Progress {
     fn new(total: u64, enabled: bool) -> Self {
+        let bar = indicatif::ProgressBar::with_draw_target(
+            Some(total.max(1)),
+            indicatif::ProgressDrawTarget::hidden(),
+        );
+        if let Ok(style) =
+            indicatif::ProgressStyle::with_template("[{bar:40}] {percent:>3}% {msg:<15} {elapsed}")
+        {
+            bar.set_style(style.progress_chars("#>."));
+        }
         Progress {
+            bar,
             start: Instant::now(),
-            total: total.max(1),
             enabled: enabled && std::io::stderr().is_terminal(),
             shown: false,
-            last: Instant::now(),
         }
     }
 
@@ -188,28 +202,20 @@ impl Progress {
         if !self.enabled || self.start.elapsed().as_millis() < 1000 {
             return;
         }
-        if self.shown && self.last.elapsed().as_millis() < 100 {
-            return;
+        if !self.shown {
+            self.shown = true;
+            self.bar
+                .set_draw_target(indicatif::ProgressDrawTarget::stderr());
         }
-        self.shown = true;
-        self.last = Instant::now();
-        let frac = (done as f64 / self.total as f64).clamp(0.0, 1.0);
-        let filled = (frac * 40.0) as usize;
-        let mut e = std::io::stderr().lock();
-        let _ = write!(
-            e,
-            "\r[{}{}] {:>3.0}% {label:<14} {:.1} s",
-            "#".repeat(filled),
-            ".".repeat(40 - filled),
-            frac * 100.0,
-            self.start.elapsed().as_secs_f64()
-        );
-        let _ = e.flush();
+        if self.bar.message() != label {
+            self.bar.set_message(label.to_owned());
+        }
+        self.bar.set_position(done);
     }
 
     fn finish(&self) {
         if self.shown {
-            eprintln!();
+            self.bar.finish();
         }
     }
 }

@@ -123,21 +123,71 @@ pub fn f64_in(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone 
     }
 }
 
-/// Value parser for a duration in seconds: finite, > 0, and short enough that its ns fit a
-/// u64 (the runtime's time type).
-pub fn seconds(s: &str) -> Result<f64, String> {
+/// One duration syntax for every subcommand: a number and a unit, `ns`, `us` (or `µs`), `ms`,
+/// `s`, `min` or `h` (`10s`, `500ms`, `2.5s`, `1min`), or a bare number of seconds. Returns
+/// ns; finite, > 0, and short enough that the ns fit a u64 (the runtime's time type).
+pub fn duration_ns(s: &str) -> Result<u64, String> {
     /// u64::MAX ns in whole seconds.
     const MAX_S: f64 = 18_446_744_073.0;
-    let v: f64 = s
+    const HINT: &str = "give a number and a unit: ns, us, ms, s, min, h (10s, 500ms; a bare \
+                        number is seconds)";
+    let t = s.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+' | 'e' | 'E')))
+        .filter(|&i| {
+            // "1e3s": the exponent's e belongs to the number; "NaN"/"inf" have no unit.
+            i > 0
+        })
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let scale_ns = match unit.trim() {
+        "" | "s" => 1e9,
+        "ns" => 1.0,
+        "us" | "µs" => 1e3,
+        "ms" => 1e6,
+        "min" => 60e9,
+        "h" => 3600e9,
+        other => return Err(format!("unknown unit {other:?}; {HINT}")),
+    };
+    let v: f64 = num
         .trim()
         .parse()
-        .map_err(|_| format!("not a number of seconds; valid: > 0 and <= {MAX_S} s"))?;
-    if !v.is_finite() || v <= 0.0 || v > MAX_S {
+        .map_err(|_| format!("not a duration; {HINT}"))?;
+    let secs = v * scale_ns / 1e9;
+    if !secs.is_finite() || secs <= 0.0 || secs > MAX_S {
         return Err(format!(
-            "{v} s is out of range; valid: > 0 and <= {MAX_S} s (omit the flag to run until Ctrl-C)"
+            "{secs} s is out of range; valid: > 0 and <= {MAX_S} s (omit the flag to run until Ctrl-C)"
         ));
     }
-    Ok(v)
+    let ns = (v * scale_ns).round();
+    if ns < 1.0 {
+        return Err(format!("{s:?} is shorter than 1 ns"));
+    }
+    Ok(ns as u64)
+}
+
+/// Value parser for a run length in seconds ([`duration_ns`]'s syntax; a bare number is
+/// seconds, as before units were accepted).
+pub fn seconds(s: &str) -> Result<f64, String> {
+    duration_ns(s).map(|ns| ns as f64 / 1e9)
+}
+
+/// Value parser for a simulated duration in whole ms, 1..=[`MAX_DURATION_MS`], written with
+/// [`duration_ns`]'s syntax (`simulate --duration 10s`).
+pub fn duration_ms(s: &str) -> Result<u64, String> {
+    let ns = duration_ns(s)?;
+    if ns % 1_000_000 != 0 {
+        return Err(format!(
+            "{s}: simulated runs last whole milliseconds (give e.g. 10s or 2500ms)"
+        ));
+    }
+    let ms = ns / 1_000_000;
+    if !(1..=MAX_DURATION_MS).contains(&ms) {
+        return Err(format!(
+            "{ms} ms is out of range; valid: 1ms..=1h ({MAX_DURATION_MS} ms)"
+        ));
+    }
+    Ok(ms)
 }
 
 /// Value parser for `--iface`: the kernel's rule for interface names (Linux net/core/dev.c
@@ -381,6 +431,44 @@ pub fn bench_dc_args(a: &super::bench::DcArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn one_duration_syntax() {
+        assert_eq!(duration_ns("10s"), Ok(10_000_000_000));
+        assert_eq!(duration_ns("10"), Ok(10_000_000_000));
+        assert_eq!(duration_ns(" 2.5 s "), Ok(2_500_000_000));
+        assert_eq!(duration_ns("500ms"), Ok(500_000_000));
+        assert_eq!(duration_ns("250us"), Ok(250_000));
+        assert_eq!(duration_ns("250µs"), Ok(250_000));
+        assert_eq!(duration_ns("7ns"), Ok(7));
+        assert_eq!(duration_ns("1min"), Ok(60_000_000_000));
+        assert_eq!(duration_ns("1h"), Ok(3_600_000_000_000));
+        assert_eq!(duration_ns("1e3ms"), Ok(1_000_000_000));
+        for bad in [
+            "0",
+            "-1",
+            "0s",
+            "NaN",
+            "inf",
+            "",
+            "s",
+            "10 parsecs",
+            "1e20h",
+            "0.1ns",
+        ] {
+            assert!(duration_ns(bad).is_err(), "{bad:?} accepted");
+        }
+        assert!(duration_ns("10 parsecs")
+            .unwrap_err()
+            .contains("unknown unit"));
+        assert_eq!(seconds("1500ms"), Ok(1.5));
+        assert_eq!(duration_ms("10s"), Ok(10_000));
+        assert_eq!(duration_ms("1h"), Ok(MAX_DURATION_MS));
+        assert!(duration_ms("1.5ms")
+            .unwrap_err()
+            .contains("whole milliseconds"));
+        assert!(duration_ms("2h").unwrap_err().contains("out of range"));
+    }
 
     #[test]
     fn integer_ranges() {
