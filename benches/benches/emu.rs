@@ -12,6 +12,7 @@
 //! verifies: REQ-ESC-101
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use ecdc_benches::timed::thread_cpu_ns;
 use ecdc_core::wire::{Address, Command, FrameBuilder};
 use ecdc_harness::emu::{Network, Scenario, SlaveSpec};
 use std::hint::black_box;
@@ -85,18 +86,6 @@ fn run(net: &mut Network, mut t: u64, cycles: u64) -> u64 {
     net.advance_to(t).expect("time");
     black_box(net.take_sync_edges());
     t
-}
-
-/// CPU time of this thread: insensitive to other processes sharing the machine.
-fn thread_cpu_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime writes one timespec into the valid pointer we pass.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0);
-    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
 fn bench(c: &mut Criterion) {

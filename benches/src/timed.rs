@@ -105,19 +105,13 @@ pub struct CallLog {
     pub calls: Vec<Call>,
 }
 
-/// CPU time of this thread, ns (insensitive to other processes sharing the machine).
+/// CPU time of this thread, ns (insensitive to other processes sharing the machine), through
+/// the `cpu-time` crate (`CLOCK_THREAD_CPUTIME_ID`); 0 where the clock is missing. Every bench
+/// and benchmark binary times with this one function.
 pub fn thread_cpu_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid timespec for the duration of the call.
-    #[allow(unsafe_code)]
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return 0;
-    }
-    u64::try_from(ts.tv_sec).unwrap_or(0) * 1_000_000_000 + u64::try_from(ts.tv_nsec).unwrap_or(0)
+    cpu_time::ThreadTime::try_now()
+        .map(|t| u64::try_from(t.as_duration().as_nanos()).unwrap_or(u64::MAX))
+        .unwrap_or(0)
 }
 
 /// Replays `log` on `machine` (a copy of the machine the log was recorded with, before its

@@ -12,19 +12,7 @@
 use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::Criterion;
 
-/// CPU time of the calling thread, ns.
-pub fn thread_cpu_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid timespec for the duration of the call.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return 0;
-    }
-    u64::try_from(ts.tv_sec).unwrap_or(0) * 1_000_000_000 + u64::try_from(ts.tv_nsec).unwrap_or(0)
-}
+pub use ecdc_benches::timed::thread_cpu_ns;
 
 /// Criterion measurement: thread CPU time in ns.
 pub struct ThreadCpu;
