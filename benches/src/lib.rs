@@ -5,12 +5,10 @@
 //!   emulator so a bench measures only the core's per-cycle work.
 //! - [`trees`]: network-model trees (spec crate) and the `SlaveSample`s a master would read
 //!   after one latch, for the delay-computation benches.
-//! - [`svg`]: a small line-plot writer for `benches/results/*.svg`.
 //! - [`timed`]: a bring-up driver that times the core's calls apart from the emulator's.
 //! - [`provenance`]: date, commit and machine for the header of a generated result file.
 
 pub mod cyclic;
 pub mod provenance;
-pub mod svg;
 pub mod timed;
 pub mod trees;

@@ -18,13 +18,13 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use ecdc_benches::cyclic::{self, capture_from, config_with_cycle, MasterLoop, Replay, Shape};
-use ecdc_benches::svg::{self, Panel, Series};
 use ecdc_benches::timed::{self, thread_cpu_ns, CallLog};
 use ecdc_core::dc::delay::Delays;
 use ecdc_core::dc::topology::Topology;
 use ecdc_core::dc::{Machine, SlaveInfo};
 use ecdc_core::servo::master::MasterServo;
 use ecdc_core::time::SystemTime;
+use ecdc_harness::report::svg::{self, Panel, Series};
 use ecdc_harness::sim::DEFAULT_MASTER_EPOCH_NS;
 
 const CAP: usize = 1024;
@@ -564,7 +564,7 @@ fn main() -> anyhow::Result<()> {
     ];
     std::fs::write(
         out.join("scale.svg"),
-        svg::render(&format!("ecdc scale ({cmd})"), &panels),
+        svg::loglog::render_panels(&format!("ecdc scale ({cmd})"), &panels),
     )?;
     print!("{md}");
     eprintln!(

@@ -1,5 +1,5 @@
 //! The `ecdc simulate` report: one serialisable structure ([`Report`]) written as JSON, printed
-//! as text tables ([`table`]) and plotted as a hand-written SVG ([`svg`]).
+//! as text tables ([`table`]) and plotted as SVG ([`svg`], the project's one SVG writer).
 
 pub mod svg;
 pub mod table;

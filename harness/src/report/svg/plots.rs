@@ -1,10 +1,11 @@
-//! Hand-written SVG of per-slave clock error against time: one panel per scheme (ecdc and
+//! Per-slave clock error against time: one panel per scheme (ecdc and
 //! seed 000 like seed 000 Fig. 10, uncompensated like Fig. 9). Each series is reduced to a
 //! min/max envelope per pixel column, so the file stays small for long runs; the compensated
 //! panels clip their y-axis (stated on the panel) so the steady state stays readable.
 
 use std::fmt::Write;
 
+use super::{esc, open};
 use crate::schemes::run::Record;
 
 const W: f64 = 900.0;
@@ -17,12 +18,6 @@ const COLORS: [&str; 10] = [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
     "#bcbd22", "#17becf",
 ];
-
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 /// First cycle sample from which every slave's error is below 100 µs (offsets written).
 fn plot_start(r: &Record) -> usize {
@@ -327,13 +322,7 @@ fn log_axis(out: &mut String, y0: f64, pw: f64, decades: i32) -> impl Fn(f64) ->
 /// The opening of a bench plot of height `h`: the `svg` element, `command` as its description,
 /// a white background and the bold title.
 fn plot_header(title: &str, command: &str, h: f64) -> String {
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif">"#
-    );
-    let _ = writeln!(out, "<desc>{}</desc>", esc(command));
-    let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let mut out = open(W, h, None, Some(command));
     let _ = writeln!(
         out,
         r#"<text x="{LEFT}" y="18" font-size="14" font-weight="bold">{}</text>"#,

@@ -1,6 +1,8 @@
-//! A small SVG writer: panels of line plots with logarithmic axes (scale plots span 1..1024).
+//! Panels of line plots with logarithmic axes (the scale plots span 1..1024 slaves).
 
 use std::fmt::Write;
+
+use super::{esc, open};
 
 /// One series: name, colour, points (x, y), all positive.
 #[derive(Debug, Clone)]
@@ -53,26 +55,16 @@ fn fmt_tick(e: f64) -> String {
     }
 }
 
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
-
 /// Renders `panels` side by side (two per row) under `title`, log-log axes.
-pub fn render(title: &str, panels: &[Panel]) -> String {
+pub fn render_panels(title: &str, panels: &[Panel]) -> String {
     let cols = panels.len().clamp(1, 2);
     let rows = panels.len().div_ceil(2).max(1);
     let total_w = W * cols as f64;
     let total_h = H * rows as f64 + 30.0;
-    let mut s = String::new();
+    let mut s = open(total_w, total_h, Some(11), None);
     let _ = writeln!(
         s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{total_w}" height="{total_h}" font-family="sans-serif" font-size="11">"#
-    );
-    let _ = writeln!(
-        s,
-        r#"<rect width="100%" height="100%" fill="white"/><text x="{}" y="20" font-size="14" text-anchor="middle">{}</text>"#,
+        r#"<text x="{}" y="20" font-size="14" text-anchor="middle">{}</text>"#,
         total_w / 2.0,
         esc(title)
     );
