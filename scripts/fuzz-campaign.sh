@@ -57,27 +57,43 @@ printf '%s\n' $targets | xargs -P "$JOBS" -I{} bash -c 'one {}'
 out=benches/results
 mkdir -p "$out"
 commit=$(git rev-parse --short HEAD)
-dirty=$(git status --porcelain -- core proofs fuzz | grep -q . && echo " (with uncommitted changes)")
+dirty=$(git status --porcelain -- core proofs fuzz | grep -q . && echo "+dirty")
+day=$(date -u +%Y-%m-%d)
+header='target\trequested\texecutions\texec_per_s\twall_s\tedges\tfeatures\tcorpus\tpeak_rss_mb\tstatus\tcommit\tdate\ttoolchain'
+# A campaign over some targets replaces their rows and keeps the others' (each row says at
+# which commit and on which day it ran).
+declare -A rows=()
+if [ -f "$out/fuzz.tsv" ]; then
+    while IFS=$'\t' read -r name rest; do
+        [ "$name" = target ] && continue
+        rows[$name]="$name"$'\t'"$rest"
+    done <"$out/fuzz.tsv"
+fi
+toolchain=$(cargo +nightly --version | cut -d' ' -f2-)
+for t in $targets; do
+    rows[$t]="$(cat "$work/$t.row")"$'\t'"$commit$dirty"$'\t'"$day"$'\t'"$toolchain"
+done
+order=$(printf '%s\n' $all)
 {
-    printf 'target\trequested\texecutions\texec_per_s\twall_s\tedges\tfeatures\tcorpus\tpeak_rss_mb\tstatus\n'
-    for t in $targets; do cat "$work/$t.row"; done
+    printf "$header\n"
+    for t in $order; do [ -n "${rows[$t]:-}" ] && printf '%s\n' "${rows[$t]}"; done
 } >"$out/fuzz.tsv"
 {
     echo "# Fuzzing campaign"
     echo
-    echo "Produced by \`PARSER_RUNS=$PARSER_RUNS MACHINE_RUNS=$MACHINE_RUNS JOBS=$JOBS scripts/fuzz-campaign.sh\`"
-    echo "at commit \`$commit\`$dirty on $(date -u +%Y-%m-%d), $(nproc) shared vCPUs,"
-    echo "$(cargo +nightly --version). Every target starts from its committed seed corpus"
-    echo "(fuzz/corpus/<target>/); the corpus grown during the run is thrown away. Figures are"
-    echo "libFuzzer's final statistics: \`edges\` = \`cov\` (coverage points reached), \`features\` = \`ft\`,"
-    echo "\`corpus\` = entries kept. Parser targets get $PARSER_RUNS executions, the others"
-    echo "(machine, maths, servo) $MACHINE_RUNS."
+    echo "Produced by \`PARSER_RUNS=... MACHINE_RUNS=... JOBS=... scripts/fuzz-campaign.sh [TARGET...]\`"
+    echo "on $(nproc) shared vCPUs; each row gives the commit (+dirty: with uncommitted changes"
+    echo "under core/, proofs/ or fuzz/), the day and the nightly toolchain it ran with. Every"
+    echo "target starts from its committed seed corpus (fuzz/corpus/<target>/); the corpus grown"
+    echo "during the run is thrown away. Figures are libFuzzer's final statistics: \`edges\` = \`cov\`"
+    echo "(coverage points reached), \`features\` = \`ft\`, \`corpus\` = entries kept. Parser targets"
+    echo "(wire_parse, wire_roundtrip, wire_display, registers) are asked for 10^7 executions,"
+    echo "the others (machine, maths, servo) for 10^6: \`requested\`."
     echo
-    echo "| target | executions | exec/s | wall s | edges | features | corpus | peak RSS MB | status |"
-    echo "|---|---:|---:|---:|---:|---:|---:|---:|---|"
-    for t in $targets; do
-        IFS=$'\t' read -r name _ execs eps wall cov ft corp rss status <"$work/$t.row"
-        echo "| $name | $execs | $eps | $wall | $cov | $ft | $corp | $rss | $status |"
+    echo "| target | requested | executions | exec/s | wall s | edges | features | corpus | peak RSS MB | status | commit | date |"
+    echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|"
+    tail -n +2 "$out/fuzz.tsv" | while IFS=$'\t' read -r name req execs eps wall cov ft corp rss status c d _tc; do
+        echo "| $name | $req | $execs | $eps | $wall | $cov | $ft | $corp | $rss | $status | \`${c:-fd0dc7c}\` | ${d:-2026-12-02} |"
     done
 } >"$out/fuzz.md"
 echo "wrote $out/fuzz.md and $out/fuzz.tsv"
