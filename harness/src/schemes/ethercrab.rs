@@ -33,8 +33,8 @@ use anyhow::{bail, Context};
 use ecdc_core::wire::register::{reg, DlStatus, EscFeatures};
 use ecdc_core::wire::{Address, Command};
 
-use super::bringup::{assign_addresses, count_slaves, station};
-use super::link::{le_u32, le_u64, Link};
+use super::igh_steps::{assign_addresses, count_slaves, station};
+use super::link::{le_u32, le_u64, SimLink};
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 
@@ -280,7 +280,7 @@ enum Phase {
 /// The ethercrab-like master.
 #[derive(Debug)]
 pub struct Ethercrab {
-    link: Link,
+    link: SimLink,
     phase: Phase,
     cycle_ns: u32,
     devs: Vec<Device>,
@@ -295,7 +295,7 @@ impl Ethercrab {
     /// A master for `net` with SYNC0 / FRMW period `cycle_ns`.
     pub fn new(net: Network, cycle_ns: u32) -> Self {
         Ethercrab {
-            link: Link::new(net),
+            link: SimLink::new(net),
             phase: Phase::BringUp,
             cycle_ns,
             devs: Vec::new(),

@@ -38,8 +38,8 @@ use anyhow::{bail, Context};
 use ecdc_core::wire::register::{reg, DlStatus, EscFeatures, SystemTimeDifference};
 use ecdc_core::wire::{Address, Command};
 
-use super::bringup::{assign_addresses, count_slaves, station};
-use super::link::{le_u32, le_u64, Link};
+use super::igh_steps::{assign_addresses, count_slaves, station};
+use super::link::{le_u32, le_u64, SimLink};
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 use crate::sim::DEFAULT_MASTER_EPOCH_NS;
@@ -95,7 +95,7 @@ enum Phase {
 /// The IgH-like master.
 #[derive(Debug)]
 pub struct Igh {
-    link: Link,
+    link: SimLink,
     phase: Phase,
     cycle_ns: u32,
     slaves: Vec<Slave>,
@@ -113,7 +113,7 @@ pub struct Igh {
     pub gave_up: Vec<usize>,
 }
 
-fn fprd(link: &mut Link, i: usize, addr: u16, len: usize) -> anyhow::Result<(Vec<u8>, u16)> {
+fn fprd(link: &mut SimLink, i: usize, addr: u16, len: usize) -> anyhow::Result<(Vec<u8>, u16)> {
     let r = link.txn(&[(
         Command::Fprd,
         Address::configured(station(i), addr),
@@ -215,7 +215,7 @@ impl Igh {
     /// A master for `net` cycling (FRMW, SYNC0) at `cycle_ns`.
     pub fn new(net: Network, cycle_ns: u32) -> Self {
         Igh {
-            link: Link::new(net),
+            link: SimLink::new(net),
             phase: Phase::Idle,
             cycle_ns,
             slaves: Vec::new(),

@@ -29,7 +29,7 @@ pub struct Reply {
 
 /// The network plus the master's send cursor (true time).
 #[derive(Debug)]
-pub struct Link {
+pub struct SimLink {
     /// The emulated chain.
     pub net: Network,
     /// Earliest true time the next frame may leave.
@@ -45,10 +45,10 @@ pub struct Link {
     buf: Vec<u8>,
 }
 
-impl Link {
+impl SimLink {
     /// A link at true time 0 with a 2 µs turnaround.
     pub fn new(net: Network) -> Self {
-        Link {
+        SimLink {
             now: net.now(),
             net,
             gap_ns: 2_000,
@@ -117,7 +117,7 @@ impl Link {
         Ok(Some(out))
     }
 
-    /// [`Link::try_txn`], resending a lost frame up to [`RETRIES`] times.
+    /// [`SimLink::try_txn`], resending a lost frame up to [`RETRIES`] times.
     pub fn txn(&mut self, dgs: &[(Command, Address, &[u8])]) -> anyhow::Result<Vec<Reply>> {
         for _ in 0..=RETRIES {
             if let Some(r) = self.try_txn(dgs)? {

@@ -12,10 +12,10 @@
 //! [`run::run_scheme`] drives any of them under one recorder (true clock errors, 0x092C,
 //! SYNC0 edges, lock), and [`measure`] turns the record into the reported numbers.
 
-pub mod bringup;
 pub mod ecdc;
 pub mod ethercrab;
 pub mod igh;
+pub mod igh_steps;
 pub mod link;
 pub mod measure;
 pub mod run;

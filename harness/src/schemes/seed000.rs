@@ -37,8 +37,8 @@ use ecdc_core::wire::register::{reg, SystemTimeDifference};
 use ecdc_core::wire::{Address, Command};
 use ecdc_spec::seed000 as spec;
 
-use super::bringup::{self, station, Latched};
-use super::link::Link;
+use super::igh_steps::{self, station, Latched};
+use super::link::SimLink;
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 use crate::sim::DEFAULT_MASTER_EPOCH_NS;
@@ -81,7 +81,7 @@ enum Phase {
 #[derive(Debug)]
 pub struct Seed000 {
     variant: Variant,
-    link: Link,
+    link: SimLink,
     phase: Phase,
     n: usize,
     t_diff_ns: i64,
@@ -128,7 +128,7 @@ impl Seed000 {
     pub fn with_variant(variant: Variant, net: Network, t_diff_ns: i64, cycle_ns: u32) -> Self {
         Seed000 {
             variant,
-            link: Link::new(net),
+            link: SimLink::new(net),
             phase: Phase::BringUp,
             n: 0,
             t_diff_ns,
@@ -169,9 +169,9 @@ impl Seed000 {
     }
 
     fn bring_up(&mut self) -> anyhow::Result<()> {
-        let n = bringup::require_line_of_dc64(&self.link)?;
+        let n = igh_steps::require_line_of_dc64(&self.link)?;
         self.n = n;
-        let l = bringup::discover_and_latch(&mut self.link, n)?;
+        let l = igh_steps::discover_and_latch(&mut self.link, n)?;
         self.written = vec![Written::default(); n];
         match self.variant {
             Variant::Derived => self.write_derived(&l),
@@ -221,8 +221,8 @@ impl Seed000 {
             let local = i128::from(*l.epu.get(i).unwrap_or(&0));
             let off = spec::offset_consistent_with_eq25(local, i128::from(t_ref), 0);
             let off_reg = (off as i64) as u64;
-            bringup::write_offset(&mut self.link, i, off_reg)?;
-            bringup::write_delay(&mut self.link, i, delay)?;
+            igh_steps::write_offset(&mut self.link, i, off_reg)?;
+            igh_steps::write_delay(&mut self.link, i, delay)?;
             self.written[i] = Written {
                 offset: Some(off_reg as i64),
                 delay: Some(delay),
@@ -285,7 +285,7 @@ impl Scheme for Seed000 {
                 }
                 Phase::Burst => {
                     while self.burst_sent < BURST_FRAMES && self.link.now < until {
-                        bringup::frmw(&mut self.link)?;
+                        igh_steps::frmw(&mut self.link)?;
                         self.burst_sent += 1;
                         self.dist_frames += 1;
                     }
@@ -326,7 +326,7 @@ impl Scheme for Seed000 {
                     }
                 }
                 Phase::Sync => {
-                    let start = bringup::program_sync0(&mut self.link, self.n, self.cycle_ns)?;
+                    let start = igh_steps::program_sync0(&mut self.link, self.n, self.cycle_ns)?;
                     self.sync_start = Some(start);
                     let c = self.cycle_len();
                     self.next_cycle = (self.link.now / c + 1) * c;
@@ -342,7 +342,7 @@ impl Scheme for Seed000 {
                             }
                             Variant::Printed => {
                                 self.link.now = self.link.now.max(t);
-                                bringup::frmw(&mut self.link)?;
+                                igh_steps::frmw(&mut self.link)?;
                                 self.dist_frames += 1;
                             }
                         }
@@ -404,7 +404,7 @@ mod tests {
     /// The network with every slave's 0x0930 set to `v` (a value no scheme writes), so a
     /// later write of IgH's 0x1000 is visible.
     fn net_with_speed_start(v: u16) -> Network {
-        let mut l = Link::new(net());
+        let mut l = SimLink::new(net());
         l.one(
             Command::Bwr,
             Address::broadcast(reg::SPEED_COUNTER_START),

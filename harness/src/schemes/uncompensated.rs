@@ -15,15 +15,15 @@
 
 use ecdc_spec::seed000 as spec;
 
-use super::bringup;
-use super::link::Link;
+use super::igh_steps;
+use super::link::SimLink;
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
 
 /// The uncompensated master.
 #[derive(Debug)]
 pub struct Uncompensated {
-    link: Link,
+    link: SimLink,
     done: bool,
     cycle_ns: u32,
     written: Vec<Written>,
@@ -33,7 +33,7 @@ impl Uncompensated {
     /// A master for `net` programming SYNC0 with `cycle_ns`.
     pub fn new(net: Network, cycle_ns: u32) -> Self {
         Uncompensated {
-            link: Link::new(net),
+            link: SimLink::new(net),
             done: false,
             cycle_ns,
             written: Vec::new(),
@@ -41,18 +41,18 @@ impl Uncompensated {
     }
 
     fn bring_up(&mut self) -> anyhow::Result<()> {
-        let n = bringup::require_line_of_dc64(&self.link)?;
-        let l = bringup::discover_and_latch(&mut self.link, n)?;
+        let n = igh_steps::require_line_of_dc64(&self.link)?;
+        let l = igh_steps::discover_and_latch(&mut self.link, n)?;
         let t_ref = *l.epu.first().unwrap_or(&0);
         self.written = vec![Written::default(); n];
         for i in 1..n {
             let local = i128::from(*l.epu.get(i).unwrap_or(&0));
             let off = spec::offset_consistent_with_eq25(local, i128::from(t_ref), 0);
             let off_reg = (off as i64) as u64;
-            bringup::write_offset(&mut self.link, i, off_reg)?;
+            igh_steps::write_offset(&mut self.link, i, off_reg)?;
             self.written[i].offset = Some(off_reg as i64);
         }
-        bringup::program_sync0(&mut self.link, n, self.cycle_ns)?;
+        igh_steps::program_sync0(&mut self.link, n, self.cycle_ns)?;
         Ok(())
     }
 }

@@ -1,13 +1,13 @@
 //! The bring-up steps the two comparison schemes share (IgH style, as seed 000 §3.2 describes
 //! it): count, address, one receive-time latch, read the port and EPU receive times, and the
-//! SYNC0 programming after drift compensation. Everything goes through [`Link`] and the
+//! SYNC0 programming after drift compensation. Everything goes through [`SimLink`] and the
 //! `core::wire` register addresses; no ecdc state machine code is used.
 
 use anyhow::{bail, Context};
 use ecdc_core::wire::register::reg;
 use ecdc_core::wire::{Address, Command};
 
-use super::link::{le_u32, le_u64, Link};
+use super::link::{le_u32, le_u64, SimLink};
 
 /// First configured station address (slave `i` gets `STATION_BASE + i`).
 pub const STATION_BASE: u16 = 0x1001;
@@ -47,7 +47,7 @@ pub fn station(i: usize) -> u16 {
 /// Checks that the emulated chain is what eq. 23 is written for: a line of 64-bit DC slaves
 /// in processing order. The comparison schemes refuse anything else rather than produce
 /// numbers from formulas that do not apply.
-pub fn require_line_of_dc64(link: &Link) -> anyhow::Result<usize> {
+pub fn require_line_of_dc64(link: &SimLink) -> anyhow::Result<usize> {
     let n = link.net.slave_count();
     if n < 2 {
         bail!("needs at least 2 slaves, scenario has {n}");
@@ -69,13 +69,13 @@ pub fn require_line_of_dc64(link: &Link) -> anyhow::Result<usize> {
 }
 
 /// BRD 0x0000: the number of slaves on the line (its working counter).
-pub fn count_slaves(link: &mut Link) -> anyhow::Result<usize> {
+pub fn count_slaves(link: &mut SimLink) -> anyhow::Result<usize> {
     let r = link.txn(&[(Command::Brd, Address::broadcast(0x0000), &[0u8; 2])])?;
     Ok(usize::from(r.first().map_or(0, |r| r.wkc)))
 }
 
 /// APWR 0x0010: station address [`station`]`(i)` to each of the first `n` positions.
-pub fn assign_addresses(link: &mut Link, n: usize) -> anyhow::Result<()> {
+pub fn assign_addresses(link: &mut SimLink, n: usize) -> anyhow::Result<()> {
     for i in 0..n {
         let pos = u16::try_from(i).context("position")?;
         link.one(
@@ -89,7 +89,7 @@ pub fn assign_addresses(link: &mut Link, n: usize) -> anyhow::Result<()> {
 }
 
 /// BRD 0x0000 (count), APWR 0x0010 (addresses), BWR 0x0900 (latch), FPRD 0x0900..0x091F.
-pub fn discover_and_latch(link: &mut Link, n: usize) -> anyhow::Result<Latched> {
+pub fn discover_and_latch(link: &mut SimLink, n: usize) -> anyhow::Result<Latched> {
     let count = count_slaves(link)?;
     if count != n {
         bail!("BRD counted {count} slaves, expected {n}");
@@ -121,7 +121,7 @@ pub fn discover_and_latch(link: &mut Link, n: usize) -> anyhow::Result<Latched> 
 }
 
 /// FPWR 0x0920 (64 bit) on slave `i`.
-pub fn write_offset(link: &mut Link, i: usize, offset: u64) -> anyhow::Result<()> {
+pub fn write_offset(link: &mut SimLink, i: usize, offset: u64) -> anyhow::Result<()> {
     link.one(
         Command::Fpwr,
         Address::configured(station(i), reg::SYSTEM_TIME_OFFSET),
@@ -132,7 +132,7 @@ pub fn write_offset(link: &mut Link, i: usize, offset: u64) -> anyhow::Result<()
 }
 
 /// FPWR 0x0928 on slave `i`.
-pub fn write_delay(link: &mut Link, i: usize, delay: u32) -> anyhow::Result<()> {
+pub fn write_delay(link: &mut SimLink, i: usize, delay: u32) -> anyhow::Result<()> {
     link.one(
         Command::Fpwr,
         Address::configured(station(i), reg::SYSTEM_TIME_DELAY),
@@ -144,7 +144,7 @@ pub fn write_delay(link: &mut Link, i: usize, delay: u32) -> anyhow::Result<()> 
 
 /// One FRMW 0x0910 from the reference (position 0) to every other slave; returns the WKC
 /// (0 if the frame was lost: a drift frame is not resent, the next one carries a fresh time).
-pub fn frmw(link: &mut Link) -> anyhow::Result<u16> {
+pub fn frmw(link: &mut SimLink) -> anyhow::Result<u16> {
     let Some(r) = link.try_txn(&[(
         Command::Frmw,
         Address::configured(station(0), reg::SYSTEM_TIME),
@@ -172,7 +172,7 @@ pub fn sync0_lead(n: usize, per_frame_ns: u64) -> u64 {
 /// Reads the reference's system time, puts the first SYNC0 pulse [`sync0_lead`] later
 /// on the cycle grid, and programs and activates SYNC0 on every slave (0x0981 = 0, 0x0990,
 /// 0x09A0, then 0x0980/0x0981 = AssignActivate 0x0300). Returns the start system time.
-pub fn program_sync0(link: &mut Link, n: usize, cycle_ns: u32) -> anyhow::Result<u64> {
+pub fn program_sync0(link: &mut SimLink, n: usize, cycle_ns: u32) -> anyhow::Result<u64> {
     let t0 = link.now;
     let d = link.one(
         Command::Fprd,
