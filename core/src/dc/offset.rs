@@ -22,7 +22,7 @@
 
 use super::port::Port;
 use super::topology::Latches;
-use crate::num::low32;
+use crate::num::{low32, Word};
 use crate::time::SystemTime;
 
 /// Width of a slave's DC clock (ESC features 0x0008 bit 3).
@@ -138,8 +138,26 @@ pub fn initial_offset(
     entry_local: u64,
     width: ClockWidth,
 ) -> WidthValue {
-    let target = master_time.wrapping_add_signed(delay_ns);
-    WidthValue::new(crate::num::offset_to(target.as_nanos(), entry_local), width)
+    let offset = initial_offset_word::<u64>(
+        master_time.as_nanos(),
+        u64::from_signed(delay_ns),
+        entry_local,
+        width,
+    );
+    WidthValue::new(offset, width)
+}
+
+/// REQ-DC-021, REQ-DC-023: the arithmetic of [`initial_offset`], written once against
+/// [`Word`] so the P4 SMT proof runs this code: `(master + delay) − entry_local` modulo 2^N
+/// (`delay` two's complement), reduced to the low 32 bits for a 32-bit slave. `initial_offset`
+/// runs it on `u64`; the reduction makes its `WidthValue::new` a plain type conversion.
+#[inline]
+pub fn initial_offset_word<W: Word>(master: W, delay: W, entry_local: W, width: ClockWidth) -> W {
+    let offset = crate::num::offset_to(master.wrapping_add(delay), entry_local);
+    match width {
+        ClockWidth::Bits64 => offset,
+        ClockWidth::Bits32 => offset.bit_and(W::lit(1).shl(32).wrapping_sub(W::lit(1))),
+    }
 }
 
 /// REQ-DC-024: re-offset without a new latch (IgH style): given the offset currently in 0x0920
@@ -193,6 +211,42 @@ mod tests {
                     low32(local).wrapping_add(low32(off32.as_u64())),
                     m.wrapping_add_signed(delay).low32()
                 );
+            }
+        }
+    }
+
+    /// `initial_offset` through the Word kernel equals the direct `SystemTime` computation it
+    /// replaced, for both widths, on boundary and pseudo-random inputs.
+    #[test]
+    fn initial_offset_equals_direct_form() {
+        let mut xs = [
+            0u64,
+            1,
+            2,
+            u64::MAX,
+            u64::MAX - 1,
+            1 << 63,
+            (1 << 63) - 1,
+            1 << 32,
+            0xFFFF_FFFF,
+        ]
+        .to_vec();
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..40 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            xs.push(seed >> (seed % 64));
+        }
+        for &m in &xs {
+            for &d in &xs {
+                for &l in &xs {
+                    for width in [ClockWidth::Bits32, ClockWidth::Bits64] {
+                        let target = SystemTime(m).wrapping_add_signed(d as i64);
+                        let direct = WidthValue::new(target.as_nanos().wrapping_sub(l), width);
+                        assert_eq!(initial_offset(SystemTime(m), d as i64, l, width), direct);
+                    }
+                }
             }
         }
     }
