@@ -62,7 +62,7 @@
 //! ```
 
 use super::port::Port;
-use super::topology::{Latches, SlaveSample, Topology};
+use super::topology::{SlaveSample, Topology};
 use crate::num::{overflowing_add, overflowing_sub, Logic, Word};
 
 /// Why delays could not be computed. Every variant names the offending slave (auto-increment
@@ -238,6 +238,11 @@ impl<const N: usize> Delays<N> {
 // implements: REQ-DC-061
 /// REQ-DC-014..018: computes every latched slave's propagation delay relative to `reference`
 /// (usually the first slave with a system time) from one latch round.
+///
+/// The walk itself is [`walk`], written once against [`Word`] so the P3 SMT proof runs it on
+/// symbolic stamps; this runs it on `u64` and turns its flags into the first error in
+/// processing order (an arithmetic failure of an earlier slave before a structural one of a
+/// later slave, as a hop-by-hop walk with early returns reports them).
 pub fn compute<const N: usize>(
     samples: &[SlaveSample],
     topology: &Topology<N>,
@@ -248,34 +253,31 @@ pub fn compute<const N: usize>(
     }
     let len = u16::try_from(samples.len()).map_err(|_| DelayError::Mismatch)?;
     let ref16 = u16::try_from(reference).unwrap_or(u16::MAX);
-    let bad_ref = DelayError::BadReference { slave: ref16 };
-    if samples.get(reference).ok_or(bad_ref)?.latches.is_none() {
-        return Err(bad_ref);
-    }
-    // Twice the delay from the first latched slave (the root of the timed tree).
-    let mut abs2: [Option<i64>; N] = [None; N];
-    let mut root_seen = false;
-    for (i, sample) in (0u16..).zip(samples) {
-        if sample.latches.is_none() {
-            continue;
+    let slaves: [WalkSlave<u64>; N] = core::array::from_fn(|i| {
+        samples
+            .get(i)
+            .map_or_else(WalkSlave::non_dc, WalkSlave::from_sample)
+    });
+    let walked = walk(
+        slaves.get(..samples.len()).ok_or(DelayError::Mismatch)?,
+        topology,
+        reference,
+    )?;
+    for (c, hop) in (0u16..).zip(walked.hops.iter()) {
+        if let Some(hop) = hop {
+            hop_result(hop, c)?;
         }
-        let value = if root_seen {
-            twice_delay_from_upstream(samples, topology, &abs2, i)?
-        } else {
-            root_seen = true;
-            0
-        };
-        let slot = abs2.get_mut(usize::from(i)).ok_or(DelayError::Mismatch)?;
-        *slot = Some(value);
     }
-    let base = abs2.get(reference).copied().flatten().ok_or(bad_ref)?;
+    if let Some(e) = walked.stopped {
+        return Err(e);
+    }
     let mut sum: [Option<i64>; N] = [None; N];
-    for (i, (out, a)) in (0u16..).zip(sum.iter_mut().zip(abs2.iter())) {
-        if let Some(a) = a {
-            *out = Some(
-                a.checked_sub(base)
-                    .ok_or(DelayError::Overflow { slave: i })?,
-            );
+    for (i, (out, rel)) in (0u16..).zip(sum.iter_mut().zip(walked.twice.iter())) {
+        if let Some((twice, overflow)) = rel {
+            if *overflow {
+                return Err(DelayError::Overflow { slave: i });
+            }
+            *out = Some(twice.to_signed());
         }
     }
     Ok(Delays {
@@ -286,48 +288,168 @@ pub fn compute<const N: usize>(
     })
 }
 
-/// Twice the delay of latched slave `c` from the first latched slave, given those of all
-/// earlier latched slaves.
-fn twice_delay_from_upstream<const N: usize>(
-    samples: &[SlaveSample],
+/// One slave's input to [`walk`] over a word type `W` (at least 64 bits wide): the four 32-bit
+/// receive-time latches zero-extended into `W` (`None` for a slave without DC), and `t_Diff`
+/// sign-extended.
+#[derive(Debug, Clone, Copy)]
+pub struct WalkSlave<W: Word> {
+    /// Receive Time Port 0..3, indexed by port number, as 32-bit values in the word.
+    pub stamps: Option<[W; 4]>,
+    /// `t_Diff` of the ESC, two's complement.
+    pub t_diff: W,
+}
+
+impl WalkSlave<u64> {
+    /// The walk input of a sample.
+    pub fn from_sample(sample: &SlaveSample) -> WalkSlave<u64> {
+        WalkSlave {
+            stamps: sample
+                .latches
+                .as_ref()
+                .map(|l| l.ports.map(|t| u64::from(t.raw()))),
+            t_diff: u64::from_signed(i64::from(sample.t_diff)),
+        }
+    }
+
+    fn non_dc() -> WalkSlave<u64> {
+        WalkSlave {
+            stamps: None,
+            t_diff: 0,
+        }
+    }
+}
+
+/// The checks of one hop of the walk (slave `c` from its nearest latched ancestor), in the order
+/// [`compute`] reports them.
+#[derive(Clone, Copy)]
+pub struct HopChecks<W: Word> {
+    /// The signed sum of the non-DC slaves' `t_Diff` left the signed range.
+    pub non_dc_overflow: W::Bool,
+    /// A wrapping 32-bit stamp difference (t(q) − t(e), t(p) − t(q) at the ancestor, or c's own
+    /// round trip) is negative: the latches are stale.
+    pub stale: W::Bool,
+    /// The hop arithmetic and its flags.
+    pub step: HopStep<W>,
+}
+
+/// What [`walk`] computed for one latch round.
+pub struct Walk<W: Word, const N: usize> {
+    /// Per latched slave: twice its delay from the reference (`abs2 − abs2(reference)`, modulo
+    /// 2^N) and whether that subtraction left the signed range. `None` for slaves without
+    /// latches, and for every slave when the walk stopped.
+    pub twice: [Option<(W, W::Bool)>; N],
+    /// Per latched slave after the first: the checks of its hop (`None` for the root, slaves
+    /// without latches, and slaves after a structural error).
+    pub hops: [Option<HopChecks<W>>; N],
+    /// The structural error (from the topology alone, never from a stamp value) at which the
+    /// walk stopped; hops before it are in `hops`.
+    pub stopped: Option<DelayError>,
+}
+
+/// REQ-DC-014..018: the delay walk over any [`Word`] of at least 64 bits: twice each latched
+/// slave's delay from the first latched slave (the root of the timed tree, delay 0), hop by hop
+/// through [`twice_delay_step`], then relative to `reference`. Which slaves, ports and `t_Diff`
+/// terms each hop uses depends only on the topology and on which slaves have latches, never on
+/// stamp values, so on symbolic stamps the walk is one straight-line formula per topology.
+/// `Err` only for a reference without latches or mismatched lengths (checked before any hop).
+pub fn walk<W: Word, const N: usize>(
+    slaves: &[WalkSlave<W>],
     topology: &Topology<N>,
-    abs2: &[Option<i64>; N],
+    reference: usize,
+) -> Result<Walk<W, N>, DelayError> {
+    if slaves.len() != topology.len() {
+        return Err(DelayError::Mismatch);
+    }
+    let bad_ref = DelayError::BadReference {
+        slave: u16::try_from(reference).unwrap_or(u16::MAX),
+    };
+    if slaves.get(reference).ok_or(bad_ref)?.stamps.is_none() {
+        return Err(bad_ref);
+    }
+    let mut out = Walk {
+        twice: [None; N],
+        hops: [None; N],
+        stopped: None,
+    };
+    let mut abs2: [Option<W>; N] = [None; N];
+    let mut root_seen = false;
+    for (i, slave) in (0u16..).zip(slaves) {
+        if slave.stamps.is_none() {
+            continue;
+        }
+        let value = if root_seen {
+            match hop(slaves, topology, &abs2, i) {
+                Ok(checks) => {
+                    let hop_slot = out.hops.get_mut(usize::from(i));
+                    let hop_slot = hop_slot.ok_or(DelayError::Mismatch)?;
+                    *hop_slot = Some(checks);
+                    checks.step.abs2
+                }
+                Err(e) => {
+                    out.stopped = Some(e);
+                    return Ok(out);
+                }
+            }
+        } else {
+            root_seen = true;
+            W::lit(0)
+        };
+        let slot = abs2.get_mut(usize::from(i)).ok_or(DelayError::Mismatch)?;
+        *slot = Some(value);
+    }
+    let Some(base) = abs2.get(reference).copied().flatten() else {
+        out.stopped = Some(bad_ref);
+        return Ok(out);
+    };
+    for (rel, a) in out.twice.iter_mut().zip(abs2.iter()) {
+        *rel = a.map(|a| overflowing_sub(a, base));
+    }
+    Ok(out)
+}
+
+/// The hop of latched slave `c` from its nearest latched ancestor, given the doubled delays of
+/// all earlier latched slaves; `Err` for a structural error.
+fn hop<W: Word, const N: usize>(
+    slaves: &[WalkSlave<W>],
+    topology: &Topology<N>,
+    abs2: &[Option<W>; N],
     c: u16,
-) -> Result<i64, DelayError> {
-    let overflow = DelayError::Overflow { slave: c };
+) -> Result<HopChecks<W>, DelayError> {
+    let zero = W::lit(0);
     let node_c = topology.node(usize::from(c)).ok_or(DelayError::Mismatch)?;
-    let lat_c = latches_of(samples, c)?;
-    let diff_c = i64::from(t_diff_of(samples, c)?);
+    let lat_c = stamps_of(slaves, c)?;
+    let diff_c = t_diff_of(slaves, c)?;
 
     // Walk up through non-DC slaves to the nearest latched ancestor `a`, summing the non-DC
     // t_Diff terms (REQ-DC-017).
-    let mut non_dc = 0i64;
+    let mut non_dc = zero;
+    let mut non_dc_overflow = zero.ult(zero);
     let mut link = node_c.parent.ok_or(DelayError::NoUpstreamDc { slave: c })?;
     let mut below = c;
     let mut steps = 0usize;
     loop {
         let up = link.slave;
-        let sample_up = samples.get(usize::from(up)).ok_or(DelayError::Mismatch)?;
-        if sample_up.latches.is_some() {
+        let slave_up = slaves.get(usize::from(up)).ok_or(DelayError::Mismatch)?;
+        if slave_up.stamps.is_some() {
             break;
         }
         let node_up = topology.node(usize::from(up)).ok_or(DelayError::Mismatch)?;
         if node_up.ports.len() != 2 {
             return Err(DelayError::NonDcJunction { slave: up });
         }
-        let d = i64::from(sample_up.t_diff);
         // Down: entry → link port towards `below`; up: the reverse. Exactly one passes the EPU.
         let down = topology
             .node(usize::from(below))
             .and_then(|n| n.parent)
             .ok_or(DelayError::Mismatch)?
             .port;
-        non_dc = if node_up.entry.hop_is_processing(down) {
-            non_dc.checked_add(d)
+        let (sum, o) = if node_up.entry.hop_is_processing(down) {
+            overflowing_add(non_dc, slave_up.t_diff)
         } else {
-            non_dc.checked_sub(d)
-        }
-        .ok_or(overflow)?;
+            overflowing_sub(non_dc, slave_up.t_diff)
+        };
+        non_dc = sum;
+        non_dc_overflow = non_dc_overflow.or(o);
         below = up;
         link = node_up
             .parent
@@ -339,8 +461,8 @@ fn twice_delay_from_upstream<const N: usize>(
     }
     let a = link.slave;
     let node_a = topology.node(usize::from(a)).ok_or(DelayError::Mismatch)?;
-    let lat_a = latches_of(samples, a)?;
-    let diff_a = i64::from(t_diff_of(samples, a)?);
+    let lat_a = stamps_of(slaves, a)?;
+    let diff_a = t_diff_of(slaves, a)?;
     let abs_a = abs2
         .get(usize::from(a))
         .copied()
@@ -350,54 +472,48 @@ fn twice_delay_from_upstream<const N: usize>(
     // At a: port p leads towards c; q is the open port visited just before p.
     let p = link.port;
     let q = node_a.ports.prev_before(p).unwrap_or(node_a.entry);
-    let before = since(lat_a, q, node_a.entry).ok_or(DelayError::Inconsistent { slave: c })?;
-    let excursion = since(lat_a, p, q).ok_or(DelayError::Inconsistent { slave: c })?;
+    let (before, s1) = since(lat_a, q, node_a.entry);
+    let (excursion, s2) = since(lat_a, p, q);
     // At c: its own round trip from entry to the last open port.
     let last = node_c.last_port();
-    let rtt_c = since(lat_c, last, node_c.entry).ok_or(DelayError::Inconsistent { slave: c })?;
+    let (rtt_c, s3) = since(lat_c, last, node_c.entry);
 
-    let corr_a = if q.hop_is_processing(p) { diff_a } else { 0 };
+    let corr_a = if q.hop_is_processing(p) { diff_a } else { zero };
     let corr_c = if last.hop_is_processing(node_c.entry) {
         diff_c
     } else {
-        0
+        zero
     };
-    let w = u64::from_signed;
-    let step = twice_delay_step::<u64>(
-        w(abs_a),
-        w(before),
-        w(excursion),
-        w(rtt_c),
-        w(corr_a),
-        w(corr_c),
-        w(non_dc),
-    );
-    hop_result(&step, c)
+    Ok(HopChecks {
+        non_dc_overflow,
+        stale: s1.or(s2).or(s3),
+        step: twice_delay_step(abs_a, before, excursion, rtt_c, corr_a, corr_c, non_dc),
+    })
 }
 
-/// The error (or twice the delay) [`twice_delay_step`]'s flags mean for slave `c`, checked in
-/// the order of the formula: the first that fails names the error.
-fn hop_result(step: &HopStep<u64>, c: u16) -> Result<i64, DelayError> {
+/// The error [`walk`]'s checks of slave `c`'s hop mean, in the order of the formula: the first
+/// that fails names the error.
+fn hop_result(hop: &HopChecks<u64>, c: u16) -> Result<(), DelayError> {
     let overflow = DelayError::Overflow { slave: c };
-    if step.measured_overflow {
-        return Err(overflow);
+    let inconsistent = DelayError::Inconsistent { slave: c };
+    let step = &hop.step;
+    let checks = [
+        (hop.non_dc_overflow, overflow),
+        (hop.stale, inconsistent),
+        (step.measured_overflow, overflow),
+        (step.inconsistent, inconsistent),
+        (step.hop_overflow, overflow),
+        (step.negative_hop, DelayError::NegativeHop { slave: c }),
+        (step.sum_overflow, overflow),
+    ];
+    match checks.iter().find(|(failed, _)| *failed) {
+        Some(&(_, e)) => Err(e),
+        None => Ok(()),
     }
-    if step.inconsistent {
-        return Err(DelayError::Inconsistent { slave: c });
-    }
-    if step.hop_overflow {
-        return Err(overflow);
-    }
-    if step.negative_hop {
-        return Err(DelayError::NegativeHop { slave: c });
-    }
-    if step.sum_overflow {
-        return Err(overflow);
-    }
-    Ok(step.abs2.to_signed())
 }
 
 /// Result of [`twice_delay_step`]: the doubled delay and the checks, as N-bit words and flags.
+#[derive(Clone, Copy)]
 pub struct HopStep<W: Word> {
     /// Twice the delay of `c` from the root: `abs_a + 2·before + hop2` (mod 2^N).
     pub abs2: W,
@@ -451,22 +567,26 @@ pub fn twice_delay_step<W: Word>(
     }
 }
 
-/// Wrapping difference `t(to) − t(from)` of one slave's stamps; `None` if negative (the latch
-/// order check in topology reconstruction makes that impossible for consistent input).
-fn since(latches: &Latches, to: Port, from: Port) -> Option<i64> {
-    let d = latches.at(to).wrapping_since(latches.at(from));
-    (d >= 0).then_some(i64::from(d))
+/// Wrapping 32-bit difference `t(to) − t(from)` of one slave's stamps (32-bit values in a word
+/// of at least 64 bits), and whether it is negative read as a signed 32-bit value (then the
+/// latches are stale; the topology's latch-order check makes that impossible for consistent
+/// input). When not negative the value is exact: `PortTime::wrapping_since` widened.
+fn since<W: Word>(stamps: &[W; 4], to: Port, from: Port) -> (W, W::Bool) {
+    let at = |p: Port| stamps.get(p.index()).copied().unwrap_or(W::lit(0));
+    let mask = W::lit(1).shl(32).wrapping_sub(W::lit(1));
+    let d = at(to).wrapping_sub(at(from)).bit_and(mask);
+    (d, d.ult(W::lit(1).shl(31)).not())
 }
 
-fn latches_of(samples: &[SlaveSample], i: u16) -> Result<&Latches, DelayError> {
-    samples
+fn stamps_of<W: Word>(slaves: &[WalkSlave<W>], i: u16) -> Result<&[W; 4], DelayError> {
+    slaves
         .get(usize::from(i))
-        .and_then(|s| s.latches.as_ref())
+        .and_then(|s| s.stamps.as_ref())
         .ok_or(DelayError::Mismatch)
 }
 
-fn t_diff_of(samples: &[SlaveSample], i: u16) -> Result<i32, DelayError> {
-    samples
+fn t_diff_of<W: Word>(slaves: &[WalkSlave<W>], i: u16) -> Result<W, DelayError> {
+    slaves
         .get(usize::from(i))
         .map(|s| s.t_diff)
         .ok_or(DelayError::Mismatch)
@@ -476,6 +596,191 @@ fn t_diff_of(samples: &[SlaveSample], i: u16) -> Result<i32, DelayError> {
 mod tests {
     use super::*;
     use crate::dc::port::PortSet;
+    use crate::dc::topology::Latches;
+
+    // ---- the walk as it was before it became Word-generic: the differential oracle.
+
+    fn compute_old<const N: usize>(
+        samples: &[SlaveSample],
+        topology: &Topology<N>,
+        reference: usize,
+    ) -> Result<Delays<N>, DelayError> {
+        if samples.len() != topology.len() {
+            return Err(DelayError::Mismatch);
+        }
+        let len = u16::try_from(samples.len()).map_err(|_| DelayError::Mismatch)?;
+        let ref16 = u16::try_from(reference).unwrap_or(u16::MAX);
+        let bad_ref = DelayError::BadReference { slave: ref16 };
+        if samples.get(reference).ok_or(bad_ref)?.latches.is_none() {
+            return Err(bad_ref);
+        }
+        // Twice the delay from the first latched slave (the root of the timed tree).
+        let mut abs2: [Option<i64>; N] = [None; N];
+        let mut root_seen = false;
+        for (i, sample) in (0u16..).zip(samples) {
+            if sample.latches.is_none() {
+                continue;
+            }
+            let value = if root_seen {
+                twice_delay_from_upstream_old(samples, topology, &abs2, i)?
+            } else {
+                root_seen = true;
+                0
+            };
+            let slot = abs2.get_mut(usize::from(i)).ok_or(DelayError::Mismatch)?;
+            *slot = Some(value);
+        }
+        let base = abs2.get(reference).copied().flatten().ok_or(bad_ref)?;
+        let mut sum: [Option<i64>; N] = [None; N];
+        for (i, (out, a)) in (0u16..).zip(sum.iter_mut().zip(abs2.iter())) {
+            if let Some(a) = a {
+                *out = Some(
+                    a.checked_sub(base)
+                        .ok_or(DelayError::Overflow { slave: i })?,
+                );
+            }
+        }
+        Ok(Delays::<N> {
+            sum,
+            weight: 2,
+            len,
+            reference: ref16,
+        })
+    }
+
+    /// Twice the delay of latched slave `c` from the first latched slave, given those of all
+    /// earlier latched slaves.
+    fn twice_delay_from_upstream_old<const N: usize>(
+        samples: &[SlaveSample],
+        topology: &Topology<N>,
+        abs2: &[Option<i64>; N],
+        c: u16,
+    ) -> Result<i64, DelayError> {
+        let overflow = DelayError::Overflow { slave: c };
+        let node_c = topology.node(usize::from(c)).ok_or(DelayError::Mismatch)?;
+        let lat_c = latches_of_old(samples, c)?;
+        let diff_c = i64::from(t_diff_of_old(samples, c)?);
+
+        // Walk up through non-DC slaves to the nearest latched ancestor `a`, summing the non-DC
+        // t_Diff terms (REQ-DC-017).
+        let mut non_dc = 0i64;
+        let mut link = node_c.parent.ok_or(DelayError::NoUpstreamDc { slave: c })?;
+        let mut below = c;
+        let mut steps = 0usize;
+        loop {
+            let up = link.slave;
+            let sample_up = samples.get(usize::from(up)).ok_or(DelayError::Mismatch)?;
+            if sample_up.latches.is_some() {
+                break;
+            }
+            let node_up = topology.node(usize::from(up)).ok_or(DelayError::Mismatch)?;
+            if node_up.ports.len() != 2 {
+                return Err(DelayError::NonDcJunction { slave: up });
+            }
+            let d = i64::from(sample_up.t_diff);
+            // Down: entry → link port towards `below`; up: the reverse. Exactly one passes the EPU.
+            let down = topology
+                .node(usize::from(below))
+                .and_then(|n| n.parent)
+                .ok_or(DelayError::Mismatch)?
+                .port;
+            non_dc = if node_up.entry.hop_is_processing(down) {
+                non_dc.checked_add(d)
+            } else {
+                non_dc.checked_sub(d)
+            }
+            .ok_or(overflow)?;
+            below = up;
+            link = node_up
+                .parent
+                .ok_or(DelayError::NoUpstreamDc { slave: c })?;
+            steps = steps.saturating_add(1);
+            if steps > N {
+                return Err(DelayError::Mismatch);
+            }
+        }
+        let a = link.slave;
+        let node_a = topology.node(usize::from(a)).ok_or(DelayError::Mismatch)?;
+        let lat_a = latches_of_old(samples, a)?;
+        let diff_a = i64::from(t_diff_of_old(samples, a)?);
+        let abs_a = abs2
+            .get(usize::from(a))
+            .copied()
+            .flatten()
+            .ok_or(DelayError::NoUpstreamDc { slave: c })?;
+
+        // At a: port p leads towards c; q is the open port visited just before p.
+        let p = link.port;
+        let q = node_a.ports.prev_before(p).unwrap_or(node_a.entry);
+        let before =
+            since_old(lat_a, q, node_a.entry).ok_or(DelayError::Inconsistent { slave: c })?;
+        let excursion = since_old(lat_a, p, q).ok_or(DelayError::Inconsistent { slave: c })?;
+        // At c: its own round trip from entry to the last open port.
+        let last = node_c.last_port();
+        let rtt_c =
+            since_old(lat_c, last, node_c.entry).ok_or(DelayError::Inconsistent { slave: c })?;
+
+        let corr_a = if q.hop_is_processing(p) { diff_a } else { 0 };
+        let corr_c = if last.hop_is_processing(node_c.entry) {
+            diff_c
+        } else {
+            0
+        };
+        let w = u64::from_signed;
+        let step = twice_delay_step::<u64>(
+            w(abs_a),
+            w(before),
+            w(excursion),
+            w(rtt_c),
+            w(corr_a),
+            w(corr_c),
+            w(non_dc),
+        );
+        hop_result_old(&step, c)
+    }
+
+    /// The error (or twice the delay) [`twice_delay_step`]'s flags mean for slave `c`, checked in
+    /// the order of the formula: the first that fails names the error.
+    fn hop_result_old(step: &HopStep<u64>, c: u16) -> Result<i64, DelayError> {
+        let overflow = DelayError::Overflow { slave: c };
+        if step.measured_overflow {
+            return Err(overflow);
+        }
+        if step.inconsistent {
+            return Err(DelayError::Inconsistent { slave: c });
+        }
+        if step.hop_overflow {
+            return Err(overflow);
+        }
+        if step.negative_hop {
+            return Err(DelayError::NegativeHop { slave: c });
+        }
+        if step.sum_overflow {
+            return Err(overflow);
+        }
+        Ok(step.abs2.to_signed())
+    }
+
+    /// Wrapping difference `t(to) − t(from)` of one slave's stamps; `None` if negative (the latch
+    /// order check in topology reconstruction makes that impossible for consistent input).
+    fn since_old(latches: &Latches, to: Port, from: Port) -> Option<i64> {
+        let d = latches.at(to).wrapping_since(latches.at(from));
+        (d >= 0).then_some(i64::from(d))
+    }
+
+    fn latches_of_old(samples: &[SlaveSample], i: u16) -> Result<&Latches, DelayError> {
+        samples
+            .get(usize::from(i))
+            .and_then(|s| s.latches.as_ref())
+            .ok_or(DelayError::Mismatch)
+    }
+
+    fn t_diff_of_old(samples: &[SlaveSample], i: u16) -> Result<i32, DelayError> {
+        samples
+            .get(usize::from(i))
+            .map(|s| s.t_diff)
+            .ok_or(DelayError::Mismatch)
+    }
 
     /// The hop arithmetic of `twice_delay_from_upstream` as a plain-`i64` checked chain: the
     /// oracle that the Word-generic [`twice_delay_step`] (which SMT runs on bit-vectors) gives
@@ -503,10 +808,83 @@ mod tests {
 
     fn hop_word(x: [i64; 7], c: u16) -> Result<i64, DelayError> {
         let w = x.map(|v| v as u64);
-        hop_result(
-            &twice_delay_step(w[0], w[1], w[2], w[3], w[4], w[5], w[6]),
-            c,
-        )
+        let step = twice_delay_step(w[0], w[1], w[2], w[3], w[4], w[5], w[6]);
+        let checks = HopChecks {
+            non_dc_overflow: false,
+            stale: false,
+            step,
+        };
+        hop_result(&checks, c).map(|()| step.abs2 as i64)
+    }
+
+    /// `compute` through the Word-generic `walk` equals the former concrete walk (delays, exact
+    /// values and the error variant) on random samples: random open ports, DC flags, stamps near
+    /// each other (consistent-looking) or anywhere, `t_Diff` of any size, any reference.
+    #[test]
+    fn walk_equals_former_compute() {
+        let mut seed = 0x0DDB_1A5E_5BAD_5EEDu64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let (mut compared, mut ok) = (0u32, 0u32);
+        for _ in 0..60_000 {
+            let n = 1 + (next() % 8) as usize;
+            let base = next() as u32;
+            let mut samples = [SlaveSample::default(); 8];
+            for (i, s) in samples.iter_mut().enumerate().take(n) {
+                let r = next();
+                // Mostly 2-port slaves (lines), some forks/crosses, ends with one port.
+                let ports = match r % 8 {
+                    0 => 0b0111,
+                    1 => 0b1011,
+                    2 => 0b0001,
+                    3 => (r >> 8) as u8 & 0x0F,
+                    _ => 0b0011,
+                };
+                let ports = if i + 1 == n && r % 3 == 0 {
+                    0b0001
+                } else {
+                    ports
+                };
+                let spread = if r % 5 == 0 { u32::MAX } else { 5_000 };
+                let t0 = base.wrapping_add(1000 * i as u32);
+                let stamps: [u32; 4] =
+                    core::array::from_fn(|_| t0.wrapping_add((next() as u32) % spread.max(1)));
+                let t_diff = match (r >> 16) % 6 {
+                    0 => i32::MIN,
+                    1 => i32::MAX,
+                    2 => (r >> 20) as i32,
+                    _ => ((r >> 24) % 200) as i32 - 50,
+                };
+                *s = SlaveSample {
+                    ports: PortSet::from_bits(ports),
+                    latches: (r % 7 != 0).then(|| Latches::from_raw(stamps, u64::from(t0))),
+                    t_diff,
+                };
+            }
+            let samples = &samples[..n];
+            let Ok(topo) = Topology::<8>::build(samples) else {
+                continue;
+            };
+            let reference = (next() % (n as u64 + 1)) as usize;
+            let new = compute(samples, &topo, reference);
+            assert_eq!(new, compute_old(samples, &topo, reference), "{samples:?}");
+            compared += 1;
+            ok += u32::from(new.is_ok());
+        }
+        for phase in [0u32, 0xFFFF_F000, 0x7FFF_FFFF] {
+            for t_diff in [0, 20, -10, i32::MAX] {
+                let s = line(&[3000, 2000, 900, 0], t_diff, phase);
+                let t = Topology::<4>::build(&s).unwrap();
+                for r in 0..5 {
+                    assert_eq!(compute(&s, &t, r), compute_old(&s, &t, r));
+                }
+            }
+        }
+        assert!(compared > 5_000 && ok > 500, "compared {compared}, ok {ok}");
     }
 
     #[test]
