@@ -76,6 +76,13 @@ pub trait Word: Copy {
     fn slt(self, rhs: Self) -> Self::Bool;
     /// `if c { a } else { b }` (`ite`).
     fn select(c: Self::Bool, a: Self, b: Self) -> Self;
+    /// [`Word::select`] with `b` computed only when needed: machine words evaluate `b` only when
+    /// `c` is false, so a rare expensive fallback (a division) stays off the common path; a
+    /// symbolic word evaluates both (`ite`), which is the default.
+    #[inline]
+    fn select_or_else(c: Self::Bool, a: Self, b: impl FnOnce() -> Self) -> Self {
+        Self::select(c, a, b())
+    }
     /// Reinterpret as two's complement.
     fn to_signed(self) -> Self::Signed;
     /// Reinterpret two's complement bits as the word.
@@ -138,6 +145,14 @@ macro_rules! machine_word {
                     a
                 } else {
                     b
+                }
+            }
+            #[inline]
+            fn select_or_else(c: bool, a: Self, b: impl FnOnce() -> Self) -> Self {
+                if c {
+                    a
+                } else {
+                    b()
                 }
             }
             #[inline]
@@ -282,6 +297,33 @@ pub fn fold<W: Word>(x: W::Signed, p: W) -> W::Signed {
     // (p/2, p) maps to (−p/2, 0) by subtracting one period.
     let upper = p.shr(1).ult(r);
     W::select(upper, r.wrapping_sub(p), r).to_signed()
+}
+
+/// REQ-TIME-008: [`fold`] without its division when `x` lies within two periods of the fold
+/// window (the common case of a phase error). `fold_near(x, p) = fold(x, p)` for every `x` and
+/// `p` (p = 0 too, where both are the division's value): proved at 64 and 32 bits, checked
+/// exhaustively at 8/16 bits. The window is (lo, hi] with hi = ⌊p/2⌋, lo = hi − p; the
+/// candidates are x, x ∓ p, x ∓ 2p (stepping towards the window), none of which wraps, and one
+/// inside the window is ≡ x (mod p), so it is the unique representative `fold` returns.
+/// Otherwise the division in [`fold`] runs (only then, on machine words:
+/// [`Word::select_or_else`]).
+#[inline]
+pub fn fold_near<W: Word>(x: W::Signed, p: W) -> W::Signed {
+    let xw = W::from_signed(x);
+    let hi = p.shr(1);
+    let lo = hi.wrapping_sub(p); // exclusive
+    let above = lo.slt(xw);
+    // One step towards the window: −p from above it, +p from below.
+    let step = W::select(above, wrapping_neg(p), p);
+    let y1 = xw.wrapping_add(step);
+    let y2 = y1.wrapping_add(step);
+    let inside = |y: W| lo.slt(y).and(hi.slt(y).not());
+    let (in0, in1, in2) = (inside(xw), inside(y1), inside(y2));
+    let near = W::select(in0, xw, W::select(in1, y1, y2));
+    W::select_or_else(in0.or(in1).or(in2), near, || {
+        W::from_signed(fold::<W>(x, p))
+    })
+    .to_signed()
 }
 
 // ------------------------------------------------------------------ clamping and saturation

@@ -235,3 +235,36 @@ fn half_sign_magnitude_8_16() {
         256 + 65536 + 2 * 65536 + 65536
     );
 }
+
+/// REQ-TIME-008: `fold_near` (the servo's division-free fold) equals `fold` for every (x, p) at
+/// 8 and 16 bits, p = 0 included (2^32 cases at 16 bits); both paths (a candidate within two
+/// periods of the window, and the division) are taken.
+// verifies: REQ-TIME-008
+#[test]
+#[ignore]
+fn fold_near_equals_fold_8_16() {
+    use ecdc_core::num::{fold, fold_near};
+    let (mut n, mut near) = (0u64, 0u64);
+    for per in all8() {
+        for x in all8() {
+            let f = fold::<u8>(s8(x), per);
+            assert_eq!(fold_near::<u8>(s8(x), per), f, "x {x} p {per}");
+            let k = (i32::from(s8(x)) - i32::from(f)).abs();
+            near += u64::from(per != 0 && [0, 1, 2].map(|j| j * i32::from(per)).contains(&k));
+        }
+        n += 256;
+    }
+    for per in all16() {
+        for x in all16() {
+            let x = s16(x);
+            assert_eq!(
+                fold_near::<u16>(x, per),
+                fold::<u16>(x, per),
+                "x {x} p {per}"
+            );
+        }
+        n += 65536;
+    }
+    assert!(near > 0 && near < 256 * 256, "8 bits: both paths taken");
+    println!("fold_near = fold: {n} cases (8 bits: {near} within two periods)");
+}

@@ -44,7 +44,7 @@ use super::gains::{PiGains, Pole};
 use super::gate::GateConfig;
 use super::lock::LockConfig;
 use super::pi::{PiLimits, THETA_MAX};
-use crate::num::{fold, wrapping_diff};
+use crate::num::{fold, fold_near, wrapping_diff};
 
 /// Largest cycle period the loop accepts: 2·THETA_MAX (536 ms), so the folded error always fits
 /// the PI kernel unclamped.
@@ -248,7 +248,8 @@ impl MasterServo {
         let d = self.difference(app, reference);
         let p = i64::from(self.period);
         let raw = d.checked_sub(self.target)?;
-        let theta = fold_near(raw, p);
+        // raw: any i64 (that is all the precondition of fold_near's proof asks of x).
+        let theta = fold_near::<u64>(raw, u64::from(self.period));
         let correction = theta.checked_sub(raw)?;
         Some((theta, correction, raw.unsigned_abs() >= p.unsigned_abs()))
     }
@@ -375,41 +376,6 @@ pub(super) fn fit_multiple(v: i128, p: i128) -> i64 {
     i64::try_from(v).unwrap_or(0)
 }
 
-/// `fold::<u64>(x, p)` for `p` in [1000, 2^29]: the representative of x mod p in
-/// (⌊p/2⌋ − p, ⌊p/2⌋]. Within two periods of that window it is reached by adding or subtracting
-/// p at most twice (the representative is unique, so this is the same value); elsewhere by the
-/// division in [`fold`].
-#[inline]
-pub(super) fn fold_near(x: i64, p: i64) -> i64 {
-    let hi = p >> 1;
-    let lo = hi.wrapping_sub(p); // exclusive
-    if x > lo {
-        if x <= hi {
-            return x;
-        }
-        let y = x.wrapping_sub(p);
-        if y <= hi {
-            return y;
-        }
-        // y > hi ≥ 0 here: y − p cannot overflow.
-        let y = y.wrapping_sub(p);
-        if y <= hi {
-            return y;
-        }
-    } else {
-        // x ≤ lo < 0: x + p cannot overflow.
-        let y = x.wrapping_add(p);
-        if y > lo {
-            return y;
-        }
-        let y = y.wrapping_add(p);
-        if y > lo {
-            return y;
-        }
-    }
-    fold::<u64>(x, p.unsigned_abs())
-}
-
 /// Low 32 bits (a 32-bit DC keeps only these).
 #[inline]
 pub(super) fn low32(x: u64) -> u32 {
@@ -519,6 +485,39 @@ mod tests {
 
     use crate::servo::test_rng::Rng;
 
+    /// The branchy `i64` body `fold_near` had before it became the Word-generic
+    /// `num::fold_near`, kept as the differential oracle: for `p` in [1000, 2^29], x, x ∓ p or
+    /// x ∓ 2p when one lies in (⌊p/2⌋ − p, ⌊p/2⌋], else the division in [`fold`].
+    fn fold_near_i64(x: i64, p: i64) -> i64 {
+        let hi = p >> 1;
+        let lo = hi.wrapping_sub(p); // exclusive
+        if x > lo {
+            if x <= hi {
+                return x;
+            }
+            let y = x.wrapping_sub(p);
+            if y <= hi {
+                return y;
+            }
+            // y > hi ≥ 0 here: y − p cannot overflow.
+            let y = y.wrapping_sub(p);
+            if y <= hi {
+                return y;
+            }
+        } else {
+            // x ≤ lo < 0: x + p cannot overflow.
+            let y = x.wrapping_add(p);
+            if y > lo {
+                return y;
+            }
+            let y = y.wrapping_add(p);
+            if y > lo {
+                return y;
+            }
+        }
+        fold::<u64>(x, p.unsigned_abs())
+    }
+
     #[test]
     fn fold_near_equals_fold() {
         let mut rng = Rng(0xD1B5_4A32_D192_ED03);
@@ -544,7 +543,9 @@ mod tests {
                 xs.push((r % (10 * p as u64)) as i64 - 5 * p);
             }
             for &x in &xs {
-                assert_eq!(fold_near(x, p), fold::<u64>(x, p as u64), "x {x} p {p}");
+                let f = fold::<u64>(x, p as u64);
+                assert_eq!(fold_near::<u64>(x, p as u64), f, "x {x} p {p}");
+                assert_eq!(fold_near_i64(x, p), f, "x {x} p {p}");
             }
         }
     }

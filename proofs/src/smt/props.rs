@@ -470,3 +470,83 @@ pub fn p3_line_kernel() -> Goal {
     ]);
     (pre, claim)
 }
+
+// ------------------------------------------------------------------ fold_near (servo)
+
+/// Which path of `fold_near` a [`fold_near`] goal is restricted to: the candidate x + k·p
+/// (k ∈ −2..=2) inside the window, or none of them (the division).
+#[derive(Clone, Copy, Debug)]
+pub enum FoldNearCase {
+    /// x + k·p lies in (⌊p/2⌋ − p, ⌊p/2⌋], computed at N + 2 bits.
+    Step(i8),
+    /// No candidate lies in the window: `fold_near` must fall back to the division.
+    Far,
+}
+
+/// REQ-TIME-008: `num::fold_near(x, p) = num::fold(x, p)` for every x and p ≥ `p_min` ≤ p ≤
+/// `p_max` (the servo calls it with any i64 x and p in [1000, 2^29]), restricted to one
+/// `case` so that the precondition check of [`super::prove`] shows each path is reachable.
+/// Both sides run the shipped kernels with `urem` abstracted (`smt::with_abstract_urem`); the
+/// facts of unsigned remainder assumed for each recorded `urem(u, d) = m` are: it is a function
+/// (same operands, same m), m < d for d ≠ 0, and for u < 4·d, m is one of u, u − d, u − 2d,
+/// u − 3d (the definition, with the quotient ⌊u/d⌋ ≤ 3). The last fact is what ties the
+/// division-free result to `fold`'s; without it the near cases are refuted
+/// ([`fold_near_without_remainder_facts`]).
+pub fn fold_near<const N: u32>(p_min: u64, p_max: u64, case: FoldNearCase) -> Goal {
+    fold_near_goal::<N>(p_min, p_max, case, true)
+}
+
+/// [`fold_near`] without the "u < 4d ⇒ m ∈ {u − jd}" fact: must be refuted in the near cases
+/// (the proof depends on what the remainder is, not on the two sides sharing a term).
+pub fn fold_near_without_remainder_facts<const N: u32>(case: FoldNearCase) -> Goal {
+    fold_near_goal::<N>(1, u64::MAX, case, false)
+}
+
+fn fold_near_goal<const N: u32>(
+    p_min: u64,
+    p_max: u64,
+    case: FoldNearCase,
+    quotient_fact: bool,
+) -> Goal {
+    let (x, p) = (Sym::<N>::var("x"), Sym::<N>::var("p"));
+    let ((near, far), recs) =
+        super::with_abstract_urem(|| (k::fold_near::<Sym<N>>(x, p), k::fold::<Sym<N>>(x, p)));
+    let w = N + 2;
+    let (xw, pw) = (x.bv().sign_ext(2), p.bv().zero_ext(2));
+    let hi = pw.bvlshr(&int(1, w));
+    let lo = hi.bvsub(&pw);
+    let times = |v: &BV<'static>, j: i128| (0..j).fold(int(0, w), |acc, _| acc.bvadd(v));
+    let in_window = |k: i128| {
+        let kp = times(&pw, k.abs());
+        let y = if k < 0 { xw.bvsub(&kp) } else { xw.bvadd(&kp) };
+        and(&[&lo.bvslt(&y), &y.bvsle(&hi)])
+    };
+    let case_pre = match case {
+        FoldNearCase::Step(k) => in_window(i128::from(k)),
+        FoldNearCase::Far => {
+            let any: Vec<Bool<'static>> = (-2..=2).map(in_window).collect();
+            Bool::or(ctx(), &any.iter().collect::<Vec<_>>()).not()
+        }
+    };
+    let mut facts = vec![
+        p.bv().bvuge(&int(i128::from(p_min), N)),
+        p.bv().bvule(&int(i128::from(p_max), N)),
+        case_pre,
+    ];
+    for (i, &(u, d, m)) in recs.iter().enumerate() {
+        let nz = d._eq(&int(0, N)).not();
+        facts.push(nz.implies(&m.bvult(d)));
+        if quotient_fact {
+            let (uw, dw, mw) = (u.zero_ext(2), d.zero_ext(2), m.zero_ext(2));
+            let small = and(&[&nz, &uw.bvult(&times(&dw, 4))]);
+            let opts: Vec<Bool<'static>> =
+                (0..4).map(|j| mw._eq(&uw.bvsub(&times(&dw, j)))).collect();
+            facts.push(small.implies(&Bool::or(ctx(), &opts.iter().collect::<Vec<_>>())));
+        }
+        for &(u2, d2, m2) in &recs[i + 1..] {
+            facts.push(and(&[&u._eq(u2), &d._eq(d2)]).implies(&m._eq(m2)));
+        }
+    }
+    let pre = Bool::and(ctx(), &facts.iter().collect::<Vec<_>>());
+    (pre, near.bv()._eq(far.bv()))
+}
