@@ -332,23 +332,28 @@ pub fn offset_to<const N: u32>() -> Goal {
     (t(), local.wrapping_add(o).bv()._eq(target.bv()))
 }
 
-/// P4 / REQ-DC-021, REQ-DC-023 for both clock widths, as `initial_offset` computes it: target =
-/// master time + delay (any 64-bit master time, any signed 64-bit delay, wrapping), offset from
-/// the 64-bit entry local time; a 64-bit slave gets the offset, a 32-bit slave its low half and
-/// counts with the low half of its local time. Claims: local + offset ≡ target (mod 2^64) and
-/// low32(local) + low32(offset) ≡ low32(target) (mod 2^32).
+/// P4 / REQ-DC-021, REQ-DC-023 for both clock widths on the shipped arithmetic of
+/// `offset::initial_offset` (`offset::initial_offset_word`, which it runs on `u64`): for any
+/// 64-bit master time, any signed 64-bit delay and any 64-bit entry local time, with target =
+/// master + delay (mod 2^64): a 64-bit slave's offset o64 gives local + o64 ≡ target
+/// (mod 2^64); a 32-bit slave's offset o32 fits 32 bits and, as it counts with the low half of
+/// its local time, low32(local) + o32 ≡ low32(target) (mod 2^32). The target is stated here
+/// as the plain 64-bit sum, independently of the kernel.
 pub fn initial_offset_both_widths() -> Goal {
+    use ecdc_core::dc::offset::{initial_offset_word, ClockWidth};
     let (m, d, local) = (
         Sym::<64>::var("master"),
         Sym::<64>::var("delay"),
         Sym::<64>::var("local"),
     );
-    let target = m.wrapping_add(d);
-    let o = k::offset_to(target, local);
+    let target = m.bv().bvadd(d.bv());
+    let o64 = initial_offset_word(m, d, local, ClockWidth::Bits64);
+    let o32 = initial_offset_word(m, d, local, ClockWidth::Bits32);
     let lo = |x: &BV<'static>| x.extract(31, 0);
     let claim = and(&[
-        &local.wrapping_add(o).bv()._eq(target.bv()),
-        &lo(local.bv()).bvadd(&lo(o.bv()))._eq(&lo(target.bv())),
+        &local.bv().bvadd(o64.bv())._eq(&target),
+        &o32.bv().extract(63, 32)._eq(&int(0, 32)),
+        &lo(local.bv()).bvadd(&lo(o32.bv()))._eq(&lo(&target)),
     ]);
     (t(), claim)
 }
