@@ -36,6 +36,27 @@ fn two_minutes_on_seed000_line() {
     assert!(r.skew_outside_chunks > 1_000);
 }
 
+/// Five minutes of seed 000's line with the slaves in OP: every fault ends locked by the
+/// bound (no typed-error ending) and the machine is never unlocked outside the fault windows.
+/// Seed 1's power cycle of slave 2 at 189.3 s used to start an episode of `NotConverged`
+/// restarts lasting until 491 s: the slaves kept in OP were on a domain milliseconds away from
+/// the master's clock, onto which the re-powered slave was written (REQ-DC-131).
+// verifies: REQ-DC-131
+#[test]
+fn five_minutes_with_slaves_in_op_end_locked() {
+    let r = soak(Topology::Seed000Line, 300.0, 1, false).unwrap();
+    let ended: Vec<_> = r
+        .judged
+        .iter()
+        .filter(|j| j.outcome == Outcome::TypedError)
+        .map(|j| (j.fault.at_ns, j.fault.kind, j.errors.last().cloned()))
+        .collect();
+    assert!(ended.is_empty(), "typed-error endings: {ended:?}");
+    assert_eq!(r.unlocked_outside_chunks, 0);
+    assert_eq!(r.offset_writes_in_safeop_op, 0);
+    assert!(r.op_at_fault_start.0 > 0, "{:?}", r.op_at_fault_start);
+}
+
 #[test]
 fn schedule_is_seeded_and_covers_every_kind_in_an_hour() {
     let a = schedule(1, 6, 5_000_000_000, 3_600_000_000_000);
