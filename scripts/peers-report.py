@@ -4,8 +4,9 @@
 Usage: scripts/peers-report.py PEERS.json PEERS.md PEERS.svg
 Every figure comes from the JSON: the emulator's yardstick (true time), its frame accounting
 and the masters' own bring-up lines. Per (scenario, master) the summary table gives the median
-over the runs and, in brackets, the smallest and largest run; nothing else is computed here but
-those, rounding and layout. Every run also has its own row.
+over the runs whose master exited 0 and, in brackets, the smallest and largest of them; nothing
+else is computed here but those, rounding and layout. Every run, failed ones included, also has
+its own row.
 """
 import html
 import math
@@ -27,6 +28,8 @@ def spread(vals, nd=1, none="–"):
     """Median (min–max) of the values present; runs without one are counted."""
     have = [v for v in vals if v is not None]
     missing = len(vals) - len(have)
+    if not vals:
+        return "–"
     if not have:
         return none
     if len(have) == 1:
@@ -86,18 +89,19 @@ def main():
         f"–{f(max(loads), 2) if loads else '–'}; `uptime` at the end: "
         f"`{(data.get('uptime_at_end') or '–').strip()}`.",
         "",
-        f"## Summary: median (min–max) over the runs",
+        "## Summary: median (min–max) over the runs whose master exited 0",
         "",
-        "| scenario | master | runs | firing | mean \\|skew\\| ns | p99 ns | max ns "
+        "| scenario | master | runs exit 0 | firing | mean \\|skew\\| ns | p99 ns | max ns "
         "| lock ms after 1st SYNC0 | bring-up ms | frames | dropped | turnaround max µs "
         "| AL at exit | master exits |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for (sc, m), rs in g.items():
+    for (sc, m), every in g.items():
+        rs = [r for r in every if r.get("exit") == 0]
         al = sorted({a for r in rs for a in (r.get("al_states") or [])})
         lines.append(
             "| " + " | ".join([
-                sc, m, str(len(rs)),
+                sc, m, f"{len(rs)} of {len(every)}",
                 spread([sync(r).get("slaves_firing") for r in rs], 0),
                 spread([sync(r).get("skew_mean_ns") for r in rs]),
                 spread([sync(r).get("skew_p99_ns") for r in rs], 0),
@@ -108,8 +112,8 @@ def main():
                 spread([emu(r).get("dropped") for r in rs], 0),
                 spread([(emu(r).get("turnaround_ns") or {}).get("max") and
                         emu(r)["turnaround_ns"]["max"] / 1000 for r in rs], 0),
-                ",".join(al),
-                ",".join(str(r.get("exit")) for r in rs),
+                ",".join(al) or "–",
+                ",".join(str(r.get("exit")) for r in every),
             ]) + " |"
         )
     lines += ["", "Commands (binaries in `$CARGO_TARGET_DIR/release`; masters in the master "
@@ -192,7 +196,7 @@ def main():
            f'<rect width="{w}" height="{h}" fill="white"/>',
            f'<text x="{left}" y="16" font-size="13">SYNC0 skew in true time, {html.escape(data["generated"])}, '
            f'{data.get("repeats", 1)} run(s) each (log scale)</text>',
-           f'<text x="{left}" y="32" font-size="11">bar: median mean |skew|; thin line: its min–max over the runs; '
+           f'<text x="{left}" y="32" font-size="11">runs whose master exited 0; bar: median mean |skew|; thin line: its min–max; '
            f'thick tick and label: median max |skew|</text>']
     # Log scale: the skews of one chart span 1 ns to tens of µs.
     decades = max(1, math.ceil(math.log10(max(top, 10.0))))
@@ -209,7 +213,7 @@ def main():
         gx = left + gi * group_w
         out.append(f'<text x="{gx + group_w / 2:.1f}" y="{h - bottom + 18}" text-anchor="middle">{html.escape(sc)}</text>')
         for mi, m in enumerate(masters):
-            rs = g.get((sc, m), [])
+            rs = [r for r in g.get((sc, m), []) if r.get("exit") == 0]
             means = [sync(r).get("skew_mean_ns") for r in rs if sync(r).get("skew_mean_ns") is not None]
             maxes = [sync(r).get("skew_max_ns") for r in rs if sync(r).get("skew_max_ns") is not None]
             if not means or not maxes:
