@@ -43,10 +43,15 @@ impl<const N: usize> Machine<N> {
             // The restore of an interrupted t_Diff measurement goes alone, before the count.
             State::CountSlaves if self.tdiff.recovering => 1,
             State::DriftBurst => 1,
-            // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two.
-            State::ReadAlStatus if self.cursor < self.count => {
-                usize::from(self.count.saturating_sub(self.cursor))
-            }
+            // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two:
+            // a frame from the AL half ends with its last AL read.
+            State::ReadAlStatus if self.cursor < self.count => self
+                .slaves()
+                .iter()
+                .skip(usize::from(self.cursor))
+                .filter(|s| s.dc.has_system_time())
+                .count()
+                .max(1),
             // One entry stays free for the FRMW that closes every check frame.
             State::DriftCheck => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
             _ => usize::MAX,

@@ -345,3 +345,78 @@ fn transition_outside_can_go_is_a_typed_error() {
     m.enter(State::CountSlaves);
     assert_eq!(m.state(), State::CountSlaves);
 }
+
+/// REQ-DC-131: the AL status step sends its 0x0920 reads only after every AL status is in,
+/// even with a non-DC slave among the positions and AL states left from an earlier read (here
+/// the reverse of the truth), and the slave found running anchors the one found in INIT.
+// verifies: REQ-DC-131, REQ-DC-103
+#[test]
+fn running_offsets_read_after_al_states_and_anchor_the_others() {
+    use crate::dc::slave::DcKind;
+    let mut m = machine();
+    m.count = 3;
+    m.reference = 0;
+    m.sys_count = 2;
+    m.latch_time = T0;
+    for (i, dc) in [DcKind::Bits64, DcKind::None, DcKind::Bits64]
+        .into_iter()
+        .enumerate()
+    {
+        m.slaves[i].station = 0x1001 + i as u16;
+        m.slaves[i].dc = dc;
+    }
+    m.slaves[0].al_status = Some(0x01);
+    m.slaves[2].al_status = Some(0x08);
+    m.slaves[0].entry_local = 1_000;
+    m.slaves[2].entry_local = 7_000;
+    m.slaves[2].delay_ns = 300;
+    m.state = State::ReadAlStatus;
+    let now = SystemTime(T0 + 1_000_000);
+    let mut buf = [0u8; 1514];
+    // Answers with the true AL states: the reference (station 0x1001) in OP, 0x1003 in INIT;
+    // the reference's 0x0920 puts its system time 5 µs ahead of the master's at the latch.
+    let answer = |frame: &[u8]| {
+        let mut out = reply(frame, 1);
+        let mut eth = EthernetFrame::new_unchecked(&mut out[..]);
+        let mut ecat = eth.ecat_frame_mut().unwrap();
+        for d in ecat.iter_mut() {
+            let mut d = d.unwrap();
+            let v: u64 = match (d.adp(), d.ado()) {
+                (0x1001, 0x0130) => 0x08,
+                (0x1003, 0x0130) => 0x01,
+                (0x1001, 0x0920) => T0 + 5_000 - 1_000,
+                _ => 0,
+            };
+            let data = d.data_mut();
+            let n = data.len();
+            data.copy_from_slice(&v.to_le_bytes()[..n]);
+        }
+        out
+    };
+    let n = m.poll_transmit(now, &mut buf).unwrap();
+    let first = datagrams(&buf[..n]);
+    assert_eq!(
+        first
+            .iter()
+            .map(|&(c, _, ado, len)| (c, ado, len))
+            .collect::<std::vec::Vec<_>>(),
+        [(Command::Fprd, 0x0130, 2), (Command::Fprd, 0x0130, 2)]
+    );
+    m.handle_frame(now, &answer(&buf[..n]));
+    let n = m.poll_transmit(now, &mut buf).unwrap();
+    let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
+    let second: std::vec::Vec<(u16, u16, u16)> = eth
+        .ecat_frame()
+        .unwrap()
+        .iter()
+        .map(|d| {
+            let d = d.unwrap();
+            (d.adp(), d.ado(), d.data_len())
+        })
+        .collect();
+    assert_eq!(second, [(0x1001, 0x0920, 8)]);
+    m.handle_frame(now, &answer(&buf[..n]));
+    assert_eq!(m.state(), State::WriteOffsets);
+    assert_eq!(m.domain_shift, 5_000);
+    assert_eq!(m.slaves[2].offset.wrapping_add(7_000), T0 + 5_000 + 300);
+}
