@@ -46,7 +46,8 @@
 //! - `al.rs`: AL control/status/status code, SyncManager checks at the transitions.
 //! - `process_data.rs`: SyncManager gating of logical access, the process image.
 //! - `topology.rs`: tree, cables, time-indexed link and power state.
-//! - `network.rs`: the frame path (0→EPU→3→1→2→0), faults, observers.
+//! - `network/`: the chain: the frame path (`frame.rs`), the walk 0→EPU→3→1→2→0 (`walk.rs`),
+//!   faults (`faults.rs`), the SYNC edge log (`edge_log.rs`), observers (`mod.rs`).
 //! - `scenario.rs`, `fault.rs`: the serde description of a run.
 //! - `yardstick.rs`: true-time DC measurement from the observers (skew, lock, clock error),
 //!   shared by `ecdc simulate` and `ecdc emulate`.
