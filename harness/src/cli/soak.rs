@@ -75,9 +75,10 @@ pub struct Args {
     /// Network.
     #[arg(long, value_enum, default_value_t = Topology::Seed000Line)]
     pub topology: Topology,
-    /// Simulated seconds (> 0).
-    #[arg(long, default_value_t = 3600.0, allow_negative_numbers = true,
-          value_parser = super::validate::seconds)]
+    /// Simulated time: `1h`, `300s`, `90min` (a bare number is seconds; `--seconds N` is the
+    /// older spelling).
+    #[arg(long = "duration", visible_alias = "seconds", default_value = "1h",
+          allow_negative_numbers = true, value_parser = super::validate::seconds)]
     pub seconds: f64,
     /// Seed of the fault schedule and of the emulator.
     #[arg(long, default_value_t = 1)]
