@@ -120,7 +120,7 @@ impl<const N: usize> Machine<N> {
                 // A slave's own entry port must show a link, or the DL status is garbage.
                 for pos in self.positions() {
                     if let Some(s) = self.slave(pos) {
-                        if DlStatus(s.dl_status).raw() & 0x00F0 == 0 {
+                        if !DlStatus(s.dl_status).any_link() {
                             return Err(Error::OutOfRange {
                                 station: s.station,
                                 register: reg::DL_STATUS,

@@ -44,7 +44,7 @@ use super::gains::{PiGains, Pole};
 use super::gate::GateConfig;
 use super::lock::LockConfig;
 use super::pi::{PiLimits, THETA_MAX};
-use crate::num::{fold, fold_near, wrapping_diff};
+use crate::num::{fold, fold_near, low32, wrapping_diff};
 
 /// Largest cycle period the loop accepts: 2·THETA_MAX (536 ms), so the folded error always fits
 /// the PI kernel unclamped.
@@ -374,12 +374,6 @@ pub(super) fn fit_multiple(v: i128, p: i128) -> i64 {
         v.wrapping_add(adj)
     };
     i64::try_from(v).unwrap_or(0)
-}
-
-/// Low 32 bits (a 32-bit DC keeps only these).
-#[inline]
-pub(super) fn low32(x: u64) -> u32 {
-    u32::try_from(x & 0xFFFF_FFFF).unwrap_or(0)
 }
 
 #[cfg(test)]

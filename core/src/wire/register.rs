@@ -317,6 +317,11 @@ impl DlStatus {
     pub const fn communication(self, port: u8) -> bool {
         port < 4 && self.bit((port as u32).wrapping_mul(2).wrapping_add(9))
     }
+    /// A physical link on any of the four ports (bits 4..7). A slave that answered has a
+    /// link on the port the frame entered by, so a reply without one is not a DL status.
+    pub const fn any_link(self) -> bool {
+        self.link(0) || self.link(1) || self.link(2) || self.link(3)
+    }
     /// All three flags of `port`.
     pub const fn port(self, port: u8) -> PortState {
         PortState {
@@ -509,6 +514,7 @@ mod tests {
                 ports[usize::from(p)] = s.port(p);
             }
             assert_eq!(DlStatus::from_ports(ports, w), s);
+            assert_eq!(s.any_link(), w & 0x00F0 != 0);
             for p in 4..=255u8 {
                 assert_eq!(s.port(p), PortState::default());
             }
