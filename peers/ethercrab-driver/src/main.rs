@@ -10,7 +10,15 @@
 //! It measures nothing itself: run it against `ecdc emulate --json`, whose yardstick reports
 //! what the SYNC0 pulses did (scripts/peers-bench.sh).
 //!
-//! Usage: ethercrab-driver IFACE [SECONDS] [CYCLE_US]   (defaults: 10 s, 1000 us)
+//! Usage: ethercrab-driver [--eeprom-timeout-ms N] IFACE [SECONDS] [CYCLE_US]
+//! (defaults: 10 s, 1000 us; EEPROM timeout: the example's, i.e. ethercrab's default 10 ms)
+//!
+//! `--eeprom-timeout-ms` changes `Timeouts::eeprom` and nothing else. It exists because
+//! ethercrab bounds each SII busy-poll loop (src/eeprom/device_provider.rs `wait_while_busy`)
+//! by that timeout while sleeping the example's 5 ms `wait_loop_delay` per busy read, and on a
+//! loaded host whose wake-ups come late one busy read can use up the default 10 ms; raising it
+//! lets bring-up finish there without touching anything DC does. scripts/peers-bench.sh runs it
+//! as a separate, labelled master (`ethercrab-eeprom100`), never in place of the example's.
 
 use std::time::{Duration, Instant};
 
@@ -28,13 +36,37 @@ const PDI_LEN: usize = 512;
 
 static PDU_STORAGE: PduStorage<MAX_FRAMES, MAX_PDU_DATA> = PduStorage::new();
 
-fn arg<T: std::str::FromStr>(i: usize, default: T) -> Result<T, String> {
-    match std::env::args().nth(i) {
+const USAGE: &str = "usage: ethercrab-driver [--eeprom-timeout-ms N] IFACE [SECONDS] [CYCLE_US]";
+
+fn arg<T: std::str::FromStr>(args: &[String], i: usize, default: T) -> Result<T, String> {
+    match args.get(i) {
         None => Ok(default),
         Some(s) => s
             .parse()
-            .map_err(|_| format!("argument {i}: cannot parse {s:?}")),
+            .map_err(|_| format!("argument {}: cannot parse {s:?}", i + 1)),
     }
+}
+
+/// The positional arguments and the EEPROM timeout, if `--eeprom-timeout-ms N` was given
+/// (anywhere on the line).
+fn parse_args() -> Result<(Vec<String>, Option<Duration>), String> {
+    let mut positional = Vec::new();
+    let mut eeprom = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        if a == "--eeprom-timeout-ms" {
+            let v = args.next().ok_or(USAGE)?;
+            let ms: u64 = v
+                .parse()
+                .map_err(|_| format!("--eeprom-timeout-ms: cannot parse {v:?}"))?;
+            eeprom = Some(Duration::from_millis(ms));
+        } else if a.starts_with("--") {
+            return Err(format!("unknown option {a}; {USAGE}"));
+        } else {
+            positional.push(a);
+        }
+    }
+    Ok((positional, eeprom))
 }
 
 fn main() {
@@ -46,11 +78,10 @@ fn main() {
 }
 
 fn run() -> Result<(), String> {
-    let iface: String = std::env::args()
-        .nth(1)
-        .ok_or("usage: ethercrab-driver IFACE [SECONDS] [CYCLE_US]")?;
-    let seconds: f64 = arg(2, 10.0)?;
-    let cycle_us: u64 = arg(3, 1000)?;
+    let (args, eeprom_timeout) = parse_args()?;
+    let iface: String = args.first().cloned().ok_or(USAGE)?;
+    let seconds: f64 = arg(&args, 1, 10.0)?;
+    let cycle_us: u64 = arg(&args, 2, 1000)?;
     let cycle_time = Duration::from_micros(cycle_us);
 
     let (tx, rx, pdu_loop) = PDU_STORAGE
@@ -59,15 +90,31 @@ fn run() -> Result<(), String> {
     // Timeouts and configuration exactly as ethercrab 0.7.1's examples/dc.rs sets them: its
     // default PDU timeout (30 ms, no resend) lets one reply delayed by a loaded host end
     // bring-up with `timeout: PDU`; the example waits 2 s per PDU and 10 s per state
-    // transition and leaves the retry behaviour at its default (no resend).
+    // transition and leaves the retry behaviour at its default (no resend). The example leaves
+    // the EEPROM timeout at ethercrab's default too, unless `--eeprom-timeout-ms` says otherwise.
+    let example = Timeouts {
+        wait_loop_delay: Duration::from_millis(5),
+        state_transition: Duration::from_secs(10),
+        pdu: Duration::from_millis(2000),
+        ..Timeouts::default()
+    };
+    let timeouts = Timeouts {
+        eeprom: eeprom_timeout.unwrap_or(example.eeprom),
+        ..example
+    };
+    // Printed so each run's log says which EEPROM timeout it had.
+    eprintln!(
+        "ethercrab-driver: EEPROM timeout {} ms{}",
+        timeouts.eeprom.as_millis(),
+        if eeprom_timeout.is_some() {
+            " (--eeprom-timeout-ms; the example keeps the default)"
+        } else {
+            " (the example's: ethercrab's default)"
+        }
+    );
     let maindevice = MainDevice::new(
         pdu_loop,
-        Timeouts {
-            wait_loop_delay: Duration::from_millis(5),
-            state_transition: Duration::from_secs(10),
-            pdu: Duration::from_millis(2000),
-            ..Timeouts::default()
-        },
+        timeouts,
         MainDeviceConfig {
             dc_static_sync_iterations: 10_000,
             ..MainDeviceConfig::default()
