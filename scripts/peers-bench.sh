@@ -18,7 +18,12 @@
 #   ethercrab+ecdc  peers/ethercrab-ecdc: ethercrab's init, AL states and process data, ecdc-core
 #                doing DC in the same TX/RX loop (ethercrab's own DC off; docs/ethercrab-ecdc.md;
 #                not in the default list: PEERS_MASTERS="ethercrab ecdc ethercrab+ecdc")
-# None is told anything about the emulated network; each only gets the interface and the cycle.
+#   ethercrab-eeprom100  a labelled variant, not in the default list: the ethercrab driver with
+#                `--eeprom-timeout-ms 100`, everything else (DC included) as the example. With the
+#                example's 10 ms EEPROM timeout and 5 ms wait-loop tick, one late wake-up on a
+#                loaded host ends bring-up with `timeout: EEPROM` (docs/bench.md "Other masters").
+# None is told anything about the emulated network; each only gets the interface and the cycle
+# (the variant also its EEPROM timeout).
 # The numbers are the emulator's true-time measurement of the SYNC0 pulses, not what a master
 # believes. Host scheduling makes each run's wire timing different, so runs differ by a few ns.
 #
@@ -31,7 +36,10 @@
 # Usage: scripts/peers-bench.sh [SECONDS] [SCENARIO...]      (default 20 s, all three)
 # Environment: PEERS_MASTERS (default "ethercrab soem ecdc"), PEERS_REPEATS (runs per scenario
 # and master, default 3), PEERS_OUT (default benches/results), PEERS_NO_BUILD=1 to use already
-# built binaries.
+# built binaries, PEERS_APPEND=1 to merge this invocation's runs into an existing
+# OUT/peers.json instead of replacing it: its runs of the (scenario, master) pairs run now are
+# replaced, all others kept; every run records the invocation ("batch") it came from, and
+# peers.md/svg are rendered from the merged file.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_RUN="${1:-20}"
@@ -70,7 +78,7 @@ if [ -z "${PEERS_NO_BUILD:-}" ]; then
     cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build ecdc"
     for m in "${MASTERS[@]}"; do
         case "$m" in
-            ethercrab) (cd peers/ethercrab-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
+            ethercrab | ethercrab-eeprom100) (cd peers/ethercrab-driver && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
                 || fail "cargo build peers/ethercrab-driver" ;;
             ethercrab+ecdc) (cd peers/ethercrab-ecdc && CARGO_TARGET_DIR="$TARGET" cargo build -q --release) \
                 || fail "cargo build peers/ethercrab-ecdc" ;;
@@ -84,6 +92,7 @@ fi
 master_cmd() {
     case "$1" in
         ethercrab) echo "env RUST_LOG=warn $CRAB ecm0 $SECONDS_RUN $CYCLE_US" ;;
+        ethercrab-eeprom100) echo "env RUST_LOG=warn $CRAB --eeprom-timeout-ms 100 ecm0 $SECONDS_RUN $CYCLE_US" ;;
         soem) echo "$SOEM ecm0 $SECONDS_RUN $CYCLE_US" ;;
         soem-config) echo "$SOEM ecm0 --config-only" ;;
         ecdc) echo "$ECDC run --iface ecm0 --cycle-us $CYCLE_US --duration $SECONDS_RUN --json" ;;
@@ -92,11 +101,19 @@ master_cmd() {
     esac
 }
 
+# How the report labels a master that is a variant of another (empty: the master as its docs
+# run it). Stored in every run's record, so the report needs no list of its own.
+master_label() {
+    case "$1" in
+        ethercrab-eeprom100) echo "variant: ethercrab, example settings except the EEPROM timeout 100 ms, because this host wakes late; DC setup unchanged" ;;
+    esac
+}
+
 # The master's bring-up time, ms, from its own output: ethercrab's start to all SubDevices in
 # OP; SOEM's ec_init to ec_dcsync0 done on every DC slave; ecdc's start to its cyclic phase.
 bring_up_ms() {
     case "$1" in
-        ethercrab) sed -n 's/.*all SubDevices in OP after [0-9]* ms (\([0-9]*\) ms since start).*/\1/p' "$2.err" ;;
+        ethercrab | ethercrab-eeprom100) sed -n 's/.*all SubDevices in OP after [0-9]* ms (\([0-9]*\) ms since start).*/\1/p' "$2.err" ;;
         soem) sed -n 's/.*ec_dcsync0 on [0-9]* slaves (\([0-9]*\) ms since start).*/\1/p' "$2.err" ;;
         soem-config) sed -n 's/.*ec_configdc .*(\([0-9]*\) ms).*/\1/p' "$2.err" ;;
         ecdc) jq -r '.bringup_ms' "$2.out" ;;
@@ -105,6 +122,11 @@ bring_up_ms() {
 
 FAILED=()
 RECORDS="$WORK/records.jsonl"
+# This invocation, recorded in every run so that runs merged from several invocations
+# (PEERS_APPEND=1) each keep their own command and time.
+CMDLINE="${PEERS_NO_BUILD:+PEERS_NO_BUILD=1 }${PEERS_APPEND:+PEERS_APPEND=1 }${PEERS_MASTERS:+PEERS_MASTERS=\"$PEERS_MASTERS\" }PEERS_REPEATS=$REPEATS scripts/peers-bench.sh $SECONDS_RUN ${SCENARIOS[*]}"
+BATCH="$(jq -cn --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg cmd "$CMDLINE" --argjson repeats "$REPEATS" \
+    '{started: $date, command: $cmd, repeats: $repeats}')" || fail "jq"
 : >"$RECORDS"
 # measure SCENARIO MASTER RUN: a fresh emulator, the master in the master namespace, then one
 # JSON record appended to $RECORDS.
@@ -142,9 +164,10 @@ measure() {
     jq -c --arg scen "$scen" --arg file "$file" --arg master "$master" \
         --arg cmd "${cmd//$TARGET\/release\//}" --arg emu "ecdc emulate --iface ecs0 --json --scenario $file" \
         --arg bu "${bu:-}" --arg load "$load" --argjson secs "$SECONDS_RUN" --argjson rc "$rc" \
-        --argjson run "$run" \
+        --argjson run "$run" --arg lbl "$(master_label "$master")" --argjson batch "$BATCH" \
         --rawfile log "$base.err" --slurpfile ecdc <(if [ "$master" = ecdc ]; then cat "$base.out"; else echo null; fi) '
-        {scenario: $scen, scenario_file: $file, master: $master, run: $run, seconds: $secs,
+        {scenario: $scen, scenario_file: $file, master: $master,
+         "label": (if $lbl == "" then null else $lbl end), batch: $batch, run: $run, seconds: $secs,
          cycle_us: '"$CYCLE_US"', command: $cmd, emulate_command: $emu, exit: $rc,
          load_average_at_start: ($load | tonumber),
          bring_up_ms: (if $bu == "" or $bu == "null" then null else ($bu | tonumber) end),
@@ -170,12 +193,28 @@ for scen in "${SCENARIOS[@]}"; do
 done
 
 mkdir -p "$OUT"
+UPTIME="$(uptime)"
 jq -s --arg date "$(date -u +%Y-%m-%dT%H:%MZ)" --arg host "$(nproc) CPUs, $(uname -r)" \
-    --arg cmd "${PEERS_MASTERS:+PEERS_MASTERS=\"$PEERS_MASTERS\" }PEERS_REPEATS=$REPEATS scripts/peers-bench.sh $SECONDS_RUN ${SCENARIOS[*]}" \
-    --arg uptime "$(uptime)" --argjson repeats "$REPEATS" \
+    --arg cmd "$CMDLINE" --arg uptime "$UPTIME" --argjson repeats "$REPEATS" \
     '{generated: $date, machine: $host, command: $cmd, repeats: $repeats,
-      uptime_at_end: $uptime, runs: .}' \
-    "$RECORDS" >"$OUT/peers.json" || fail "writing $OUT/peers.json"
+      uptime_at_end: $uptime, runs: map(.batch += {uptime_at_end: $uptime})}' \
+    "$RECORDS" >"$WORK/peers-new.json" || fail "summarising the runs"
+if [ -n "${PEERS_APPEND:-}" ] && [ -f "$OUT/peers.json" ]; then
+    # Runs of an older file without a batch get its top-level command and time, so each run
+    # still says where it came from after the merge. The top level describes this invocation.
+    jq -n --slurpfile old "$OUT/peers.json" --slurpfile new "$WORK/peers-new.json" '
+        $old[0] as $o | $new[0] as $n
+        | ($n.runs | map([.scenario, .master]) | unique) as $now
+        | ($o.runs
+           | map(if .batch then . else . + {batch: {started: $o.generated, command: $o.command,
+                   repeats: $o.repeats, uptime_at_end: $o.uptime_at_end}} end)
+           | map(select([.scenario, .master] as $k | any($now[]; . == $k) | not))) as $kept
+        | $n + {runs: ($kept + $n.runs)}' >"$WORK/peers-merged.json" \
+        || fail "merging into $OUT/peers.json"
+    mv "$WORK/peers-merged.json" "$OUT/peers.json" || fail "writing $OUT/peers.json"
+else
+    mv "$WORK/peers-new.json" "$OUT/peers.json" || fail "writing $OUT/peers.json"
+fi
 python3 scripts/peers-report.py "$OUT/peers.json" "$OUT/peers.md" "$OUT/peers.svg" \
     || fail "scripts/peers-report.py"
 cat "$OUT/peers.md"

@@ -6,7 +6,8 @@ Every figure comes from the JSON: the emulator's yardstick (true time), its fram
 and the masters' own bring-up lines. Per (scenario, master) the summary table gives the median
 over the runs whose master exited 0 and, in brackets, the smallest and largest of them; nothing
 else is computed here but those, rounding and layout. Every run, failed ones included, also has
-its own row.
+its own row. A file merged from several invocations (peers-bench.sh PEERS_APPEND=1) names each
+invocation; a run's `label`, when present, marks its master as a variant and is shown beside it.
 """
 import html
 import math
@@ -54,6 +55,16 @@ def emu(r):
     return r.get("emulator") or {}
 
 
+def ordered(runs):
+    """The runs with each scenario's together, scenarios in first-seen order and the runs of
+    one scenario in their order in the file (the rounds in which they ran), so that runs
+    appended by a later invocation sit after their scenario's other rows."""
+    scen = {}
+    for r in runs:
+        scen.setdefault(r["scenario"], len(scen))
+    return sorted(runs, key=lambda r: scen[r["scenario"]])
+
+
 def groups(runs):
     """(scenario, master) in first-seen order, with their runs."""
     out = {}
@@ -62,19 +73,43 @@ def groups(runs):
     return out
 
 
+def batch(r, data):
+    """The invocation a run came from; files written before runs carried it have one."""
+    return r.get("batch") or {"started": data["generated"], "command": data["command"],
+                              "repeats": data.get("repeats"), "uptime_at_end": data.get("uptime_at_end")}
+
+
+def name(m, rs):
+    label = next((r.get("label") for r in rs if r.get("label")), None)
+    return f"{m} ({label})" if label else m
+
+
 def main():
     src, md_path, svg_path = sys.argv[1:4]
     with open(src) as fh:
         data = json.load(fh)
-    runs = data["runs"]
+    runs = ordered(data["runs"])
     g = groups(runs)
     loads = [r.get("load_average_at_start") for r in runs if r.get("load_average_at_start") is not None]
+    batches = []
+    for r in runs:
+        b = batch(r, data)
+        if b not in batches:
+            batches.append(b)
+    batches.sort(key=lambda b: b["started"])
+    if len(batches) == 1:
+        origin = (f"Generated {batches[0]['started']} by `sudo {batches[0]['command']}` on "
+                  f"{data['machine']}; ")
+    else:
+        origin = (f"Runs from {len(batches)} invocations on {data['machine']}: " + "; ".join(
+            f"started {b['started']}, `sudo {b['command']}`" for b in batches)
+            + " (the later replaced the earlier's runs of the masters it ran, nothing else); ")
+    variants = sorted({r["master"] for r in runs if r.get("label")})
 
     lines = [
         "# Other masters on the emulator (`scripts/peers-bench.sh`)",
         "",
-        f"Generated {data['generated']} by `sudo {data['command']}` on {data['machine']}; "
-        "each run is against a fresh `ecdc emulate` with the row's scenario file, "
+        origin + "each run is against a fresh `ecdc emulate` with the row's scenario file, "
         "1 ms cycle, the master and the emulator in two network namespaces joined by veth, "
         "SCHED_OTHER. Skew and lock are the emulator's true-time yardstick over the second "
         "half of the run (docs/emulator.md \"DC yardstick\"); bring-up ms is from the master's "
@@ -82,12 +117,14 @@ def main():
         "done; ecdc: start to its cyclic phase); frames are what the emulator received over "
         "the whole run; dropped are frames the emulator received and did not answer, "
         "turnaround max the longest time from a frame's arrival to its reply being handed to "
-        "the kernel. Each master got only the interface and the cycle. Discussion: "
-        "docs/bench.md \"Other masters\".",
+        "the kernel. Each master got only the interface and the cycle"
+        + (f" ({', '.join(variants)}: a labelled variant, see its command)" if variants else "")
+        + ". Discussion: docs/bench.md \"Other masters\".",
         "",
         f"Host load: 1-minute load average at the start of the runs {f(min(loads), 2) if loads else '–'}"
-        f"–{f(max(loads), 2) if loads else '–'}; `uptime` at the end: "
-        f"`{(data.get('uptime_at_end') or '–').strip()}`.",
+        f"–{f(max(loads), 2) if loads else '–'}; `uptime` at the end: " + "; ".join(
+            (f"{b['started']}: " if len(batches) > 1 else "")
+            + f"`{(b.get('uptime_at_end') or '–').strip()}`" for b in batches) + ".",
         "",
         "## Summary: median (min–max) over the runs whose master exited 0",
         "",
@@ -101,7 +138,7 @@ def main():
         al = sorted({a for r in rs for a in (r.get("al_states") or [])})
         lines.append(
             "| " + " | ".join([
-                sc, m, f"{len(rs)} of {len(every)}",
+                sc, name(m, every), f"{len(rs)} of {len(every)}",
                 spread([sync(r).get("slaves_firing") for r in rs], 0),
                 spread([sync(r).get("skew_mean_ns") for r in rs]),
                 spread([sync(r).get("skew_p99_ns") for r in rs], 0),
@@ -119,7 +156,8 @@ def main():
     lines += ["", "Commands (binaries in `$CARGO_TARGET_DIR/release`; masters in the master "
               "namespace, the emulator in the slave namespace; the same for every run of a row):", ""]
     for (sc, m), rs in g.items():
-        lines.append(f"- {sc} / {m}: `{rs[0]['command']}` against `{rs[0]['emulate_command']}`")
+        lines.append(f"- {sc} / {m}: `{rs[0]['command']}` against `{rs[0]['emulate_command']}`"
+                     + (f" (runs started {batch(rs[0], data)['started']})" if len(batches) > 1 else ""))
     lines += [
         "",
         "## Every run",
@@ -185,7 +223,7 @@ def main():
         if m not in masters:
             masters.append(m)
     colours = {"ethercrab": "#d95f02", "soem": "#7570b3", "ecdc": "#1b9e77", "soem-config": "#999",
-               "ethercrab+ecdc": "#e7298a"}
+               "ethercrab+ecdc": "#e7298a", "ethercrab-eeprom100": "#e6ab02"}
     vals = [sync(r).get("skew_max_ns") for r in runs]
     top = max([v for v in vals if v is not None] + [10.0])
     w, h, left, bottom, topm = 760, 340, 60, 60, 40
@@ -195,7 +233,7 @@ def main():
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">',
            f'<rect width="{w}" height="{h}" fill="white"/>',
            f'<text x="{left}" y="16" font-size="13">SYNC0 skew in true time, {html.escape(data["generated"])}, '
-           f'{data.get("repeats", 1)} run(s) each (log scale)</text>',
+           f'{"/".join(str(n) for n in sorted({len(v) for v in g.values()}))} run(s) each (log scale)</text>',
            f'<text x="{left}" y="32" font-size="11">runs whose master exited 0; bar: median mean |skew|; thin line: its min–max; '
            f'thick tick and label: median max |skew|</text>']
     # Log scale: the skews of one chart span 1 ns to tens of µs.
@@ -226,8 +264,10 @@ def main():
             out.append(f'<line x1="{cx:.1f}" x2="{cx:.1f}" y1="{y(min(means)):.1f}" y2="{y(max(means)):.1f}" stroke="black" stroke-width="1.5"/>')
             out.append(f'<line x1="{x:.1f}" x2="{x + bar_w * 0.8:.1f}" y1="{y(mx):.1f}" y2="{y(mx):.1f}" stroke="{c}" stroke-width="3"/>')
             out.append(f'<text x="{cx:.1f}" y="{y(mx) - 4:.1f}" text-anchor="middle" font-size="10">{mx:.0f}</text>')
+    # Legend entries share the width; a variant's long name gets the room it needs.
+    step = min(170, (w - left - 20) / max(len(masters), 1))
     for mi, m in enumerate(masters):
-        lx = left + mi * 130
+        lx = left + mi * step
         out.append(f'<rect x="{lx}" y="{h - 22}" width="12" height="12" fill="{colours.get(m, "#333")}"/>')
         out.append(f'<text x="{lx + 16}" y="{h - 12}">{html.escape(m)}</text>')
     out.append("</svg>")
