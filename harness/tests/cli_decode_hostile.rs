@@ -251,3 +251,39 @@ fn many_maximum_records_decode_without_panic() {
     // A reader that held the 50 MiB file, or its records, would pass 16 MiB.
     assert!(rss < 16 * 1024, "many-max: peak RSS {rss} KiB");
 }
+
+/// A reader that closes the pipe early (`ecdc decode big.pcap | head -1`) ends the process
+/// quietly: no panic message about a failed print.
+#[test]
+fn closed_stdout_ends_quietly() {
+    let path = temp_path("pipe.pcap");
+    {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        f.write_all(&global_header(65535)).unwrap();
+        let frame = ecat_frame();
+        for _ in 0..20_000 {
+            f.write_all(&record_header(frame.len() as u32, frame.len() as u32))
+                .unwrap();
+            f.write_all(&frame).unwrap();
+        }
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ecdc"))
+        .arg("decode")
+        .arg(&path)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Read one line, then close the pipe while the child is still writing.
+    {
+        let out = child.stdout.take().unwrap();
+        let mut line = String::new();
+        std::io::BufRead::read_line(&mut std::io::BufReader::new(out), &mut line).unwrap();
+        assert!(line.starts_with("frame 1"), "{line}");
+    }
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!err.contains("Broken pipe"), "{err}");
+    let _ = std::fs::remove_file(&path);
+}

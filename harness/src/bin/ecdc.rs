@@ -32,6 +32,8 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
+    // Writing into a closed pipe (`ecdc decode big.pcap | head`) ends the process quietly.
+    let _ = ecdc_harness::runtime::sys::default_sigpipe();
     let mut cli = Cli::parse();
     // `--duration 10s` and the older `--duration-ms 10000` fill one field.
     match &mut cli.command {

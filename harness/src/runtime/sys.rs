@@ -434,3 +434,19 @@ pub fn install_stop_handler() -> io::Result<&'static AtomicBool> {
     }
     Ok(&STOP)
 }
+
+/// Restores the default action of SIGPIPE (end the process), which the Rust runtime sets to
+/// "ignore": then `ecdc decode big.pcap | head` ends quietly when `head` closes the pipe, as
+/// other Unix tools do, instead of panicking on the next `println!` (EPIPE). The raw socket
+/// never raises SIGPIPE (only pipes and stream sockets do).
+pub fn default_sigpipe() -> io::Result<()> {
+    // SAFETY: sigaction is plain data; zeroed gives an empty mask and no flags, and SIG_DFL
+    // is a valid disposition for SIGPIPE.
+    unsafe {
+        let mut sa: libc::sigaction = std::mem::zeroed();
+        sa.sa_sigaction = libc::SIG_DFL;
+        libc::sigemptyset(&mut sa.sa_mask);
+        cvt(libc::sigaction(libc::SIGPIPE, &sa, std::ptr::null_mut()))?;
+    }
+    Ok(())
+}
