@@ -474,3 +474,40 @@ fn fold_near_equals_fold() {
         );
     }
 }
+
+/// P3, REQ-DC-014..018, REQ-DC-061 on the shipped delay walk (`dc::delay::walk`, which
+/// `delay::compute` runs on `u64`) at 64 bits: lines of 1..=8 DC ESCs, a fork, a cross, and
+/// non-DC ESCs in a line and in a fork branch, with per-ESC symbolic t_Diff, cables and 32-bit
+/// clock phases (stamps wrap anywhere): no error flag, twice each delay = twice the true one
+/// from the physical model (`smt::walk`), ≥ 0, monotone along the processing order.
+// verifies: P3, REQ-DC-014, REQ-DC-015, REQ-DC-016, REQ-DC-017, REQ-DC-018, REQ-DC-061
+#[test]
+fn p3_walk_on_shipped_code() {
+    use ecdc_proofs::smt::walk::{since_lemma, walk_goals, walk_goals_wrong_model, Shape};
+    // Mutation: with a model in which no hop costs t_Diff, the hop goal of a 2-ESC line is
+    // refuted (z3 finds t_Diff values the walk's corrections then get wrong).
+    let wrong = walk_goals_wrong_model(&Shape::line(2));
+    let (_, (pre, claim)) = wrong
+        .iter()
+        .find(|(n, _)| n.ends_with("hop of 1"))
+        .expect("hop goal");
+    assert!(
+        matches!(smt::prove(pre, claim), Verdict::Refuted(_)),
+        "wrong model refuted"
+    );
+    check("p3 walk: stamp difference lemma", since_lemma());
+    let mut shapes: Vec<Shape> = (1..=6).map(Shape::line).collect();
+    shapes.extend([
+        Shape::fork(),
+        Shape::cross(),
+        Shape::non_dc_line(),
+        Shape::non_dc_fork(),
+        Shape::line(7),
+        Shape::line(8),
+    ]);
+    for s in &shapes {
+        for (name, goal) in walk_goals(s) {
+            check(&name, goal);
+        }
+    }
+}

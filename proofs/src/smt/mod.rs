@@ -11,6 +11,7 @@
 //! `urem` by 0 (machine: 0, SMT-LIB: the dividend) and shifts by ≥ N (machine: amount mod N).
 
 pub mod props;
+pub mod walk;
 mod word;
 
 pub use word::{ctx, with_abstract_urem, Sym, SymBool, UremRecord};
