@@ -25,3 +25,7 @@ command -v cbindgen >/dev/null 2>&1 || cargo install --locked cbindgen >/dev/nul
 if ! cargo fuzz --version >/dev/null 2>&1; then
     cargo install --locked cargo-fuzz >/dev/null 2>&1 || cargo install cargo-fuzz
 fi
+# mutation testing of the core/src diff (.ci/layers/45-mutants.sh)
+if ! cargo mutants --version >/dev/null 2>&1; then
+    cargo install --locked cargo-mutants >/dev/null 2>&1 || cargo install cargo-mutants
+fi

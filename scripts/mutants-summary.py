@@ -1,0 +1,77 @@
+#!/usr/bin/env python3
+"""Summarise cargo-mutants runs (benches/results/mutants.md, issue #17 deliverable 4).
+
+usage: scripts/mutants-summary.py OUT_DIR... > table
+
+Each OUT_DIR is a cargo-mutants `--output` directory (the one holding mutants.out/).
+Prints, as Markdown: per file caught / missed / timeout / unviable and the score
+caught / (caught + missed + timeout); per area (dc/, wire/, servo/, num+time) the same; then
+every missed or timed-out mutant. `--tsv` prints one row per mutant instead (file, line,
+outcome, mutant name), the raw outcomes committed next to the table.
+"""
+import json
+import sys
+from collections import Counter, defaultdict
+from pathlib import Path
+
+KINDS = {"CaughtMutant": "caught", "MissedMutant": "missed", "Timeout": "timeout",
+         "Unviable": "unviable"}
+
+
+def area(path):
+    for a in ("dc", "wire", "servo"):
+        if path.startswith(f"core/src/{a}/"):
+            return f"{a}/"
+    return "num+time"
+
+
+def load(dirs):
+    rows = []
+    for d in dirs:
+        data = json.loads((Path(d) / "mutants.out" / "outcomes.json").read_text())
+        for o in data["outcomes"]:
+            m = o["scenario"]
+            if not isinstance(m, dict) or "Mutant" not in m:
+                continue  # the baseline
+            m = m["Mutant"]
+            rows.append((m["file"], m["span"]["start"]["line"], KINDS.get(o["summary"], o["summary"]),
+                         m["name"]))
+    return sorted(set(rows))
+
+
+def score(c):
+    viable = c["caught"] + c["missed"] + c["timeout"]
+    return f"{c['caught']}/{viable} = {100 * c['caught'] / viable:.0f} %" if viable else "-"
+
+
+def main(argv):
+    tsv = "--tsv" in argv
+    rows = load([a for a in argv if a != "--tsv"])
+    if tsv:
+        print("file\tline\toutcome\tmutant")
+        for f, line, k, name in rows:
+            print(f"{f}\t{line}\t{k}\t{name}")
+        return
+    per_file, per_area = defaultdict(Counter), defaultdict(Counter)
+    for f, _, k, _ in rows:
+        per_file[f][k] += 1
+        per_area[area(f)][k] += 1
+    head = "| {} | caught | missed | timeout | unviable | caught / viable |\n|---|---|---|---|---|---|"
+    print(head.format("file"))
+    for f in sorted(per_file):
+        c = per_file[f]
+        print(f"| `{f}` | {c['caught']} | {c['missed']} | {c['timeout']} | {c['unviable']} | {score(c)} |")
+    print()
+    print(head.format("area"))
+    for a in ("dc/", "wire/", "servo/", "num+time"):
+        c = per_area[a]
+        if sum(c.values()):
+            print(f"| {a} | {c['caught']} | {c['missed']} | {c['timeout']} | {c['unviable']} | {score(c)} |")
+    print()
+    for f, _, k, name in rows:
+        if k in ("missed", "timeout"):
+            print(f"- {k}: `{name}`")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
