@@ -328,4 +328,40 @@ mod tests {
         assert_eq!(PortTime::earliest(&[]), None);
         assert_eq!(PortTime::earliest(&[None, Some(PortTime(7))]), Some(1));
     }
+
+    /// REQ-TIME-004: "after" is strict and one-sided on both wrapping circles: a time is not
+    /// after itself, and of two times less than half a circle apart exactly one is after the
+    /// other, across the wrap too.
+    // verifies: REQ-TIME-004
+    #[test]
+    fn is_after_is_strict_and_one_sided() {
+        for (a, b) in [(1u64, 0u64), (0, u64::MAX), (1 << 62, 0), (5, u64::MAX - 5)] {
+            assert!(SystemTime(a).is_after(SystemTime(b)), "{a} {b}");
+            assert!(!SystemTime(b).is_after(SystemTime(a)), "{b} {a}");
+        }
+        assert!(!SystemTime(7).is_after(SystemTime(7)));
+        for (a, b) in [(1u32, 0u32), (0, u32::MAX), (1 << 30, 0), (5, u32::MAX - 5)] {
+            assert!(PortTime(a).is_after(PortTime(b)), "{a} {b}");
+            assert!(!PortTime(b).is_after(PortTime(a)), "{b} {a}");
+        }
+        assert!(!PortTime(7).is_after(PortTime(7)));
+    }
+
+    /// REQ-TIME-005: the index is the earliest present port wherever it sits, not a fixed
+    /// slot; the fixture needs no DC topology, so a wrong index fails here directly.
+    // verifies: REQ-TIME-005
+    #[test]
+    fn earliest_finds_every_slot() {
+        for i in 0..4 {
+            let mut ports = [Some(PortTime(0x100)); 4];
+            if let Some(p) = ports.get_mut(i) {
+                *p = Some(PortTime(0xFFFF_FF00));
+            }
+            assert_eq!(PortTime::earliest(&ports), Some(i), "{i}");
+        }
+        assert_eq!(
+            PortTime::earliest(&[None, None, Some(PortTime(3)), Some(PortTime(4))]),
+            Some(2)
+        );
+    }
 }

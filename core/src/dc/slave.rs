@@ -102,3 +102,25 @@ impl SlaveInfo {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Receive-time latches exactly for the slaves with a DC unit (0x0008 bit 2): a delay-only
+    /// slave has them and takes part in delay measurement, a slave without DC has none.
+    #[test]
+    fn latches_and_system_time_by_kind() {
+        let kinds = [
+            (DcKind::None, false, false, 4),
+            (DcKind::DelayOnly, true, false, 4),
+            (DcKind::Bits32, true, true, 4),
+            (DcKind::Bits64, true, true, 8),
+        ];
+        for (k, latches, system_time, width) in kinds {
+            assert_eq!(k.has_latches(), latches, "{k:?}");
+            assert_eq!(k.has_system_time(), system_time, "{k:?}");
+            assert_eq!(k.time_width(), width, "{k:?}");
+        }
+    }
+}

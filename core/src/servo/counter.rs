@@ -111,4 +111,56 @@ mod tests {
         assert!(CounterCompensator::new(0, 4).is_err());
         assert!(CounterCompensator::new(u64::MAX, 2).is_err());
     }
+
+    /// REQ-SERVO-041 on a Q32 drift: the same correction as `per_period` for whole ns, both
+    /// signs, with the fraction carried and visible in `remainder`.
+    // verifies: REQ-SERVO-041
+    #[test]
+    fn per_period_q32_matches_whole_ns_and_carries() {
+        // 100 MHz fine counts: 25 ns fast is −2.5 counts per period.
+        let mut c = CounterCompensator::new(25_000_000, 4).unwrap();
+        assert_eq!(c.remainder(), 0);
+        assert_eq!(c.per_period_q32(25 << 32), -3);
+        assert_eq!(c.remainder(), 1 << 31);
+        assert_eq!(c.per_period_q32(25 << 32), -2);
+        assert_eq!(c.remainder(), 0);
+        // Slave slow: +2.5 counts per period.
+        assert_eq!(c.per_period_q32(-25 << 32), 2);
+        assert_eq!(c.remainder(), 1 << 31);
+        assert_eq!(c.per_period_q32(-25 << 32), 3);
+        // Whole-ns input: identical to `per_period`, step by step, for both signs.
+        let mut a = CounterCompensator::new(25_000_000, 4).unwrap();
+        let mut b = a;
+        for d in [33i64, -33, 7, -1_000_000, 12_345, 0, -7] {
+            assert_eq!(a.per_period_q32(d << 32), b.per_period(d), "{d}");
+            assert_eq!(a.remainder(), b.remainder(), "{d}");
+        }
+    }
+
+    /// REQ-SERVO-041: a fraction of a ns per period is not floored away: 0.5 ns at 1 GHz fine
+    /// counts is −0.5 count, i.e. −1 every second period.
+    // verifies: REQ-SERVO-041
+    #[test]
+    fn per_period_q32_keeps_fractional_ns() {
+        let mut c = CounterCompensator::new(1_000_000_000, 1).unwrap();
+        let out: [i64; 4] = core::array::from_fn(|_| c.per_period_q32(1 << 31));
+        assert_eq!(out, [-1, 0, -1, 0]);
+        let mut c = CounterCompensator::new(1_000_000_000, 1).unwrap();
+        let out: [i64; 4] = core::array::from_fn(|_| c.per_period_q32(-(1 << 31)));
+        assert_eq!(out, [0, 1, 0, 1]);
+    }
+
+    /// |Δ| is clamped to 2^60 Q32 ns on both sides, and only outside that range.
+    #[test]
+    fn per_period_q32_clamps_symmetrically() {
+        let fresh = || CounterCompensator::new(25_000_000, 4).unwrap();
+        let lim: i64 = 1 << 60;
+        // 2^60 Q32 ns at 100 MHz: −2^28/10 counts = −26 843 545.6 → floor −26 843 546.
+        assert_eq!(fresh().per_period_q32(lim), -26_843_546);
+        assert_eq!(fresh().per_period_q32(i64::MAX), -26_843_546);
+        assert_eq!(fresh().per_period_q32(-lim), 26_843_545);
+        assert_eq!(fresh().per_period_q32(i64::MIN), 26_843_545);
+        // Just inside the limit the input is used as is.
+        assert_eq!(fresh().per_period_q32(lim - (10 << 32)), -26_843_546 + 1);
+    }
 }

@@ -305,4 +305,72 @@ mod tests {
             assert_eq!(c.wkc_increment(false, false), 0);
         }
     }
+
+    /// Which commands read, write or both (the classes REQ-WIRE-050's WKC rules are stated
+    /// over), written out per code independently of the `matches!` lists: R = read, W = write.
+    // verifies: REQ-WIRE-050
+    #[test]
+    fn read_write_classes() {
+        let expected = [
+            "", "R", "W", "RW", "R", "W", "RW", "R", "W", "RW", "R", "W", "RW", "RW*", "RW*",
+        ];
+        for (c, e) in Command::ALL.iter().zip(expected) {
+            assert_eq!(c.is_read(), e.contains('R'), "{c} read");
+            assert_eq!(c.is_write(), e.contains('W'), "{c} write");
+            // ARMW/FRMW read on one slave and write on the others: not an RW command.
+            assert_eq!(c.is_read_write(), e == "RW", "{c} read-write");
+        }
+    }
+
+    /// REQ-WIRE-032: exactly the position (APxx, ARMW) and broadcast (Bxx) commands have their
+    /// ADP incremented; table by code, independent of `addressing()`.
+    // verifies: REQ-WIRE-032
+    #[test]
+    fn adp_increment_table() {
+        let expected = [
+            false, true, true, true, false, false, false, true, true, true, false, false, false,
+            true, false,
+        ];
+        for (c, e) in Command::ALL.iter().zip(expected) {
+            assert_eq!(c.increments_adp(), e, "{c}");
+        }
+    }
+
+    /// REQ-WIRE-017: the `u8` conversions carry the wire code both ways.
+    // verifies: REQ-WIRE-017
+    #[test]
+    fn u8_conversions() {
+        for (code, c) in (0u8..).zip(Command::ALL) {
+            assert_eq!(u8::from(c), code, "{c}");
+            assert_eq!(Command::try_from(code), Ok(c));
+        }
+        assert_eq!(
+            Command::try_from(15),
+            Err(Error::UnknownCommand { code: 15 })
+        );
+    }
+
+    /// REQ-WIRE-050: every command and every (read, wrote) pair against a table written from
+    /// ESC datasheet Table 5.
+    // verifies: REQ-WIRE-050
+    #[test]
+    fn wkc_increment_every_case() {
+        for c in Command::ALL {
+            // [neither, read only, write only, both]
+            let expected: [u16; 4] = match c {
+                Command::Nop => [0, 0, 0, 0],
+                Command::Aprw | Command::Fprw | Command::Brw | Command::Lrw => [0, 1, 2, 3],
+                Command::Armw | Command::Frmw => [0, 1, 1, 1],
+                Command::Aprd | Command::Fprd | Command::Brd | Command::Lrd => [0, 1, 0, 1],
+                Command::Apwr | Command::Fpwr | Command::Bwr | Command::Lwr => [0, 0, 1, 1],
+            };
+            let got = [
+                c.wkc_increment(false, false),
+                c.wkc_increment(true, false),
+                c.wkc_increment(false, true),
+                c.wkc_increment(true, true),
+            ];
+            assert_eq!(got, expected, "{c}");
+        }
+    }
 }
