@@ -12,7 +12,6 @@ mod dc_support;
 
 use dc_support::*;
 use ecdc_core::dc::{Error, Event, State};
-use ecdc_core::wire::{Address, Command, FrameBuilder};
 use ecdc_harness::emu::{Fault, Scenario};
 use ecdc_harness::sim::Sim;
 
@@ -20,11 +19,6 @@ fn locked_line(n: usize) -> Sim<8> {
     let mut s = sim::<8>(&Scenario::line(n), config());
     lock(&mut s, 2_000_000_000);
     s
-}
-
-/// Events after index `from`.
-fn events_since<const N: usize>(s: &Sim<N>, from: usize) -> Vec<Event> {
-    s.events()[from..].iter().map(|(_, e)| *e).collect()
 }
 
 fn relock<const N: usize>(s: &mut Sim<N>, limit: u64, count: usize) {
@@ -64,11 +58,7 @@ fn frame_loss_is_retried_and_coasted() {
 #[test]
 fn link_break_and_repair_relock() {
     let mut s = locked_line(6);
-    let mark = s.events().len();
-    let t = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(t, Fault::LinkBreak { slave: 3, port: 1 })
-        .unwrap();
+    let (mark, _) = fault_in_10ms(&mut s, Fault::LinkBreak { slave: 3, port: 1 });
     relock(&mut s, 3_000_000_000, 4);
     let ev = events_since(&s, mark);
     assert!(
@@ -80,11 +70,7 @@ fn link_break_and_repair_relock() {
     );
     assert!(ev.contains(&Event::Restarting));
     // Repair: the two slaves come back, the machine notices and re-locks with six.
-    let mark = s.events().len();
-    let t = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(t, Fault::LinkRestore { slave: 3, port: 1 })
-        .unwrap();
+    let (mark, _) = fault_in_10ms(&mut s, Fault::LinkRestore { slave: 3, port: 1 });
     relock(&mut s, 3_000_000_000, 6);
     let ev = events_since(&s, mark);
     assert!(
@@ -99,17 +85,13 @@ fn link_break_and_repair_relock() {
 #[test]
 fn slave_power_cycle_relocks() {
     let mut s = locked_line(6);
-    let mark = s.events().len();
-    let t = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            t,
-            Fault::PowerCycle {
-                slave: 2,
-                off_ns: 30_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, t) = fault_in_10ms(
+        &mut s,
+        Fault::PowerCycle {
+            slave: 2,
+            off_ns: 30_000_000,
+        },
+    );
     s.run_until(t + 40_000_000).unwrap();
     relock(&mut s, 3_000_000_000, 6);
     let ev = events_since(&s, mark);
@@ -131,17 +113,13 @@ fn slave_power_cycle_relocks() {
 #[test]
 fn reference_power_cycle_relocks() {
     let mut s = locked_line(6);
-    let mark = s.events().len();
-    let t = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            t,
-            Fault::PowerCycle {
-                slave: 0,
-                off_ns: 50_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, _) = fault_in_10ms(
+        &mut s,
+        Fault::PowerCycle {
+            slave: 0,
+            off_ns: 50_000_000,
+        },
+    );
     relock(&mut s, 3_000_000_000, 6);
     let ev = events_since(&s, mark);
     println!("{ev:?}");
@@ -180,11 +158,7 @@ fn reference_lost_in_tree_moves_reference() {
     let mut s = sim::<8>(&sc, config());
     lock(&mut s, 2_000_000_000);
     assert_eq!(s.machine.reference(), Some(1));
-    let mark = s.events().len();
-    let t = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(t, Fault::PowerOff { slave: 1 })
-        .unwrap();
+    let (mark, _) = fault_in_10ms(&mut s, Fault::PowerOff { slave: 1 });
     relock(&mut s, 3_000_000_000, 3);
     assert_eq!(s.machine.reference(), Some(1));
     assert_eq!(s.machine.slaves()[1].station, 0x1002);
@@ -213,20 +187,6 @@ fn port_time_wrap_during_delay_measurement() {
         assert!(a.abs_diff(*b) <= 10, "wrapped {wrapped:?} plain {plain:?}");
     }
     lock(&mut s, 2_000_000_000);
-}
-
-/// Sends one datagram on the side (a test fixture, not the machine) and returns the WKC.
-fn side_write(s: &mut Sim<8>, station: u16, reg: u16, data: &[u8]) -> u16 {
-    let mut buf = [0u8; 128];
-    let mut b = FrameBuilder::new(&mut buf).unwrap();
-    b.push(Command::Fpwr, 0x01, Address::configured(station, reg), data)
-        .unwrap();
-    let n = b.finish().unwrap();
-    let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
-    let eth = ecdc_core::wire::EthernetFrame::new_checked(&rep[..]).unwrap();
-    let f = eth.ecat_frame().unwrap();
-    let d = f.iter().next().unwrap().unwrap();
-    d.wkc()
 }
 
 #[test]
@@ -318,20 +278,16 @@ fn delay_remeasurement_rewrites_only_0928() {
 #[test]
 fn frequency_step_loses_and_regains_lock() {
     let mut s = locked_line(6);
-    let mark = s.events().len();
-    let t = s.now() + 10_000_000;
     // A sudden 40 ppm jump of one crystal (a violent temperature step): the slave drifts 40 ns
     // per 1 ms cycle until its loop has learned the new rate, the bound exceeds 1 µs, then the
     // loop catches up.
-    s.net
-        .schedule_fault(
-            t,
-            Fault::FrequencyStep {
-                slave: 4,
-                ppm: 40.0,
-            },
-        )
-        .unwrap();
+    let (mark, t) = fault_in_10ms(
+        &mut s,
+        Fault::FrequencyStep {
+            slave: 4,
+            ppm: 40.0,
+        },
+    );
     let lost = s
         .drive_until(t + 1_000_000_000, |e| matches!(e, Event::LockLost { .. }))
         .expect("lock lost");

@@ -14,17 +14,10 @@ use std::collections::BTreeMap;
 
 use dc_support::*;
 use ecdc_core::dc::{Config, Error, Event, HoldoverCause, ResumeFailure};
-use ecdc_harness::emu::{Fault, Scenario, SyncSignal, SEED000_T_F_NS, SEED000_T_P_NS};
+use ecdc_harness::emu::{Fault, Scenario, SyncSignal};
 use ecdc_harness::sim::Sim;
 
 const CYCLE: u64 = 1_000_000;
-
-fn seed000_config() -> Config {
-    Config {
-        t_diff_ns: i32::try_from(SEED000_T_P_NS - SEED000_T_F_NS).unwrap(),
-        ..Config::default()
-    }
-}
 
 /// Seed 000's line, locked, then 200 ms of steady operation.
 fn locked() -> Sim<8> {
@@ -219,20 +212,16 @@ fn master_stall_1s_holds_over() {
 #[test]
 fn silence_beyond_limit_reinitialises() {
     let mut s = locked();
-    let mark = s.events().len();
-    let at = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            at,
-            Fault::WireSilence {
-                duration_ns: 1_500_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, at) = fault_in_10ms(
+        &mut s,
+        Fault::WireSilence {
+            duration_ns: 1_500_000_000,
+        },
+    );
     s.run_until(at + 1_500_000_000).unwrap();
     s.drive_until(at + 6_000_000_000, |e| matches!(e, Event::Locked { .. }))
         .expect("re-lock");
-    let ev: Vec<Event> = s.events()[mark..].iter().map(|x| x.1).collect();
+    let ev = events_since(&s, mark);
     println!("{ev:?}");
     let silent = ev.iter().find_map(|e| match e {
         Event::Error(Error::HoldoverExpired { silent_ns }) => Some(*silent_ns),
@@ -253,16 +242,12 @@ fn silence_beyond_limit_reinitialises() {
 #[test]
 fn restarts_back_off() {
     let mut s = locked();
-    let mark = s.events().len();
-    let at = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            at,
-            Fault::WireSilence {
-                duration_ns: 3_000_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, at) = fault_in_10ms(
+        &mut s,
+        Fault::WireSilence {
+            duration_ns: 3_000_000_000,
+        },
+    );
     s.run_until(at + 3_000_000_000).unwrap();
     let ev = &s.events()[mark..];
     let restarts: Vec<u64> = ev
@@ -307,18 +292,14 @@ fn holdover_off_faults_after_lost_cycles() {
     };
     let mut s = sim::<8>(&Scenario::seed000_line(), cfg);
     lock(&mut s, 3_000_000_000);
-    let mark = s.events().len();
-    let at = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            at,
-            Fault::WireSilence {
-                duration_ns: 300_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, at) = fault_in_10ms(
+        &mut s,
+        Fault::WireSilence {
+            duration_ns: 300_000_000,
+        },
+    );
     s.run_until(at + 100_000_000).unwrap();
-    let ev: Vec<Event> = s.events()[mark..].iter().map(|x| x.1).collect();
+    let ev = events_since(&s, mark);
     assert_eq!(
         ev.first(),
         Some(&Event::Error(Error::Timeout {
@@ -336,16 +317,12 @@ fn holdover_off_faults_after_lost_cycles() {
 #[test]
 fn slave_reset_during_silence_fails_the_check() {
     let mut s = locked();
-    let mark = s.events().len();
-    let at = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            at,
-            Fault::WireSilence {
-                duration_ns: 300_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, at) = fault_in_10ms(
+        &mut s,
+        Fault::WireSilence {
+            duration_ns: 300_000_000,
+        },
+    );
     s.net
         .schedule_fault(
             at + 50_000_000,
@@ -358,7 +335,7 @@ fn slave_reset_during_silence_fails_the_check() {
     s.run_until(at + 300_000_000).unwrap();
     s.drive_until(at + 5_000_000_000, |e| matches!(e, Event::Locked { .. }))
         .expect("re-lock");
-    let ev: Vec<Event> = s.events()[mark..].iter().map(|x| x.1).collect();
+    let ev = events_since(&s, mark);
     println!("{ev:?}");
     let failure = ev.iter().find_map(|e| match e {
         Event::Error(Error::ResumeCheckFailed { failure }) => Some(*failure),

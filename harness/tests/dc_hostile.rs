@@ -18,17 +18,10 @@ mod dc_support;
 use dc_support::*;
 use ecdc_core::dc::Event;
 use ecdc_core::wire::{Address, Command, FrameBuilder};
-use ecdc_harness::emu::{Scenario, SEED000_T_F_NS, SEED000_T_P_NS};
+use ecdc_harness::emu::Scenario;
 use ecdc_harness::sim::Sim;
 
 const CYCLE: u64 = 1_000_000;
-
-fn seed000_config() -> ecdc_core::dc::Config {
-    ecdc_core::dc::Config {
-        t_diff_ns: i32::try_from(SEED000_T_P_NS - SEED000_T_F_NS).unwrap(),
-        ..ecdc_core::dc::Config::default()
-    }
-}
 
 /// A frame of a second master with one datagram, sent through the slaves: returns the reply
 /// (processed bit set, WKC counted), as the machine would see it on a shared segment.

@@ -11,42 +11,12 @@ mod dc_support;
 use std::collections::BTreeMap;
 
 use dc_support::*;
-use ecdc_core::dc::{Config, Error, Event, Machine};
-use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
-use ecdc_harness::emu::{Fault, Network, Scenario, SyncSignal, SEED000_T_F_NS, SEED000_T_P_NS};
+use ecdc_core::dc::{Error, Event, Machine};
+use ecdc_harness::emu::{Fault, Network, Scenario, SyncSignal};
 use ecdc_harness::sim::Sim;
 
 /// The slave that loses power (not the reference, slave 0).
 const CYCLED: usize = 3;
-
-fn seed000_config() -> Config {
-    Config {
-        t_diff_ns: i32::try_from(SEED000_T_P_NS - SEED000_T_F_NS).unwrap(),
-        ..Config::default()
-    }
-}
-
-/// An application takes the slave at `station` to OP (AL control PRE-OP → SAFE-OP → OP over
-/// the side channel, each write answered with WKC 1).
-fn to_op(s: &mut Sim<8>, station: u16) {
-    for req in [2u16, 4, 8] {
-        let mut buf = [0u8; 128];
-        let mut b = FrameBuilder::new(&mut buf).unwrap();
-        b.push(
-            Command::Fpwr,
-            0x01,
-            Address::configured(station, 0x0120),
-            &req.to_le_bytes(),
-        )
-        .unwrap();
-        let n = b.finish().unwrap();
-        let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
-        let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
-        let f = eth.ecat_frame().unwrap();
-        let d = f.iter().next().unwrap().unwrap();
-        assert_eq!(d.wkc(), 1, "station {station:#x} AL control {req}");
-    }
-}
 
 /// Largest |true time of `slave`'s SYNC0 edge − true time of the reference's edge| over the
 /// pulses programmed for the same system time, among the edges taken since the last call.
@@ -88,17 +58,13 @@ fn power_cycle_under_running_domain() -> Result<(i64, i64), Vec<Error>> {
         .wrapping_since(s.master_time_at(s.now()));
     assert!(domain_ahead > 2_000_000, "domain {domain_ahead} ns ahead");
 
-    let mark = s.events().len();
-    let at = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            at,
-            Fault::PowerCycle {
-                slave: CYCLED,
-                off_ns: 100_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, at) = fault_in_10ms(
+        &mut s,
+        Fault::PowerCycle {
+            slave: CYCLED,
+            off_ns: 100_000_000,
+        },
+    );
     // Power returns after 100 ms; the bound is that of the soak (5 s after the window).
     s.run_until(at + 5_100_000_000).unwrap();
     let ev: Vec<(u64, Event)> = s.events()[mark..].to_vec();

@@ -9,7 +9,7 @@ mod dc_support;
 
 use std::path::Path;
 
-use dc_support::sim;
+use dc_support::{fault_in_10ms, sim, to_op};
 use ecdc_core::dc::{Config, Event, TdiffFallback, TdiffMode, TdiffSource};
 use ecdc_harness::emu::Scenario;
 
@@ -391,16 +391,12 @@ fn restart_while_running_keeps_the_measured_values() {
         to_op(&mut s, st);
     }
     // A silence beyond the hold-over limit: the machine re-initialises.
-    let mark = s.events().len();
-    let at = s.now() + 10_000_000;
-    s.net
-        .schedule_fault(
-            at,
-            Fault::WireSilence {
-                duration_ns: 1_500_000_000,
-            },
-        )
-        .unwrap();
+    let (mark, at) = fault_in_10ms(
+        &mut s,
+        Fault::WireSilence {
+            duration_ns: 1_500_000_000,
+        },
+    );
     s.run_until(at + 1_500_000_000).unwrap();
     s.drive_until(at + 20_000_000_000, |e| {
         matches!(e, Event::DelaysMeasured { .. })
@@ -417,28 +413,5 @@ fn restart_while_running_keeps_the_measured_values() {
         };
         assert_eq!(x.t_diff_source, want, "slave {i}");
         assert_eq!(dl_control(&s, i), 0x0001, "slave {i}: no port closed");
-    }
-}
-
-/// An application takes the slave at `station` to OP (AL control INIT → PRE-OP → SAFE-OP →
-/// OP over the side channel, each write answered with WKC 1).
-fn to_op<const N: usize>(s: &mut ecdc_harness::sim::Sim<N>, station: u16) {
-    use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
-    for req in [2u16, 4, 8] {
-        let mut buf = [0u8; 128];
-        let mut b = FrameBuilder::new(&mut buf).unwrap();
-        b.push(
-            Command::Fpwr,
-            0x01,
-            Address::configured(station, 0x0120),
-            &req.to_le_bytes(),
-        )
-        .unwrap();
-        let n = b.finish().unwrap();
-        let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
-        let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
-        let f = eth.ecat_frame().unwrap();
-        let d = f.iter().next().unwrap().unwrap();
-        assert_eq!(d.wkc(), 1, "station {station:#x} AL control {req}");
     }
 }

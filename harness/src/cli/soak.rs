@@ -25,9 +25,7 @@ use ecdc_core::dc::{Config, Event, Machine, State};
 use ecdc_core::wire::{Address, Command, FrameBuilder};
 
 use crate::emu::yardstick::{wide_slaves, PulseMatcher};
-use crate::emu::{
-    Fault, FaultSpec, Network, Scenario, SlaveSpec, SyncSignal, SEED000_T_F_NS, SEED000_T_P_NS,
-};
+use crate::emu::{Fault, FaultSpec, Network, Scenario, SyncSignal, SEED000_T_F_NS, SEED000_T_P_NS};
 use crate::sim::{Sim, SimError};
 
 /// Machine capacity: the 100-slave tree plus room.
@@ -194,7 +192,7 @@ pub fn setup(topology: Topology, seed: u64) -> (Scenario, Config) {
             (sc, cfg)
         }
         Topology::Tree100 => {
-            let mut sc = tree_100();
+            let mut sc = Scenario::tree_100();
             sc.seed = seed;
             // The emulator's default t_P 540 − t_F 460 ns.
             let cfg = Config {
@@ -204,38 +202,6 @@ pub fn setup(topology: Topology, seed: u64) -> (Scenario, Config) {
             (sc, cfg)
         }
     }
-}
-
-/// 10 groups, each a junction and its branches (even groups: 3-port junction, branch of 9 on
-/// port 1; odd groups: 4-port junction, branches of 2 on port 3 and of 7 on port 1); the next
-/// junction hangs on port 2. Processing order.
-pub fn tree_100() -> Scenario {
-    let mut sc = Scenario::default();
-    let mut prev: Option<usize> = None;
-    let mut i = 0usize;
-    for g in 0..10 {
-        let four = g % 2 == 1;
-        let j = i;
-        sc.slaves.push(SlaveSpec {
-            ports: Some(if four { 4 } else { 3 }),
-            parent: prev,
-            port: prev.map(|_| 2),
-            ..SlaveSpec::default()
-        });
-        i += 1;
-        let branches: &[(usize, u8)] = if four { &[(2, 3), (7, 1)] } else { &[(9, 1)] };
-        for &(repeat, port) in branches {
-            sc.slaves.push(SlaveSpec {
-                repeat,
-                parent: Some(j),
-                port: Some(port),
-                ..SlaveSpec::default()
-            });
-            i += repeat;
-        }
-        prev = Some(j);
-    }
-    sc
 }
 
 /// The seeded schedule: faults from `start_ns` until `until_ns`, one at a time.

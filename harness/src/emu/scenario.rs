@@ -332,6 +332,40 @@ impl Scenario {
         sc
     }
 
+    /// A 100-slave tree in processing (auto-increment) order: 10 groups, each a junction and
+    /// its branches (even groups: a 3-port junction, a branch of 9 on port 1; odd groups: a
+    /// 4-port junction, branches of 2 on port 3 and of 7 on port 1); the next junction hangs on
+    /// port 2. Default slaves and seed otherwise.
+    pub fn tree_100() -> Self {
+        let mut sc = Scenario::default();
+        let mut prev: Option<usize> = None;
+        let mut i = 0usize;
+        for g in 0..10 {
+            let four = g % 2 == 1;
+            let j = i;
+            sc.slaves.push(SlaveSpec {
+                ports: Some(if four { 4 } else { 3 }),
+                parent: prev,
+                port: prev.map(|_| 2),
+                ..SlaveSpec::default()
+            });
+            i += 1;
+            let branches: &[(usize, u8)] = if four { &[(2, 3), (7, 1)] } else { &[(9, 1)] };
+            for &(repeat, port) in branches {
+                sc.slaves.push(SlaveSpec {
+                    repeat,
+                    parent: Some(j),
+                    port: Some(port),
+                    ..SlaveSpec::default()
+                });
+                i += repeat;
+            }
+            prev = Some(j);
+        }
+        debug_assert_eq!(i, 100);
+        sc
+    }
+
     /// Appends a slave spec (builder style).
     pub fn with_slave(mut self, s: SlaveSpec) -> Self {
         self.slaves.push(s);

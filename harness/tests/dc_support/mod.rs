@@ -3,7 +3,8 @@
 #![allow(dead_code)]
 
 use ecdc_core::dc::{Config, Event, Machine};
-use ecdc_harness::emu::{EscKind, Network, Scenario, SlaveSpec};
+use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
+use ecdc_harness::emu::{EscKind, Fault, Network, Scenario, SEED000_T_F_NS, SEED000_T_P_NS};
 use ecdc_harness::sim::Sim;
 
 /// The machine's default configuration plus the emulator's t_Diff (t_P 540 − t_F 460 ns, the
@@ -11,6 +12,14 @@ use ecdc_harness::sim::Sim;
 pub fn config() -> Config {
     Config {
         t_diff_ns: 80,
+        ..Config::default()
+    }
+}
+
+/// The machine's default configuration plus seed 000's t_Diff (its t_P − t_F).
+pub fn seed000_config() -> Config {
+    Config {
+        t_diff_ns: i32::try_from(SEED000_T_P_NS - SEED000_T_F_NS).unwrap(),
         ..Config::default()
     }
 }
@@ -98,54 +107,49 @@ pub fn steady<const N: usize>(s: &mut Sim<N>, window_ns: u64, kinds: &[EscKind])
     out
 }
 
-/// A 100-slave tree in processing (auto-increment) order: 10 groups, each a junction followed by
-/// its branches; even groups use 3-port junctions (branch of 9 on port 1), odd groups 4-port
-/// junctions (branch of 2 on port 3, branch of 7 on port 1); the next junction hangs on port 2.
+/// The 100-slave tree of [`Scenario::tree_100`] with seed 7.
 pub fn tree_100() -> Scenario {
-    let mut sc = Scenario {
+    Scenario {
         seed: 7,
-        ..Scenario::default()
-    };
-    let mut junction_prev: Option<usize> = None;
-    let mut i = 0usize;
-    for g in 0..10 {
-        let four = g % 2 == 1;
-        let j = i;
-        sc.slaves.push(SlaveSpec {
-            ports: Some(if four { 4 } else { 3 }),
-            parent: junction_prev,
-            port: junction_prev.map(|_| 2),
-            ..SlaveSpec::default()
-        });
-        i += 1;
-        if four {
-            sc.slaves.push(SlaveSpec {
-                repeat: 2,
-                parent: Some(j),
-                port: Some(3),
-                ..SlaveSpec::default()
-            });
-            i += 2;
-            sc.slaves.push(SlaveSpec {
-                repeat: 7,
-                parent: Some(j),
-                port: Some(1),
-                ..SlaveSpec::default()
-            });
-            i += 7;
-        } else {
-            sc.slaves.push(SlaveSpec {
-                repeat: 9,
-                parent: Some(j),
-                port: Some(1),
-                ..SlaveSpec::default()
-            });
-            i += 9;
-        }
-        junction_prev = Some(j);
+        ..Scenario::tree_100()
     }
-    assert_eq!(i, 100);
-    sc
+}
+
+/// Schedules `fault` 10 ms from now. Returns (the index the events after this call start at,
+/// the fault's time).
+pub fn fault_in_10ms<const N: usize>(s: &mut Sim<N>, fault: Fault) -> (usize, u64) {
+    let mark = s.events().len();
+    let at = s.now() + 10_000_000;
+    s.net.schedule_fault(at, fault).unwrap();
+    (mark, at)
+}
+
+/// Events after index `from`.
+pub fn events_since<const N: usize>(s: &Sim<N>, from: usize) -> Vec<Event> {
+    s.events()[from..].iter().map(|(_, e)| *e).collect()
+}
+
+/// Sends one FPWR on the side channel (a test fixture, not the machine); returns the WKC.
+pub fn side_write<const N: usize>(s: &mut Sim<N>, station: u16, reg: u16, data: &[u8]) -> u16 {
+    let mut buf = [0u8; 128];
+    let mut b = FrameBuilder::new(&mut buf).unwrap();
+    b.push(Command::Fpwr, 0x01, Address::configured(station, reg), data)
+        .unwrap();
+    let n = b.finish().unwrap();
+    let rep = s.side_channel(&buf[..n]).unwrap().expect("reply");
+    let eth = EthernetFrame::new_checked(&rep[..]).unwrap();
+    let f = eth.ecat_frame().unwrap();
+    let d = f.iter().next().unwrap().unwrap();
+    d.wkc()
+}
+
+/// An application takes the slave at `station` to OP (AL control INIT → PRE-OP → SAFE-OP →
+/// OP over the side channel, each write answered with WKC 1).
+pub fn to_op<const N: usize>(s: &mut Sim<N>, station: u16) {
+    for req in [2u16, 4, 8] {
+        let wkc = side_write(s, station, 0x0120, &req.to_le_bytes());
+        assert_eq!(wkc, 1, "station {station:#x} AL control {req}");
+    }
 }
 
 /// Prints the event log (for `--nocapture` runs and failure analysis).
