@@ -34,22 +34,11 @@ cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build ecdc"
 ECDC="$TARGET/release/ecdc"
 cc -O2 -Wall -Wextra -o "$WORK/cyclic-probe" scripts/cyclic-probe.c || fail "building the probe"
 
-# emulator NAME: a fresh `ecdc emulate --rt` on CPU 1, waits until it serves.
+# emulator NAME: a fresh `ecdc emulate --rt` on CPU 1 (start_emulator, log and summary in
+# $WORK/NAME-emu.{err,json}).
 emulator() {
-    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --slaves 6 --json --rt --cpu 1 \
-        >"$WORK/$1-emu.json" 2>"$WORK/$1-emu.err" &
-    EMU=$!
-    PIDS+=("$EMU")
-    for _ in $(seq 50); do
-        grep -q "serving" "$WORK/$1-emu.err" 2>/dev/null && return 0
-        sleep 0.1
-    done
-    fail "emulator for $1 did not start: $(tail -n 3 "$WORK/$1-emu.err")"
-}
-stop_emulator() {
-    kill -TERM "$EMU" 2>/dev/null
-    wait "$EMU"
-    PIDS=("${PIDS[@]/$EMU}")
+    start_emulator "$1-emu" --slaves 6 --rt --cpu 1 \
+        || fail "emulator for $1 did not start: $(tail -n 3 "$WORK/$1-emu.err")"
 }
 
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)" >&2

@@ -27,13 +27,7 @@ netns_pair f
 # c_master does not bring interfaces up (it says how when one is down).
 ip -n "$NS_M" link set ecm0 up || fail "bringing ecm0 up"
 
-ECDC="${1:-}"
-if [ -z "$ECDC" ]; then
-    cargo build -q -p ecdc-harness --bin ecdc || fail "cargo build (ecdc)"
-    ECDC="${CARGO_TARGET_DIR:-target}/debug/ecdc"
-fi
-[ -x "$ECDC" ] || fail "no ecdc binary at $ECDC"
-ECDC="$(cd "$(dirname "$ECDC")" && pwd)/$(basename "$ECDC")"
+ecdc_binary "${1:-}" debug
 
 cargo build -q --release -p ecdc-ffi || fail "cargo build --release -p ecdc-ffi"
 LIB="${CARGO_TARGET_DIR:-target}/release/libecdc_ffi.a"
@@ -43,26 +37,10 @@ LIBS=("$LIB" -lpthread -ldl -lm)
 "$CC" "${CFLAGS[@]}" ffi/examples/c_master.c "${LIBS[@]}" -o "$WORK/c_master" \
     || fail "compiling ffi/examples/c_master.c"
 
-# start_emulator [ARGS...]: `ecdc emulate` (ESC engine) in the slave namespace; its JSON
-# summary lands in $WORK/emu.json when it is stopped.
-start_emulator() {
-    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --json "$@" >"$WORK/emu.json" 2>"$WORK/emu.err" &
-    EMU_PID=$!
-    PIDS+=("$EMU_PID")
-    for _ in $(seq 50); do
-        grep -q "serving" "$WORK/emu.err" 2>/dev/null && return 0
-        kill -0 "$EMU_PID" 2>/dev/null || break
-        sleep 0.1
-    done
-    cat "$WORK/emu.err"
-    return 1
-}
-stop_emulator() {
-    kill -TERM "$EMU_PID" 2>/dev/null
-    wait "$EMU_PID"
-    local rc=$?
-    PIDS=("${PIDS[@]/$EMU_PID}")
-    return $rc
+# emulator_up: the ESC emulator in the slave namespace (start_emulator, log and summary in
+# $WORK/emu.{err,json}); the test fails when it does not start.
+emulator_up() {
+    start_emulator emu || { cat "$WORK/emu.err"; fail "emulator did not start"; }
 }
 
 FAILED=0
@@ -76,6 +54,18 @@ run_master() {
     shift
     ip netns exec "$NS_M" "$@" >"$out" 2>&1
 }
+# master_part OUT ARGS...: c_master ARGS against a fresh emulator, output in OUT; shows its
+# summary line and checks the lock. RC is its exit status.
+master_part() {
+    local out="$1"
+    shift
+    emulator_up
+    run_master "$out" "$WORK/c_master" "$@"
+    RC=$?
+    stop_emulator || bad "emulator exited with an error"
+    grep -m1 '^summary:' "$out" || tail -n 20 "$out"
+    check_lock "$out" "$RC"
+}
 check_lock() { # check_lock OUT RC
     if [ "$2" -eq 0 ] && [ "$(field "$1" lock_reached)" = yes ]; then
         ok "lock reached (lock_frames $(field "$1" lock_frames), locked at end: $(field "$1" locked_at_end), restarts $(field "$1" restarts))"
@@ -86,12 +76,7 @@ check_lock() { # check_lock OUT RC
 }
 
 echo "== part 1: ecdc_machine_new + ecdc_poll_transmit"
-start_emulator || fail "emulator did not start"
-run_master "$WORK/p1.out" "$WORK/c_master" -d 3 ecm0
-RC=$?
-stop_emulator || bad "emulator exited with an error"
-grep -m1 '^summary:' "$WORK/p1.out" || tail -n 20 "$WORK/p1.out"
-check_lock "$WORK/p1.out" "$RC"
+master_part "$WORK/p1.out" -d 3 ecm0
 SENT=$(field "$WORK/p1.out" frames_sent)
 RECV=$(field "$WORK/p1.out" frames_received)
 EMU_RX=$(jq -r '.frames.received' "$WORK/emu.json" 2>/dev/null || grep -o '"received": *[0-9]*' "$WORK/emu.json" | grep -o '[0-9]*$')
@@ -117,12 +102,7 @@ MED=$(field "$WORK/p1.out" rtt_us_median)
 [ -n "$MED" ] && [ "$MED" != "0.0" ] && ok "round trip median $MED us" || bad "no round trip measured"
 
 echo "== part 2: ecdc_machine_init (caller storage) + host frames with ecdc_poll_transmit_into"
-start_emulator || fail "emulator did not start"
-run_master "$WORK/p2.out" "$WORK/c_master" -d 3 -s -i -q ecm0
-RC=$?
-stop_emulator || bad "emulator exited with an error"
-grep -m1 '^summary:' "$WORK/p2.out" || tail -n 20 "$WORK/p2.out"
-check_lock "$WORK/p2.out" "$RC"
+master_part "$WORK/p2.out" -d 3 -s -i -q ecm0
 HF=$(field "$WORK/p2.out" host_frames)
 HW=$(field "$WORK/p2.out" host_wkc_ok)
 if [ -n "$HF" ] && [ "$HF" -gt 100 ] && [ "$HW" -le "$HF" ] && [ $((HW * 10)) -ge $((HF * 9)) ]; then
@@ -133,7 +113,7 @@ fi
 
 echo "== part 3: memory checking"
 if command -v valgrind >/dev/null 2>&1; then
-    start_emulator || fail "emulator did not start"
+    emulator_up
     run_master "$WORK/p3.out" valgrind --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite \
         "$WORK/c_master" -d 8 -q ecm0
     RC=$?
@@ -149,7 +129,7 @@ if command -v valgrind >/dev/null 2>&1; then
     check_lock "$WORK/p3.out" "$RC"
 elif "$CC" "${CFLAGS[@]}" -fsanitize=address,undefined -fno-omit-frame-pointer ffi/examples/c_master.c \
     "${LIBS[@]}" -o "$WORK/c_master_asan" 2>"$WORK/asan-build.err"; then
-    start_emulator || fail "emulator did not start"
+    emulator_up
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=0:exitcode=99 UBSAN_OPTIONS=halt_on_error=1:exitcode=99 \
         run_master "$WORK/p3.out" "$WORK/c_master_asan" -d 4 -q ecm0
     RC=$?

@@ -3,7 +3,9 @@
 # and `netns_pair TAG`, which creates two namespaces ecdc-TAGm-PID / ecdc-TAGs-PID joined by a
 # veth pair (ecm0 in the master namespace, left down; ecs0 in the slave namespace, up), a work
 # directory $WORK, and a cleanup on exit that stops every pid in PIDS and always deletes both
-# namespaces and $WORK. Nothing touches the host's real interfaces.
+# namespaces and $WORK. Nothing touches the host's real interfaces. `ecdc_binary` finds or
+# builds the `ecdc` binary ($ECDC); `start_emulator` / `stop_emulator` run its `emulate` in the
+# slave namespace.
 
 skip() { echo "SKIP: $*"; exit 77; }
 fail() { echo "FAIL: $*"; exit 1; }
@@ -34,4 +36,47 @@ netns_cleanup() {
     ip netns del "$NS_M" 2>/dev/null
     ip netns del "$NS_S" 2>/dev/null
     rm -rf "$WORK"
+}
+
+# ecdc_binary PATH PROFILE: ECDC is PATH made absolute; an empty PATH builds the `ecdc` binary
+# with cargo in PROFILE (debug or release) and takes that one.
+ecdc_binary() {
+    ECDC="$1"
+    if [ -z "$ECDC" ]; then
+        if [ "$2" = release ]; then
+            cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build --release (ecdc)"
+        else
+            cargo build -q -p ecdc-harness --bin ecdc || fail "cargo build (ecdc)"
+        fi
+        ECDC="${CARGO_TARGET_DIR:-target}/$2/ecdc"
+    fi
+    [ -x "$ECDC" ] || fail "no ecdc binary at $ECDC"
+    ECDC="$(cd "$(dirname "$ECDC")" && pwd)/$(basename "$ECDC")"
+}
+
+# start_emulator NAME [ARGS...]: runs `ecdc emulate --iface ecs0 --json ARGS...` in the slave
+# namespace and waits until it serves. Its log is $WORK/NAME.err; its JSON summary lands in
+# $WORK/NAME.json when it is stopped. EMU_PID is its pid.
+start_emulator() {
+    local name="$1"
+    shift
+    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --json "$@" \
+        >"$WORK/$name.json" 2>"$WORK/$name.err" &
+    EMU_PID=$!
+    PIDS+=("$EMU_PID")
+    for _ in $(seq 50); do
+        grep -q "serving" "$WORK/$name.err" 2>/dev/null && return 0
+        kill -0 "$EMU_PID" 2>/dev/null || break
+        sleep 0.1
+    done
+    return 1
+}
+
+# stop_emulator: SIGTERM, wait, leaves its JSON summary in place; its exit status.
+stop_emulator() {
+    kill -TERM "$EMU_PID" 2>/dev/null
+    wait "$EMU_PID"
+    local rc=$?
+    PIDS=("${PIDS[@]/$EMU_PID}")
+    return $rc
 }

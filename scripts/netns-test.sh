@@ -32,41 +32,73 @@ command -v jq >/dev/null 2>&1 || skip "jq not installed (needed to check the JSO
 netns_pair ""
 # ecm0 is deliberately left down: `ecdc` must bring it up itself (the usable-state check).
 
-ECDC="${1:-}"
-if [ -z "$ECDC" ] && [ "$BENCH" = 1 ]; then
-    cargo build -q --release -p ecdc-harness --bin ecdc || fail "cargo build --release"
-    ECDC="${CARGO_TARGET_DIR:-target}/release/ecdc"
-elif [ -z "$ECDC" ]; then
-    cargo build -q -p ecdc-harness --bin ecdc || fail "cargo build"
-    ECDC="${CARGO_TARGET_DIR:-target}/debug/ecdc"
+if [ "$BENCH" = 1 ]; then
+    ecdc_binary "${1:-}" release
+else
+    ecdc_binary "${1:-}" debug
 fi
-[ -x "$ECDC" ] || fail "no ecdc binary at $ECDC"
-ECDC="$(cd "$(dirname "$ECDC")" && pwd)/$(basename "$ECDC")"
 
-# start_emulator ENGINE [ARGS...]: runs `ecdc emulate` in the slave namespace, waits until it
-# serves. Its JSON summary lands in $WORK/emu-ENGINE.json when it is stopped.
-start_emulator() {
+# emulator ENGINE [ARGS...]: start_emulator with that engine; log and summary in
+# $WORK/emu-ENGINE.{err,json}.
+emulator() {
     local engine="$1"
     shift
-    ip netns exec "$NS_S" "$ECDC" emulate --iface ecs0 --engine "$engine" --json "$@" \
-        >"$WORK/emu-$engine.json" 2>"$WORK/emu-$engine.err" &
-    EMU_PID=$!
-    PIDS+=("$EMU_PID")
-    for _ in $(seq 50); do
-        grep -q "serving" "$WORK/emu-$engine.err" 2>/dev/null && return 0
-        kill -0 "$EMU_PID" 2>/dev/null || break
+    start_emulator "emu-$engine" --engine "$engine" "$@"
+}
+
+# stop_esc: stops the ESC emulator; an error exit is a failure, its log shown.
+stop_esc() {
+    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
+}
+
+# no_emulator WHAT: the ESC emulator did not start; a failure, its log shown.
+no_emulator() {
+    echo "  FAIL emulator ($1) did not start:"
+    sed 's/^/    /' "$WORK/emu-esc.err"
+    FAILED=1
+}
+
+# start_locked_run NAME: `ecdc run` for 8 s in the background (RUN_PID), summary and log in
+# $WORK/NAME.{json,err}; returns half a second after it reports DC locked (or has ended, or
+# after 10 s).
+start_locked_run() {
+    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 8 --json \
+        >"$WORK/$1.json" 2>"$WORK/$1.err" &
+    RUN_PID=$!
+    PIDS+=("$RUN_PID")
+    for _ in $(seq 100); do
+        grep -q "DC locked" "$WORK/$1.err" 2>/dev/null && break
+        kill -0 "$RUN_PID" 2>/dev/null || break
         sleep 0.1
     done
+    sleep 0.5
+}
+
+# pause PID SECONDS: stops the process for that long.
+pause() {
+    kill -STOP "$1"
+    sleep "$2"
+    kill -CONT "$1"
+}
+
+# run_ok NAME [WHY]: whether the run ended with status 0 (RUN_RC); a failure otherwise, the
+# tail of its log $WORK/NAME.err shown.
+run_ok() {
+    [ "$RUN_RC" -eq 0 ] && return 0
+    tail -n 20 "$WORK/$1.err"
+    echo "  FAIL ecdc run exited with $RUN_RC${2:+ ($2)}"
+    FAILED=1
     return 1
 }
 
-# stop_emulator: SIGTERM, wait, leaves its JSON summary in place.
-stop_emulator() {
-    kill -TERM "$EMU_PID" 2>/dev/null
-    wait "$EMU_PID"
-    local rc=$?
-    PIDS=("${PIDS[@]/$EMU_PID}")
-    return $rc
+# finish_run NAME PATTERN: waits for the run of start_locked_run (its status in RUN_RC), stops
+# the emulator, shows the lines of the run's log that match PATTERN.
+finish_run() {
+    wait "$RUN_PID"
+    RUN_RC=$?
+    PIDS=("${PIDS[@]/$RUN_PID}")
+    stop_esc
+    grep -E "$2" "$WORK/$1.err" | sed 's/^/    /'
 }
 
 check() { # check DESCRIPTION JQ-EXPRESSION FILE [extra jq args]
@@ -111,7 +143,7 @@ if [ "$BENCH" = 1 ]; then
 fi
 
 echo "== part 1: transport over veth (reflecting slave)"
-start_emulator reflect || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect) did not start"; }
+emulator reflect || { cat "$WORK/emu-reflect.err"; fail "emulator (reflect) did not start"; }
 ip netns exec "$NS_M" "$ECDC" rtt --iface ecm0 --count 2000 --cycles 500 --json >"$WORK/rtt.json" 2>"$WORK/rtt.err" \
     || { cat "$WORK/rtt.err"; fail "ecdc rtt failed"; }
 ip netns exec "$NS_M" "$ECDC" rtt --iface ecm0 --count 500 --cycles 0 --qdisc-bypass --wait spin --json \
@@ -135,16 +167,12 @@ check "emulator answered every frame the master sent (3000)" \
     '.frames.received == 3000 and .frames.answered == 3000 and .frames.already_processed == 0' "$E"
 
 echo "== part 2: DC bring-up and cyclic run on emulated ESCs"
-if start_emulator esc; then
+if emulator esc; then
     ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 3 --json --pcap "$WORK/run.pcap" \
         >"$WORK/run.json" 2>"$WORK/run.err"
     RUN_RC=$?
-    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
-    if [ "$RUN_RC" -ne 0 ]; then
-        tail -n 20 "$WORK/run.err"
-        echo "  FAIL ecdc run exited with $RUN_RC"
-        FAILED=1
-    else
+    stop_esc
+    if run_ok run; then
         R="$WORK/run.json"; E="$WORK/emu-esc.json"
         jq -c '{slaves: .slaves, dc_locked: .cyclic.locked_at_end, servo_locked: .cyclic.servo_locked_at_end, max_092c_ns: .cyclic.max_092c_ns, drift_frames: .drift_frames, rtt: .cyclic.rtt, wake: .cyclic.wake}' "$R"
         jq -c '{frames: .frames, restarts: .restarts}' "$R"
@@ -177,38 +205,19 @@ if start_emulator esc; then
         fi
     fi
 else
-    echo "  FAIL emulator (esc) did not start:"
-    sed 's/^/    /' "$WORK/emu-esc.err"
-    FAILED=1
+    no_emulator "esc"
 fi
 
 echo "== part 2c: hold-over: the emulator stopped 300 ms, later the master stopped 300 ms"
 # The silence and the stall are shorter than the default 1 s hold-over limit: DC must neither
 # re-initialise nor give up; the resume check passes and the run ends locked.
-if start_emulator esc --slaves 6; then
-    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 8 --json \
-        >"$WORK/holdover.json" 2>"$WORK/holdover.err" &
-    RUN_PID=$!
-    PIDS+=("$RUN_PID")
-    for _ in $(seq 100); do
-        grep -q "DC locked" "$WORK/holdover.err" 2>/dev/null && break
-        kill -0 "$RUN_PID" 2>/dev/null || break
-        sleep 0.1
-    done
-    sleep 0.5
-    kill -STOP "$EMU_PID"; sleep 0.3; kill -CONT "$EMU_PID"
+if emulator esc --slaves 6; then
+    start_locked_run holdover
+    pause "$EMU_PID" 0.3
     sleep 1.5
-    kill -STOP "$RUN_PID"; sleep 0.3; kill -CONT "$RUN_PID"
-    wait "$RUN_PID"
-    RUN_RC=$?
-    PIDS=("${PIDS[@]/$RUN_PID}")
-    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
-    grep -E "hold|re-init|error" "$WORK/holdover.err" | sed 's/^/    /'
-    if [ "$RUN_RC" -ne 0 ]; then
-        tail -n 20 "$WORK/holdover.err"
-        echo "  FAIL ecdc run exited with $RUN_RC"
-        FAILED=1
-    else
+    pause "$RUN_PID" 0.3
+    finish_run holdover "hold|re-init|error"
+    if run_ok holdover; then
         R="$WORK/holdover.json"
         jq -c '{restarts, holdovers, locked_at_end: .cyclic.locked_at_end, lost_cycles: .machine_lost_cycles, frames: .frames}' "$R"
         check "no DC re-initialisation through the silence and the stall" '.restarts == 0' "$R"
@@ -216,43 +225,22 @@ if start_emulator esc --slaves 6; then
         check "DC locked at the end" '.cyclic.locked_at_end == true' "$R"
     fi
 else
-    echo "  FAIL emulator (6 slaves) did not start:"
-    sed 's/^/    /' "$WORK/emu-esc.err"
-    FAILED=1
+    no_emulator "6 slaves"
 fi
 
 echo "== part 2d: a 3 s silence (beyond the 1 s hold-over): re-initialise with backoff, never give up"
-if start_emulator esc --slaves 6; then
-    ip netns exec "$NS_M" "$ECDC" run --iface ecm0 --duration 8 --json \
-        >"$WORK/reinit.json" 2>"$WORK/reinit.err" &
-    RUN_PID=$!
-    PIDS+=("$RUN_PID")
-    for _ in $(seq 100); do
-        grep -q "DC locked" "$WORK/reinit.err" 2>/dev/null && break
-        kill -0 "$RUN_PID" 2>/dev/null || break
-        sleep 0.1
-    done
-    sleep 0.5
-    kill -STOP "$EMU_PID"; sleep 3; kill -CONT "$EMU_PID"
-    wait "$RUN_PID"
-    RUN_RC=$?
-    PIDS=("${PIDS[@]/$RUN_PID}")
-    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
-    grep -E "HoldoverExpired|attempt" "$WORK/reinit.err" | sed 's/^/    /'
-    if [ "$RUN_RC" -ne 0 ]; then
-        tail -n 20 "$WORK/reinit.err"
-        echo "  FAIL ecdc run exited with $RUN_RC (it must keep retrying while the link is up)"
-        FAILED=1
-    else
+if emulator esc --slaves 6; then
+    start_locked_run reinit
+    pause "$EMU_PID" 3
+    finish_run reinit "HoldoverExpired|attempt"
+    if run_ok reinit "it must keep retrying while the link is up"; then
         R="$WORK/reinit.json"
         jq -c '{restarts, holdovers, locked_at_end: .cyclic.locked_at_end}' "$R"
         check "re-initialised after the hold-over limit, retried until the slaves answered" '.restarts >= 1' "$R"
         check "DC locked at the end" '.cyclic.locked_at_end == true' "$R"
     fi
 else
-    echo "  FAIL emulator (6 slaves) did not start:"
-    sed 's/^/    /' "$WORK/emu-esc.err"
-    FAILED=1
+    no_emulator "6 slaves"
 fi
 
 echo "== part 2b: scan of a tree (coupler with a line on port 1 and a branch on port 2)"
@@ -269,7 +257,7 @@ name = "branch"
 parent = 0
 port = 2
 TOML
-if start_emulator esc --scenario "$WORK/tree.toml"; then
+if emulator esc --scenario "$WORK/tree.toml"; then
     ip netns exec "$NS_M" "$ECDC" scan --iface ecm0 --json >"$WORK/scan.json" 2>"$WORK/scan.err" \
         || { cat "$WORK/scan.err"; echo "  FAIL ecdc scan failed"; FAILED=1; }
     stop_emulator || true
@@ -282,9 +270,7 @@ if start_emulator esc --scenario "$WORK/tree.toml"; then
     check "delays grow along the processing order" \
         '.slaves[0].delay_ns == 0 and .slaves[0].delay_ns < .slaves[1].delay_ns and .slaves[1].delay_ns < .slaves[2].delay_ns and .slaves[2].delay_ns < .slaves[3].delay_ns' "$S"
 else
-    echo "  FAIL emulator (tree scenario) did not start:"
-    sed 's/^/    /' "$WORK/emu-esc.err"
-    FAILED=1
+    no_emulator "tree scenario"
 fi
 
 echo "== part 4: hostile wire: a second master's and forged frames while DC runs (scripts/hostile-inject.py)"
@@ -295,7 +281,7 @@ echo "== part 4: hostile wire: a second master's and forged frames while DC runs
 # received frame lands in exactly one counter, the yardstick stays < 100 ns.
 run_hostile() { # run_hostile TAG EVERY
     local tag="$1" every="$2"
-    start_emulator esc || { echo "  FAIL emulator (esc) did not start"; FAILED=1; return; }
+    emulator esc || { echo "  FAIL emulator (esc) did not start"; FAILED=1; return; }
     ip netns exec "$NS_S" python3 scripts/hostile-inject.py --iface ecs0 --delay 1.5 --seconds 2.5 \
         --every "$every" >"$WORK/inject-$tag.json" 2>"$WORK/inject-$tag.err" &
     INJ_PID=$!
@@ -305,7 +291,7 @@ run_hostile() { # run_hostile TAG EVERY
     RUN_RC=$?
     wait "$INJ_PID"
     PIDS=("${PIDS[@]/$INJ_PID}")
-    stop_emulator || { cat "$WORK/emu-esc.err"; echo "  FAIL emulator (esc) exited with an error"; FAILED=1; }
+    stop_esc
     cp "$WORK/emu-esc.json" "$WORK/emu-$tag.json"
     R="$WORK/run-$tag.json"; E="$WORK/emu-$tag.json"; I="$WORK/inject-$tag.json"
     if [ "$RUN_RC" -ne 0 ] || [ ! -s "$I" ]; then
