@@ -14,7 +14,7 @@ use ecdc_core::dc::{Config, Event, Machine, MonitorConfig, State, SyncConfig};
 use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
 use ecdc_core::time::SystemTime;
 use ecdc_core::wire::{Command, EthernetFrame};
-use ecdc_harness::emu::{Delivery, Network, Scenario, SlaveSpec};
+use ecdc_harness::emu::{Delivery, Network, Scenario};
 use ecdc_harness::sim::{Sim, DEFAULT_MASTER_EPOCH_NS};
 
 /// Cycle period of every fixture (1 ms, the default DC cycle).
@@ -42,29 +42,11 @@ impl Shape {
 
 /// The emulator scenario: `n` default slaves (±50 ppm crystals, jitter on), seed `seed`.
 pub fn scenario(shape: Shape, n: usize, seed: u64) -> Scenario {
-    let mut sc = Scenario::line(n);
+    let mut sc = match shape {
+        Shape::Tree => Scenario::junction_tree(n),
+        Shape::Line => Scenario::line(n),
+    };
     sc.seed = seed;
-    if shape == Shape::Tree {
-        let mut v = vec![SlaveSpec {
-            ports: Some(4),
-            ..SlaveSpec::default()
-        }];
-        let rest = n.saturating_sub(1);
-        let a = rest.div_ceil(3);
-        let b = rest / 3;
-        let sizes = [a, b, rest - a - b];
-        for (port, size) in [3u8, 1, 2].into_iter().zip(sizes) {
-            if size > 0 {
-                v.push(SlaveSpec {
-                    repeat: size,
-                    parent: Some(0),
-                    port: Some(port),
-                    ..SlaveSpec::default()
-                });
-            }
-        }
-        sc.slaves = v;
-    }
     sc
 }
 

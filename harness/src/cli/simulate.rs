@@ -112,29 +112,7 @@ impl Default for Args {
 fn slaves_for(topology: Topology, n: usize) -> Vec<SlaveSpec> {
     match topology {
         Topology::Line => Scenario::line(n).slaves,
-        Topology::Tree => {
-            let mut v = vec![SlaveSpec {
-                ports: Some(4),
-                ..SlaveSpec::default()
-            }];
-            let rest = n.saturating_sub(1);
-            let sizes = [
-                rest.div_ceil(3),
-                rest / 3,
-                rest - rest.div_ceil(3) - rest / 3,
-            ];
-            for (port, size) in [3u8, 1, 2].into_iter().zip(sizes) {
-                if size > 0 {
-                    v.push(SlaveSpec {
-                        repeat: size,
-                        parent: Some(0),
-                        port: Some(port),
-                        ..SlaveSpec::default()
-                    });
-                }
-            }
-            v
-        }
+        Topology::Tree => Scenario::junction_tree(n).slaves,
     }
 }
 

@@ -204,6 +204,27 @@ pub fn setup(topology: Topology, seed: u64) -> (Scenario, Config) {
     }
 }
 
+/// `fault` at `at_ns`, then `undo` at `undo_ns`.
+fn fault_then(at_ns: u64, fault: Fault, undo_ns: u64, undo: Fault) -> Vec<FaultSpec> {
+    vec![
+        FaultSpec { at_ns, fault },
+        FaultSpec {
+            at_ns: undo_ns,
+            fault: undo,
+        },
+    ]
+}
+
+/// `slave`'s port 0 link broken at `at_ns`, restored at `restore_ns`.
+fn link_bounce(slave: usize, at_ns: u64, restore_ns: u64) -> Vec<FaultSpec> {
+    fault_then(
+        at_ns,
+        Fault::LinkBreak { slave, port: 0 },
+        restore_ns,
+        Fault::LinkRestore { slave, port: 0 },
+    )
+}
+
 /// The seeded schedule: faults from `start_ns` until `until_ns`, one at a time.
 pub fn schedule(seed: u64, slaves: usize, start_ns: u64, until_ns: u64) -> Vec<Planned> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x50AC_50AC);
@@ -222,16 +243,12 @@ pub fn schedule(seed: u64, slaves: usize, start_ns: u64, until_ns: u64) -> Vec<P
                 (
                     t + d,
                     format!("{:.0} % for {} ms", rate * 100.0, d / 1_000_000),
-                    vec![
-                        FaultSpec {
-                            at_ns: t,
-                            fault: Fault::FrameLossRate { rate },
-                        },
-                        FaultSpec {
-                            at_ns: t + d,
-                            fault: Fault::FrameLossRate { rate: 0.0 },
-                        },
-                    ],
+                    fault_then(
+                        t,
+                        Fault::FrameLossRate { rate },
+                        t + d,
+                        Fault::FrameLossRate { rate: 0.0 },
+                    ),
                 )
             }
             "link_break" => {
@@ -239,16 +256,7 @@ pub fn schedule(seed: u64, slaves: usize, start_ns: u64, until_ns: u64) -> Vec<P
                 (
                     t + d,
                     format!("slave {slave} port 0 for {} ms", d / 1_000_000),
-                    vec![
-                        FaultSpec {
-                            at_ns: t,
-                            fault: Fault::LinkBreak { slave, port: 0 },
-                        },
-                        FaultSpec {
-                            at_ns: t + d,
-                            fault: Fault::LinkRestore { slave, port: 0 },
-                        },
-                    ],
+                    link_bounce(slave, t, t + d),
                 )
             }
             "power_cycle" | "reference_loss" => {
@@ -311,16 +319,7 @@ pub fn schedule(seed: u64, slaves: usize, start_ns: u64, until_ns: u64) -> Vec<P
                 // on the 2^32 ns grid after that wrap; each slave's own wrap drifts off the
                 // grid by its crystal error times the elapsed time (50 ppm x 1 h = 180 ms).
                 let d = 1_000_000;
-                let mut f = vec![
-                    FaultSpec {
-                        at_ns: t,
-                        fault: Fault::LinkBreak { slave, port: 0 },
-                    },
-                    FaultSpec {
-                        at_ns: t + d,
-                        fault: Fault::LinkRestore { slave, port: 0 },
-                    },
-                ];
+                let mut f = link_bounce(slave, t, t + d);
                 if !wrap_done {
                     f.push(FaultSpec {
                         at_ns: t + d + 50_000,

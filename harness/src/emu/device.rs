@@ -8,7 +8,9 @@
 //! ecdc's own bring-up and DC-only masters expect. Layout of the categories: ETG.2010
 //! (docs/background/sii-al.md §2).
 
-use super::sii::{category, config_crc, SiiImage, CATEGORY_START_WORD, MIN_CAPACITY_BYTES};
+use super::sii::{
+    category, config_crc, Identity, SiiImage, CATEGORY_START_WORD, MIN_CAPACITY_BYTES,
+};
 use serde::{Deserialize, Serialize};
 
 /// What sits behind the ESC.
@@ -82,13 +84,8 @@ pub mod sm_type {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BuildSpec {
     pub device: Device,
-    pub vendor: u32,
-    pub product: u32,
-    pub revision: u32,
-    pub serial: u32,
-    pub alias: u16,
-    /// Device name string (default: the device's).
-    pub name: Option<String>,
+    /// Identity words and device name string (default name: the device's).
+    pub identity: Identity,
     /// SYNC pulse length, word 2 (10 ns units).
     pub pulse_len: u16,
     /// A standard mailbox (SM0/SM1); no protocol is served on it.
@@ -187,9 +184,10 @@ impl BuildSpec {
         // no microcontroller protocol to emulate); word 1 PDI configuration 0.
         w[0] = 0x0005;
         w[2] = self.pulse_len;
-        w[4] = self.alias;
+        let id = &self.identity;
+        w[4] = id.alias;
         w[7] = u16::from(config_crc(&w));
-        for (k, v) in [self.vendor, self.product, self.revision, self.serial]
+        for (k, v) in [id.vendor, id.product, id.revision, id.serial]
             .into_iter()
             .enumerate()
         {
@@ -206,7 +204,7 @@ impl BuildSpec {
         w[0x3E] = (MIN_CAPACITY_BYTES * 8 / 1024 - 1) as u16; // size in Kbit − 1
         w[0x3F] = 1; // version
         let (dname, group, order) = self.device.strings();
-        let name = self.name.as_deref().unwrap_or(dname);
+        let name = id.name.as_deref().unwrap_or(dname);
         // Strings: 1 = device name, 2 = group, 3 = order number.
         let mut s = vec![3u8];
         for t in [name, group, order] {

@@ -19,7 +19,7 @@ use super::control_loop::LoopGains;
 use super::device::{BuildSpec, Device, DEFAULT_VENDOR};
 use super::fault::{Fault, FaultSpec};
 use super::registers::EscKind;
-use super::sii::{SiiImage, SiiTiming};
+use super::sii::{Identity, SiiImage, SiiTiming};
 use super::EmuError;
 use serde::{Deserialize, Serialize};
 
@@ -332,6 +332,33 @@ impl Scenario {
         sc
     }
 
+    /// `n` default slaves as a tree: slave 0 a 4-port junction, the other `n − 1` in three
+    /// branches on its ports 3, 1 and 2 (processing order) of ⌈(n−1)/3⌉, ⌊(n−1)/3⌋ and the
+    /// rest; an empty branch is left out.
+    pub fn junction_tree(n: usize) -> Self {
+        let mut v = vec![SlaveSpec {
+            ports: Some(4),
+            ..SlaveSpec::default()
+        }];
+        let rest = n.saturating_sub(1);
+        let a = rest.div_ceil(3);
+        let b = rest / 3;
+        for (port, size) in [3u8, 1, 2].into_iter().zip([a, b, rest - a - b]) {
+            if size > 0 {
+                v.push(SlaveSpec {
+                    repeat: size,
+                    parent: Some(0),
+                    port: Some(port),
+                    ..SlaveSpec::default()
+                });
+            }
+        }
+        Scenario {
+            slaves: v,
+            ..Scenario::default()
+        }
+    }
+
     /// A 100-slave tree in processing (auto-increment) order: 10 groups, each a junction and
     /// its branches (even groups: a 3-port junction, a branch of 9 on port 1; odd groups: a
     /// 4-port junction, branches of 2 on port 3 and of 7 on port 1); the next junction hangs on
@@ -483,18 +510,20 @@ impl Scenario {
                     None => (
                         SiiSource::Built(BuildSpec {
                             device,
-                            vendor: spec.vendor.or(d.vendor).unwrap_or(DEFAULT_VENDOR),
-                            product: spec
-                                .product
-                                .or(d.product)
-                                .unwrap_or(device.default_product()),
-                            revision: spec.revision.or(d.revision).unwrap_or(1),
-                            serial: spec
-                                .serial
-                                .map(|x| x.wrapping_add(r as u32))
-                                .unwrap_or((i as u32).wrapping_add(1)),
-                            alias: spec.alias,
-                            name: spec.name.clone(),
+                            identity: Identity {
+                                vendor: spec.vendor.or(d.vendor).unwrap_or(DEFAULT_VENDOR),
+                                product: spec
+                                    .product
+                                    .or(d.product)
+                                    .unwrap_or(device.default_product()),
+                                revision: spec.revision.or(d.revision).unwrap_or(1),
+                                serial: spec
+                                    .serial
+                                    .map(|x| x.wrapping_add(r as u32))
+                                    .unwrap_or((i as u32).wrapping_add(1)),
+                                alias: spec.alias,
+                                name: spec.name.clone(),
+                            },
                             pulse_len: d.pulse_len,
                             mailbox: spec.mailbox.unwrap_or(d.mailbox),
                             dc: kind.has_system_time(),

@@ -490,28 +490,10 @@ impl Scheme for Ethercrab {
         self.link.advance_to(until)
     }
 
-    fn net(&mut self) -> &mut Network {
-        &mut self.link.net
-    }
-
-    fn reference(&self) -> usize {
-        self.reference
-    }
-
-    fn dist_frames(&self) -> u64 {
-        self.dist_frames
-    }
+    sim_link_scheme!(fields);
 
     fn static_drift_frames(&self) -> Option<u64> {
         matches!(self.phase, Phase::Sync | Phase::Cyclic).then_some(self.burst_sent)
-    }
-
-    fn written(&self) -> Vec<Written> {
-        self.written.clone()
-    }
-
-    fn frames_lost(&self) -> u64 {
-        self.link.lost
     }
 
     fn given(&self) -> Given {

@@ -476,28 +476,10 @@ impl Scheme for Igh {
         self.link.advance_to(until)
     }
 
-    fn net(&mut self) -> &mut Network {
-        &mut self.link.net
-    }
-
-    fn reference(&self) -> usize {
-        self.reference
-    }
-
-    fn dist_frames(&self) -> u64 {
-        self.dist_frames
-    }
+    sim_link_scheme!(fields);
 
     fn static_drift_frames(&self) -> Option<u64> {
         self.static_frames
-    }
-
-    fn written(&self) -> Vec<Written> {
-        self.written.clone()
-    }
-
-    fn frames_lost(&self) -> u64 {
-        self.link.lost
     }
 
     fn given(&self) -> Given {

@@ -12,6 +12,37 @@
 //! [`run::run_scheme`] drives any of them under one recorder (true clock errors, 0x092C,
 //! SYNC0 edges, lock), and [`measure`] turns the record into the reported numbers.
 
+/// The [`Scheme`] methods of a scheme that drives its network through `self.link` (a
+/// [`link::SimLink`]) and keeps what it wrote to 0x0920 / 0x0928 in `self.written`: `net`,
+/// `written`, `frames_lost`. With `fields`, also `reference` and `dist_frames` from the fields
+/// of those names.
+macro_rules! sim_link_scheme {
+    () => {
+        fn net(&mut self) -> &mut crate::emu::Network {
+            &mut self.link.net
+        }
+
+        fn written(&self) -> Vec<crate::schemes::Written> {
+            self.written.clone()
+        }
+
+        fn frames_lost(&self) -> u64 {
+            self.link.lost
+        }
+    };
+    (fields) => {
+        sim_link_scheme!();
+
+        fn reference(&self) -> usize {
+            self.reference
+        }
+
+        fn dist_frames(&self) -> u64 {
+            self.dist_frames
+        }
+    };
+}
+
 pub mod ecdc;
 pub mod ethercrab;
 pub mod igh;

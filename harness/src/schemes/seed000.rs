@@ -354,9 +354,7 @@ impl Scheme for Seed000 {
         self.link.advance_to(until)
     }
 
-    fn net(&mut self) -> &mut Network {
-        &mut self.link.net
-    }
+    sim_link_scheme!();
 
     fn reference(&self) -> usize {
         0
@@ -368,14 +366,6 @@ impl Scheme for Seed000 {
 
     fn static_drift_frames(&self) -> Option<u64> {
         (!matches!(self.phase, Phase::BringUp | Phase::Burst)).then_some(self.burst_sent)
-    }
-
-    fn written(&self) -> Vec<Written> {
-        self.written.clone()
-    }
-
-    fn frames_lost(&self) -> u64 {
-        self.link.lost
     }
 
     fn given(&self) -> Given {

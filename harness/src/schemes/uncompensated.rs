@@ -70,9 +70,7 @@ impl Scheme for Uncompensated {
         self.link.advance_to(until)
     }
 
-    fn net(&mut self) -> &mut Network {
-        &mut self.link.net
-    }
+    sim_link_scheme!();
 
     fn reference(&self) -> usize {
         0
@@ -84,14 +82,6 @@ impl Scheme for Uncompensated {
 
     fn static_drift_frames(&self) -> Option<u64> {
         self.done.then_some(0)
-    }
-
-    fn written(&self) -> Vec<Written> {
-        self.written.clone()
-    }
-
-    fn frames_lost(&self) -> u64 {
-        self.link.lost
     }
 
     fn given(&self) -> Given {

@@ -57,16 +57,7 @@ fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
     let n = r.cyc_t.len();
     let pw = W - LEFT - RIGHT;
     let ph = PANEL_H;
-    let _ = writeln!(
-        out,
-        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">{}</text>"#,
-        y0 - 10.0,
-        esc(title)
-    );
-    let _ = writeln!(
-        out,
-        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
-    );
+    panel_frame(out, y0, format_args!("{}", esc(title)));
     if from >= n {
         return;
     }
@@ -97,16 +88,7 @@ fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
             v / div
         );
     }
-    for k in 0..=5 {
-        let t = t0 + (t1 - t0) * f64::from(k) / 5.0;
-        let _ = writeln!(
-            out,
-            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.2} s</text>"#,
-            x(t),
-            y0 + ph + 16.0,
-            t / 1e9
-        );
-    }
+    time_labels(out, y0, (t0, t1), x, (1e9, 2, "s"));
     if clip {
         let _ = writeln!(
             out,
@@ -159,12 +141,50 @@ fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
     }
 }
 
+/// A panel's bold `title` above it and its frame, the panel's top at `y0`.
+fn panel_frame(out: &mut String, y0: f64, title: std::fmt::Arguments) {
+    let pw = W - LEFT - RIGHT;
+    let ph = PANEL_H;
+    let _ = writeln!(
+        out,
+        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">{}</text>"#,
+        y0 - 10.0,
+        title
+    );
+    let _ = writeln!(
+        out,
+        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    );
+}
+
+/// Six time labels under the panel at `y0`, evenly from `span.0` to `span.1` (ns), each placed
+/// at `x(t)` and written as t / `unit.0` with `unit.1` decimals and the unit name `unit.2`.
+fn time_labels(
+    out: &mut String,
+    y0: f64,
+    span: (f64, f64),
+    x: impl Fn(f64) -> f64,
+    unit: (f64, usize, &str),
+) {
+    let (t0, t1) = span;
+    let (per, prec, name) = unit;
+    for k in 0..=5 {
+        let t = t0 + (t1 - t0) * f64::from(k) / 5.0;
+        let _ = writeln!(
+            out,
+            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.prec$} {name}</text>"#,
+            x(t),
+            y0 + PANEL_H + 16.0,
+            t / per
+        );
+    }
+}
+
 /// Lock panel: the largest |clock error| over all slaves at every lock-detection sample, log
 /// scale (1 ns .. 1 ms, clipped), for the schemes that distribute the reference time, with the
 /// 100 ns lock threshold.
 fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
     let pw = W - LEFT - RIGHT;
-    let ph = PANEL_H;
     let shown: Vec<&&Record> = records.iter().filter(|r| r.dist_frames > 0).collect();
     let t_end = shown
         .iter()
@@ -174,31 +194,18 @@ fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
         })
         .max()
         .map_or(300_000_000, |t| (t * 2).max(100_000_000)) as f64;
-    let _ = writeln!(
+    let every_us = shown
+        .first()
+        .and_then(|r| r.track.get(1).zip(r.track.first()))
+        .map_or(0, |(b, a)| (b.0 - a.0) / 1000);
+    panel_frame(
         out,
-        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Lock: max |clock error| over slaves (log scale, every {} µs)</text>"#,
-        y0 - 10.0,
-        shown
-            .first()
-            .and_then(|r| r.track.get(1).zip(r.track.first()))
-            .map_or(0, |(b, a)| (b.0 - a.0) / 1000)
-    );
-    let _ = writeln!(
-        out,
-        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+        y0,
+        format_args!("Lock: max |clock error| over slaves (log scale, every {every_us} µs)"),
     );
     let x = |t: f64| LEFT + (t / t_end).min(1.0) * pw;
     let y = log_axis(out, y0, pw, 6);
-    for k in 0..=5 {
-        let t = t_end * f64::from(k) / 5.0;
-        let _ = writeln!(
-            out,
-            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.0} ms</text>"#,
-            x(t),
-            y0 + ph + 16.0,
-            t / 1e6
-        );
-    }
+    time_labels(out, y0, (0.0, t_end), x, (1e6, 0, "ms"));
     for (j, r) in shown.iter().enumerate() {
         let color = bench_color(r.name, j);
         let mut pts = String::new();
@@ -359,27 +366,14 @@ pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchS
         .max()
         .unwrap_or(1)
         .max(1) as f64;
-    let _ = writeln!(
-        out,
-        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Lock: max |clock error| over slaves (true time, log scale)</text>"#,
-        y0 - 10.0
-    );
-    let _ = writeln!(
-        out,
-        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    panel_frame(
+        &mut out,
+        y0,
+        format_args!("Lock: max |clock error| over slaves (true time, log scale)"),
     );
     let y = log_axis(&mut out, y0, pw, 6);
     let x = |t: f64| LEFT + (t / t_end).min(1.0) * pw;
-    for k in 0..=5 {
-        let t = t_end * f64::from(k) / 5.0;
-        let _ = writeln!(
-            out,
-            r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.2} s</text>"#,
-            x(t),
-            y0 + ph + 16.0,
-            t / 1e9
-        );
-    }
+    time_labels(&mut out, y0, (0.0, t_end), x, (1e9, 2, "s"));
     let cols = pw as usize;
     for (k, s) in series.iter().enumerate() {
         let mut pts = String::new();
@@ -407,14 +401,10 @@ pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchS
     }
     // Panel 2: skew CDF.
     let y0 = TOP + 40.0 + PANEL_H + GAP;
-    let _ = writeln!(
-        out,
-        r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">Steady-state |SYNC0 skew| vs the reference: fraction of pairs ≤ x</text>"#,
-        y0 - 10.0
-    );
-    let _ = writeln!(
-        out,
-        r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    panel_frame(
+        &mut out,
+        y0,
+        format_args!("Steady-state |SYNC0 skew| vs the reference: fraction of pairs ≤ x"),
     );
     let decades = 7f64;
     let xs = |v: f64| LEFT + (v.max(1.0).log10().clamp(0.0, decades) / decades) * pw;
@@ -500,15 +490,10 @@ pub fn render_sensitivity(title: &str, command: &str, panels: &[SensitivityPanel
     );
     for (p, panel) in panels.iter().enumerate() {
         let y0 = TOP + 30.0 + p as f64 * (PANEL_H + GAP);
-        let _ = writeln!(
-            out,
-            r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">mean |SYNC0 skew| vs {}</text>"#,
-            y0 - 10.0,
-            esc(&panel.title)
-        );
-        let _ = writeln!(
-            out,
-            r##"<rect x="{LEFT}" y="{y0}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+        panel_frame(
+            &mut out,
+            y0,
+            format_args!("mean |SYNC0 skew| vs {}", esc(&panel.title)),
         );
         let y = log_axis(&mut out, y0, pw, 3);
         let n = panel.labels.len().max(1);
