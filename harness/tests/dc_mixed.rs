@@ -6,7 +6,7 @@
 mod dc_support;
 
 use dc_support::*;
-use ecdc_core::dc::{DcKind, Event, State};
+use ecdc_core::dc::{DcKind, State};
 use ecdc_harness::emu::{EscKind, Scenario, SlaveSpec};
 
 fn mixed(kinds: &[EscKind]) -> Scenario {
@@ -55,13 +55,7 @@ fn run(kinds: &[EscKind], window_ns: u64) {
         "MIXED {kinds:?} lock_frames={frames} lock_ms={:.1} {st:?}",
         t as f64 / 1e6
     );
-    assert!(st.max_abs_diff < 100, "{st:?}");
-    assert!(st.max_true_err < 100, "{st:?}");
-    assert!(s.machine.is_locked());
-    assert!(!s
-        .events()
-        .iter()
-        .any(|(_, e)| matches!(e, Event::Error(_) | Event::LockLost { .. })));
+    assert_clean_lock(&s, &st);
 }
 
 #[test]

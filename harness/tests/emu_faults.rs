@@ -155,28 +155,7 @@ fn deterministic_from_seed() {
         sc.frame_loss_rate = 0.05;
         let mut net = Network::new(&sc).unwrap();
         let mut t = address_all(&mut net, 0);
-        let (_, a) = one(
-            &mut net,
-            t,
-            Command::Bwr,
-            Address::broadcast(0x0990),
-            &5_000_000_000u64.to_le_bytes(),
-        );
-        let (_, a) = one(
-            &mut net,
-            a + 1000,
-            Command::Bwr,
-            Address::broadcast(0x09A0),
-            &1_000_000u32.to_le_bytes(),
-        );
-        let (_, a) = one(
-            &mut net,
-            a + 1000,
-            Command::Bwr,
-            Address::broadcast(0x0981),
-            &[3],
-        );
-        t = a + 1000;
+        t = start_sync0_all(&mut net, t, 5_000_000_000, 1_000_000);
         let mut out = Vec::new();
         for _ in 0..300 {
             let f = frame(&[(Command::Frmw, Address::configured(0x1000, 0x0910), &[0; 8])]);

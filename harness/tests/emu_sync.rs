@@ -353,28 +353,7 @@ fn skew_after_drift_compensation() {
         &[0; 8],
     );
     let start = (u64_of(&x.data) / 1_000_000 + 50) * 1_000_000;
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Bwr,
-        Address::broadcast(0x09A0),
-        &1_000_000u32.to_le_bytes(),
-    );
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Bwr,
-        Address::broadcast(0x0990),
-        &start.to_le_bytes(),
-    );
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Bwr,
-        Address::broadcast(0x0981),
-        &[0x03],
-    );
-    t = a + 1000;
+    t = start_sync0_all(&mut net, a + 1000, start, 1_000_000);
     for _ in 0..500 {
         frmw(&mut net, t);
         t += 1_000_000;

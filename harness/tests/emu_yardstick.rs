@@ -38,6 +38,17 @@ fn watch(s: &mut dyn Scheme, run: RunOpts) -> (Yardstick, ecdc_harness::schemes:
     (y, rec)
 }
 
+/// |skew| of every pair simulate's grouping gives over the yardstick's window, sorted.
+fn sorted_window_skews(y: &Yardstick, rec: &ecdc_harness::schemes::run::Record) -> Vec<u64> {
+    let (start, _) = y.window().expect("window");
+    let mut sorted: Vec<u64> = window_skews_from(rec, Some(start))
+        .iter()
+        .map(|p| p.1.unsigned_abs())
+        .collect();
+    sorted.sort_unstable();
+    sorted
+}
+
 fn agree(s: &mut dyn Scheme, run: RunOpts) {
     let n = s.net().slave_count();
     let (y, rec) = watch(s, run);
@@ -183,12 +194,7 @@ fn yardstick_agrees_with_simulate_on_a_master_that_never_locks() {
     assert_eq!(sum.lock_ms, None);
     assert_eq!(rep.lock_ms, None);
     assert_eq!(y.lock_time(), None);
-    let (start, _) = y.window().expect("window");
-    let mut sorted: Vec<u64> = window_skews_from(&rec, Some(start))
-        .iter()
-        .map(|p| p.1.unsigned_abs())
-        .collect();
-    sorted.sort_unstable();
+    let sorted = sorted_window_skews(&y, &rec);
     let exact = ecdc_harness::emu::yardstick::percentile(&sorted, 99.0).unwrap();
     let p99 = rep.skew_p99_ns.unwrap();
     assert!(
@@ -222,12 +228,7 @@ fn yardstick_on_a_mixed_tree_counts_only_the_slaves_that_fire() {
     let fired: std::collections::BTreeSet<usize> = rec.sync0.iter().map(|e| e.slave).collect();
     assert_eq!(rep.slaves_firing, fired.len());
     assert_eq!(rep.slaves_firing, with_system_time);
-    let (start, _) = y.window().expect("window");
-    let mut sorted: Vec<u64> = window_skews_from(&rec, Some(start))
-        .iter()
-        .map(|p| p.1.unsigned_abs())
-        .collect();
-    sorted.sort_unstable();
+    let sorted = sorted_window_skews(&y, &rec);
     assert!(!sorted.is_empty());
     assert_eq!(rep.pairs, sorted.len() as u64);
     assert_eq!(rep.skew_max_ns, sorted.last().copied());

@@ -77,6 +77,27 @@ fn machine(cycle_ns: u64) -> Box<M> {
     Box::new(Machine::new(cfg).unwrap())
 }
 
+/// `bringup::bring_up` on the host's clock with the default limits, never asked to stop,
+/// events and progress ignored.
+fn bring_up_quietly<L: Link>(
+    m: &mut M,
+    t: &mut Transport<L>,
+    iface: &str,
+    until: Until,
+) -> Result<Outcome, BringupError> {
+    bringup::bring_up(
+        m,
+        t,
+        &DcClock::from_realtime(),
+        iface,
+        until,
+        &Limits::default(),
+        &AtomicBool::new(false),
+        |_| {},
+        |_| {},
+    )
+}
+
 #[test]
 fn scan_stops_after_delays_without_writing_offsets() {
     let mut t = Transport::new(EmuLink::new(&Scenario::line(3)), MASTER_MAC);
@@ -189,18 +210,7 @@ fn silent_wire_is_reported_as_no_slaves() {
     }
     let mut t = Transport::new(Void, MASTER_MAC);
     let mut m = machine(1_000_000);
-    let err = bringup::bring_up(
-        &mut m,
-        &mut t,
-        &DcClock::from_realtime(),
-        "void0",
-        Until::Cyclic,
-        &Limits::default(),
-        &AtomicBool::new(false),
-        |_| {},
-        |_| {},
-    )
-    .unwrap_err();
+    let err = bring_up_quietly(&mut m, &mut t, "void0", Until::Cyclic).unwrap_err();
     match err {
         BringupError::Runtime(RuntimeError::NoSlaves { name, sent, .. }) => {
             assert_eq!(name, "void0");
@@ -223,17 +233,7 @@ fn another_master_on_the_segment_is_an_error() {
     let mut t = Transport::new(link, MASTER_MAC);
     let mut m = machine(1_000_000);
     // Our replies do come back, but bringing DC up next to another master is refused.
-    let r = bringup::bring_up(
-        &mut m,
-        &mut t,
-        &DcClock::from_realtime(),
-        "emu",
-        Until::DelaysMeasured,
-        &Limits::default(),
-        &AtomicBool::new(false),
-        |_| {},
-        |_| {},
-    );
+    let r = bring_up_quietly(&mut m, &mut t, "emu", Until::DelaysMeasured);
     let c = t.counters();
     assert!(c.other_master > 0);
     assert_eq!(c.other_master_mac, Some([0x01; 6]));

@@ -107,6 +107,18 @@ pub fn steady<const N: usize>(s: &mut Sim<N>, window_ns: u64, kinds: &[EscKind])
     out
 }
 
+/// `st` within 100 ns (0x092C and true error), the machine locked, and no error and no lock
+/// loss in the whole event log.
+pub fn assert_clean_lock<const N: usize>(s: &Sim<N>, st: &Steady) {
+    assert!(st.max_abs_diff < 100, "{st:?}");
+    assert!(st.max_true_err < 100, "{st:?}");
+    assert!(s.machine.is_locked());
+    assert!(!s
+        .events()
+        .iter()
+        .any(|(_, e)| matches!(e, Event::Error(_) | Event::LockLost { .. })));
+}
+
 /// The 100-slave tree of [`Scenario::tree_100`] with seed 7.
 pub fn tree_100() -> Scenario {
     Scenario {

@@ -90,3 +90,17 @@ pub fn address_all(net: &mut Network, mut t: u64) -> u64 {
     }
     t
 }
+
+/// BWR of `d` to register `ado` at `t`; returns the time 1 µs after the reply.
+pub fn bwr(net: &mut Network, t: u64, ado: u16, d: &[u8]) -> u64 {
+    let (_, a) = one(net, t, Command::Bwr, Address::broadcast(ado), d);
+    a + 1000
+}
+
+/// Starts SYNC0 on every slave by BWR from `t`: start time 0x0990, cycle 0x09A0, then the
+/// activation 0x0981 (cyclic unit and SYNC0). Returns the time 1 µs after the last reply.
+pub fn start_sync0_all(net: &mut Network, t: u64, start_ns: u64, cycle_ns: u32) -> u64 {
+    let t = bwr(net, t, 0x0990, &start_ns.to_le_bytes());
+    let t = bwr(net, t, 0x09A0, &cycle_ns.to_le_bytes());
+    bwr(net, t, 0x0981, &[0x03])
+}
