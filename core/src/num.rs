@@ -58,6 +58,9 @@ pub trait Word: Copy {
     fn wrapping_add(self, rhs: Self) -> Self;
     /// `self − rhs mod 2^N` (`bvsub`).
     fn wrapping_sub(self, rhs: Self) -> Self;
+    /// `self · rhs mod 2^N` (`bvmul`): the low N bits of the product, the same bits whether the
+    /// operands are read as unsigned or as two's complement.
+    fn wrapping_mul(self, rhs: Self) -> Self;
     /// Bitwise and (`bvand`).
     fn bit_and(self, rhs: Self) -> Self;
     /// Bitwise or (`bvor`).
@@ -106,6 +109,10 @@ macro_rules! machine_word {
             #[inline]
             fn wrapping_sub(self, rhs: Self) -> Self {
                 <$u>::wrapping_sub(self, rhs)
+            }
+            #[inline]
+            fn wrapping_mul(self, rhs: Self) -> Self {
+                <$u>::wrapping_mul(self, rhs)
             }
             #[inline]
             fn bit_and(self, rhs: Self) -> Self {
@@ -466,6 +473,22 @@ pub fn low32(x: u64) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wrapping_mul_is_the_low_bits_of_the_signed_product() {
+        for a in 0..=u8::MAX {
+            for b in 0..=u8::MAX {
+                let signed = i16::from(i8::from_ne_bytes([a])) * i16::from(i8::from_ne_bytes([b]));
+                assert_eq!(Word::wrapping_mul(a, b), signed.to_le_bytes()[0]);
+                assert_eq!(
+                    Word::wrapping_mul(a, b),
+                    (u16::from(a) * u16::from(b)).to_le_bytes()[0]
+                );
+            }
+        }
+        assert_eq!(Word::wrapping_mul(u64::MAX, 3), u64::MAX - 2);
+        assert_eq!(Word::wrapping_mul(1u32 << 31, 2), 0);
+    }
 
     #[test]
     fn wrapping_diff_boundaries() {

@@ -197,6 +197,7 @@ fn wrapper_matches_machine_words() {
             let (x, y) = (c32(a), c32(b));
             assert_eq!(get(x.wrapping_add(y)), u64::from(a.wrapping_add(b)));
             assert_eq!(get(x.wrapping_sub(y)), u64::from(a.wrapping_sub(b)));
+            assert_eq!(get(x.wrapping_mul(y)), u64::from(a.wrapping_mul(b)));
             assert_eq!(get(x.bit_and(y)), u64::from(a & b));
             assert_eq!(get(x.bit_or(y)), u64::from(a | b));
             if b != 0 {
@@ -217,6 +218,7 @@ fn wrapper_matches_machine_words() {
             let (x, y) = (c64(a), c64(b));
             assert_eq!(get(x.wrapping_add(y)), a.wrapping_add(b));
             assert_eq!(get(x.wrapping_sub(y)), a.wrapping_sub(b));
+            assert_eq!(get(x.wrapping_mul(y)), a.wrapping_mul(b));
             assert_eq!(get(x.bit_and(y)), a & b);
             assert_eq!(get(x.bit_or(y)), a | b);
             if b != 0 {
@@ -345,6 +347,20 @@ fn kernels_agree_on_constants() {
             }
         }
     }
+    // The whole PI step (θ clamp, products, update) on z3 constants and on u64.
+    for &th in &xs {
+        for (kp, ki) in [(1u64 << 22, 1u64), (1 << 32, 1 << 31), (0x1_FFC0_0000, 7)] {
+            let (i, ym, im) = (th.rotate_left(23), 1u64 << 60, 1u64 << 59);
+            let m = k_pi::pi_step_word::<u64>(kp, ki, i, th, ym, im);
+            let c = Sym::<64>::val;
+            let s = k_pi::pi_step_word(c(kp), c(ki), c(i), c(th), c(ym), c(im));
+            assert_eq!(
+                (v64(s.y), v64(s.integrator), b(s.saturated), v64(s.v)),
+                (m.y, m.integrator, m.saturated, m.v),
+                "pi_step_word kp {kp:#x} ki {ki:#x} i {i:#x} theta {th:#x}"
+            );
+        }
+    }
     // overflowing add/sub and the delay step (P3) on z3 constants and on u64.
     for &a in &xs {
         for &c in &xs {
@@ -425,12 +441,48 @@ fn p4_offset_arithmetic() {
 }
 
 /// P5, REQ-SERVO-011..013: one-step inductive bound at 64 bits of the shipped PI update
-/// `ecdc_core::servo::pi::pi_update` (what `pi_step` runs after its two products; the products
-/// are free values within their ranges, checked by `prop_pi_intermediates_fit` in tests/servo.rs).
+/// `ecdc_core::servo::pi::pi_update` (what `pi_step_word` runs after its two products), for
+/// products anywhere in the ranges `p5_pi_products` proves for them.
 // verifies: P5, REQ-SERVO-011, REQ-SERVO-012, REQ-SERVO-013
 #[test]
 fn p5_pi_update_bounded() {
     check("pi_update bound @64", props::pi_update_bounded());
+}
+
+/// P5, REQ-SERVO-013: the two stages of the shipped PI step in front of `pi_update`, at 64 bits:
+/// `clamp_theta` is the clamp to ±2^28, and `pi_products` on admissible gains and a clamped θ
+/// neither overflows nor leaves the ranges `p5_pi_update_bounded` assumes (±2^61, ±2^62). With
+/// Ki and 2·Kp + Ki allowed up to 2^36 (inadmissible), or θ not clamped, they are refuted.
+// verifies: P5, REQ-SERVO-013
+#[test]
+fn p5_pi_products() {
+    check("pi θ clamp @64", props::pi_theta_clamp());
+    let [p, i] = props::pi_products_exact();
+    check("pi Kp·θ exact, |Kp·θ| ≤ 2^61 @64", p);
+    check("pi Ki·θ exact, |Ki·θ| ≤ 2^62 @64", i);
+    use ecdc_core::servo::gains::{MARGIN, ONE};
+    let sum_max = i128::from(4 * ONE - MARGIN);
+    let theta_max = i128::from(k_pi::THETA_MAX);
+    for (what, goal) in [
+        (
+            "Ki up to 2^36",
+            props::pi_product_goal(true, 1 << 36, theta_max),
+        ),
+        (
+            "θ up to 2^31 (no clamp)",
+            props::pi_product_goal(false, sum_max, 1 << 31),
+        ),
+    ] {
+        let start = std::time::Instant::now();
+        assert!(
+            matches!(smt::prove(&goal.0, &goal.1), Verdict::Refuted(_)),
+            "{what}: not refuted"
+        );
+        println!(
+            "refuted pi products with {what} in {:.3} s",
+            start.elapsed().as_secs_f64()
+        );
+    }
 }
 
 /// P3, REQ-DC-014, REQ-DC-016, REQ-DC-020: the delay formula on a 3-slave line at 64 bits, any

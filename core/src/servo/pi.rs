@@ -21,18 +21,22 @@
 //! Hence plain i64 arithmetic never overflows; the code still uses `wrapping_*` so the lint
 //! set stays quiet, and the proofs check that no wrap can happen.
 //!
-//! Everything after the two products (entry clamp of I, sum, output clamp, conditional
-//! integration) is [`pi_update`], written once against [`crate::num::Word`]: `pi_step` runs it
-//! on `u64` (two's complement bit patterns of the i64 values), and `ecdc-proofs` runs the very
-//! same function on z3 bit-vectors to prove the bounds at 64 bits (P5, `smt::props`).
+//! The whole step is [`pi_step_word`], written once against [`crate::num::Word`]: θ clamp
+//! ([`clamp_theta`]), the two products ([`pi_products`]), then everything after them (entry
+//! clamp of I, sum, output clamp, conditional integration: [`pi_update`]). `pi_step` runs it on
+//! `u64` (two's complement bit patterns of the i64 values), and `ecdc-proofs` runs the very same
+//! functions on z3 bit-vectors to prove the bounds above at 64 bits (P5, `smt::props`).
 
 use super::gains::{PiGains, FRAC_BITS};
 use crate::num::{clamp, wrapping_neg, Logic, Word};
 
+/// log2 of [`THETA_MAX`].
+pub const THETA_BITS: u32 = 28;
+
 /// Largest |θ| the kernel uses, in ns (2^28 ns ≈ 268 ms). Larger errors are clamped: they
 /// belong to the step path, and the master loop's folded error never exceeds P/2 for periods up
 /// to 536 ms.
-pub const THETA_MAX: i64 = 1 << 28;
+pub const THETA_MAX: i64 = 1 << THETA_BITS;
 
 /// Largest admissible y_max / I_max in ns per interval (2^28 ns ≈ 268 ms per interval).
 pub const LIMIT_MAX_NS: i64 = 1 << 28;
@@ -164,17 +168,44 @@ pub fn pi_update<W: Word>(i: W, p_term: W, i_term: W, y_max: W, i_max: W) -> PiU
 /// Total for every input: `i` outside ±I_max is first clamped to it (a corrupted state cannot
 /// leak into the output), `theta` is clamped to ±THETA_MAX.
 pub fn pi_step(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
-    let th = clamp_mag(theta, THETA_MAX);
-    // |Kp·θ| ≤ 2^33·2^28, |Ki·θ| < 2^34·2^28 (module doc).
-    let p_term = g.kp().wrapping_mul(th);
-    let i_term = g.ki().wrapping_mul(th);
     let w = u64::from_signed;
-    let r = pi_update::<u64>(w(i), w(p_term), w(i_term), w(lim.y_max), w(lim.i_max));
+    let r = pi_step_word::<u64>(
+        w(g.kp()),
+        w(g.ki()),
+        w(i),
+        w(theta),
+        w(lim.y_max),
+        w(lim.i_max),
+    );
     PiStep {
         y: r.y.to_signed(),
         integrator: r.integrator.to_signed(),
         saturated: r.saturated,
     }
+}
+
+/// θ clamped to ±[`THETA_MAX`] on N-bit words (N ≥ 32), as two's complement.
+#[inline]
+pub fn clamp_theta<W: Word>(theta: W) -> W {
+    clamp_word(theta, W::lit(1).shl(THETA_BITS))
+}
+
+/// The two products of one PI step, Kp·θ and Ki·θ, for θ already clamped by [`clamp_theta`].
+/// They wrap modulo 2^N; at N = 64 with admissible gains (Kp < 2^33, Ki < 2^34, see
+/// [`super::gains`]) and |θ| ≤ 2^28 they never do: |Kp·θ| ≤ 2^61 and |Ki·θ| ≤ 2^62 (module doc;
+/// proved on z3 through this function, `smt::props::pi_products_exact` in `ecdc-proofs`).
+#[inline]
+pub fn pi_products<W: Word>(kp: W, ki: W, theta: W) -> (W, W) {
+    (kp.wrapping_mul(theta), ki.wrapping_mul(theta))
+}
+
+/// One whole PI step on N-bit two's complement words: θ clamp, the two products, then
+/// [`pi_update`]. [`pi_step`] runs it on `u64`; the SMT proofs run each of the three stages on
+/// z3 words, so every line of the step is covered at 64 bits.
+#[inline]
+pub fn pi_step_word<W: Word>(kp: W, ki: W, i: W, theta: W, y_max: W, i_max: W) -> PiUpdate<W> {
+    let (p_term, i_term) = pi_products(kp, ki, clamp_theta(theta));
+    pi_update(i, p_term, i_term, y_max, i_max)
 }
 
 /// Hold: the command used when a sample is missing, blanked or rejected — the integrator alone
@@ -220,8 +251,9 @@ mod tests {
         assert!(s.integrator < 50 * ONE);
     }
 
-    /// `pi_step` written as a plain-i64 body: the oracle that the Word-generic [`pi_update`]
-    /// (which SMT runs on bit-vectors) does the add/compare/clamp part with the same result.
+    /// `pi_step` written as a plain-i64 body: the oracle that the Word-generic [`pi_step_word`]
+    /// (θ clamp, products and [`pi_update`], which SMT runs on bit-vectors) gives the same
+    /// result.
     fn pi_step_i64(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
         let i = clamp_mag(i, lim.i_max);
         let th = clamp_mag(theta, THETA_MAX);

@@ -420,6 +420,83 @@ pub fn pi_update_bounded() -> Goal {
     (pre, claim)
 }
 
+/// The gain pairs `PiGains::from_q32` accepts, as a z3 precondition on 64-bit words:
+/// MARGIN ≤ Kp ≤ 2·ONE − MARGIN, 0 < Ki ≤ 4·ONE − MARGIN and 2·Kp + Ki ≤ 4·ONE − MARGIN (Q32,
+/// ONE = 2^32, MARGIN = 2^22). `sum_max` stands for 4·ONE − MARGIN (`from_q32`'s SUM_MAX, the
+/// bound of both Ki and 2·Kp + Ki), so a refutation check can admit larger gains.
+fn admissible_gains(kp: &BV<'static>, ki: &BV<'static>, sum_max: i128) -> Bool<'static> {
+    use ecdc_core::servo::gains::{MARGIN, ONE};
+    let c = |v: i64| int(i128::from(v), 64);
+    and(&[
+        &c(MARGIN).bvsle(kp),
+        &kp.bvsle(&c(2 * ONE - MARGIN)),
+        &c(0).bvslt(ki),
+        &ki.bvsle(&int(sum_max, 64)),
+        // 2·Kp + Ki at 66 bits, so the sum itself cannot wrap.
+        &kp.sign_ext(2)
+            .bvadd(&kp.sign_ext(2))
+            .bvadd(&ki.sign_ext(2))
+            .bvsle(&int(sum_max, 66)),
+    ])
+}
+
+/// P5 / REQ-SERVO-013, first stage of the shipped PI step (`ecdc_core::servo::pi::clamp_theta`,
+/// which `pi_step_word` applies to θ): for every 64-bit θ the result is min(max(θ, −2^28), 2^28).
+pub fn pi_theta_clamp() -> Goal {
+    let th = Sym::<64>::var("theta");
+    let m = int(1 << 28, 64);
+    let want = th
+        .bv()
+        .bvslt(&m.bvneg())
+        .ite(&m.bvneg(), &m.bvslt(th.bv()).ite(&m, th.bv()));
+    let got = ecdc_core::servo::pi::clamp_theta(th);
+    (t(), got.bv()._eq(&want))
+}
+
+/// P5 / REQ-SERVO-013, second stage (`ecdc_core::servo::pi::pi_products` at 64 bits): for gains
+/// `PiGains::from_q32` accepts (with `sum_max` for its SUM_MAX) and every clamped θ (|θ| ≤ `theta_max`),
+/// the product Kp·θ (`ki_side` false) or Ki·θ (true) does not overflow — z3's
+/// `bvsmul_noovfl`/`bvsmul_noudfl`: the 64-bit result is the integer product — and lies in
+/// ±2^61 (Kp·θ) or ±2^62 (Ki·θ), the ranges [`pi_update_bounded`] assumes. One goal per product
+/// keeps each multiplier alone in its formula.
+pub fn pi_product_goal(ki_side: bool, sum_max: i128, theta_max: i128) -> Goal {
+    let (kp, ki, th) = (
+        Sym::<64>::var("kp"),
+        Sym::<64>::var("ki"),
+        Sym::var("theta"),
+    );
+    let pre = and(&[
+        &admissible_gains(kp.bv(), ki.bv(), sum_max),
+        &int(-theta_max, 64).bvsle(th.bv()),
+        &th.bv().bvsle(&int(theta_max, 64)),
+    ]);
+    let (p, it) = ecdc_core::servo::pi::pi_products(kp, ki, th);
+    let (gain, prod, bound) = if ki_side {
+        (ki, it, 1i128 << 62)
+    } else {
+        (kp, p, 1i128 << 61)
+    };
+    let b = int(bound, 64);
+    let claim = and(&[
+        &gain.bv().bvmul_no_overflow(th.bv(), true),
+        &gain.bv().bvmul_no_underflow(th.bv()),
+        &prod.bv().bvsle(&b),
+        &b.bvneg().bvsle(prod.bv()),
+    ]);
+    (pre, claim)
+}
+
+/// [`pi_product_goal`] for both products with the validated gain bound and θ clamp.
+pub fn pi_products_exact() -> [Goal; 2] {
+    use ecdc_core::servo::gains::{MARGIN, ONE};
+    let sum_max = i128::from(4 * ONE - MARGIN);
+    let th = i128::from(ecdc_core::servo::pi::THETA_MAX);
+    [
+        pi_product_goal(false, sum_max, th),
+        pi_product_goal(true, sum_max, th),
+    ]
+}
+
 // ------------------------------------------------------------------ P3: delay formula on lines
 
 /// P3 / REQ-DC-014, REQ-DC-016, REQ-DC-020 on a line of 3 DC slaves (`crate::dc_math::

@@ -109,6 +109,9 @@ impl<const N: u32> Word for Sym<N> {
     fn wrapping_sub(self, rhs: Self) -> Self {
         Sym::of(self.0.bvsub(rhs.0))
     }
+    fn wrapping_mul(self, rhs: Self) -> Self {
+        Sym::of(self.0.bvmul(rhs.0))
+    }
     fn bit_and(self, rhs: Self) -> Self {
         Sym::of(self.0.bvand(rhs.0))
     }
