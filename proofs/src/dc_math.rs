@@ -395,7 +395,9 @@ pub fn kani_p3_fork() {
 /// P4 offset congruence for every master time, local time, width and bounded delay.
 #[cfg_attr(kani, kani::proof)]
 pub fn kani_p4_offset() {
-    let delay: i64 = kani::any::<i64>() % (1 << 40);
+    // Sign-extending the low 41 bits bounds the delay to [−2^40, 2^40) with shifts; `% 2^40`
+    // would put a 64-bit signed divider in front of an otherwise division-free path.
+    let delay: i64 = (kani::any::<i64>() << 23) >> 23;
     kani::cover!(delay < 0, "slave before the reference");
     p4_offset(kani::any(), delay, kani::any(), kani::any());
 }
@@ -408,12 +410,35 @@ pub fn kani_p4_entry_local() {
     p4_entry_local(kani::any(), kani::any(), port);
 }
 
-/// SYNC start against its i128 definition, every input with a bounded period.
+/// SYNC start against its i128 definition, for every `now`, margin and shift, and a period
+/// that is either any value below 2^16 ns or one of seven concrete grid periods.
+///
+/// Why not a free 64-bit period: `start_time` takes `earliest mod period` (u64) and the reference
+/// side rounds up with an i128 `div_euclid`, and CBMC encodes a division as a multiplication of
+/// the quotient by the divisor, so a symbolic 64-bit divisor means a 64×64 and a 128×128
+/// multiplier. Here a branch either passes a literal period, which constant propagation turns
+/// into a multiplication by a constant, or a `u16` widened to 64 (and 128) bits, whose high bits
+/// are constant zeros, so only 16 columns of each multiplier remain. Periods of every size are
+/// covered by the proptests `sync_start` and `sync_start_realistic` (proofs/tests/dc_math.rs).
 #[cfg_attr(kani, kani::proof)]
 pub fn kani_sync_start() {
-    let period: u64 = kani::any::<u64>() % ((1 << 34) + 1);
-    kani::cover!(period == 0, "zero period");
-    sync_start(kani::any(), kani::any(), period, kani::any());
+    let (now, margin, shift): (u64, u64, i64) = (kani::any(), kani::any(), kani::any());
+    // A literal period per branch (not a period chosen from a table, which would be symbolic).
+    match kani::any::<u8>() & 7 {
+        0 => {
+            let period = u64::from(kani::any::<u16>());
+            kani::cover!(period == 0, "zero period");
+            sync_start(now, margin, period, shift);
+        }
+        1 => sync_start(now, margin, 125_000, shift),
+        2 => sync_start(now, margin, 250_000, shift),
+        3 => sync_start(now, margin, 1_000_000, shift),
+        4 => sync_start(now, margin, 4_000_000, shift),
+        // The start window is 2^31 ns: periods at its edge.
+        5 => sync_start(now, margin, (1 << 31) - 1, shift),
+        6 => sync_start(now, margin, 1 << 31, shift),
+        _ => sync_start(now, margin, 1 << 34, shift),
+    }
 }
 
 // ------------------------------------------------------------------ P3 line kernel for SMT

@@ -503,9 +503,13 @@ pub fn run_script(script: &[u8]) -> Result<Outcome, Violation> {
                 } else {
                     let mut f = sent.last().cloned().unwrap_or_default();
                     for _ in 0..(len % 8) {
-                        let at = usize::from(r.u16_or0());
+                        let at = r.u16_or0();
                         if !f.is_empty() {
-                            let i = at % f.len();
+                            // In u16 (frames are at most 1514 bytes, so the length fits): a
+                            // 16-bit remainder, where `usize` would give Kani a 64-bit divider
+                            // by a symbolic frame length.
+                            let n = u16::try_from(f.len()).unwrap_or(u16::MAX);
+                            let i = usize::from(at % n);
                             f[i] = r.u8_or0();
                         }
                     }
