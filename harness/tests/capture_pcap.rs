@@ -5,6 +5,7 @@
 
 use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
 use ecdc_harness::capture::{pcap, PcapReader, PcapWriter, TimeResolution};
+use std::path::Path;
 use std::process::Command as Process;
 
 fn sample_frames() -> Vec<Vec<u8>> {
@@ -65,6 +66,29 @@ fn write_then_read_back_equal() {
     }
 }
 
+/// Wireshark's `text2pcap -F format` turns the hex dump `txt` into `out`.
+fn text2pcap(format: &str, txt: &Path, out: &Path) {
+    let st = Process::new("text2pcap")
+        .args(["-q", "-F", format, "-l", "1"])
+        .arg(txt)
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "text2pcap -F {format}: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+}
+
+/// The records hold exactly `frames`, in order.
+fn assert_same_frames(recs: &[pcap::Record], frames: &[Vec<u8>]) {
+    assert_eq!(recs.len(), frames.len());
+    for (r, f) in recs.iter().zip(frames) {
+        assert_eq!(&r.data, f);
+    }
+}
+
 #[test]
 fn reads_text2pcap_output() {
     if Process::new("text2pcap").arg("-v").output().is_err() {
@@ -89,42 +113,16 @@ fn reads_text2pcap_output() {
     let txt = dir.join("frames.txt");
     let out = dir.join("frames.pcap");
     std::fs::write(&txt, dump).unwrap();
-    let st = Process::new("text2pcap")
-        .args(["-q", "-F", "pcap", "-l", "1"])
-        .arg(&txt)
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "text2pcap: {}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    text2pcap("pcap", &txt, &out);
     let recs = pcap::read_file(&out).unwrap();
-    assert_eq!(recs.len(), frames.len());
-    for (r, f) in recs.iter().zip(&frames) {
-        assert_eq!(&r.data, f);
-    }
+    assert_same_frames(&recs, &frames);
     // The same frames as pcapng, Wireshark's default format.
     let out_ng = dir.join("frames.pcapng");
-    let st = Process::new("text2pcap")
-        .args(["-q", "-F", "pcapng", "-l", "1"])
-        .arg(&txt)
-        .arg(&out_ng)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "text2pcap -F pcapng: {}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    text2pcap("pcapng", &txt, &out_ng);
     let mut reader = PcapReader::open(&out_ng).unwrap();
     assert_eq!(reader.format(), pcap::Format::PcapNg);
     let recs: Vec<_> = reader.by_ref().map(|r| r.unwrap()).collect();
-    assert_eq!(recs.len(), frames.len());
-    for (r, f) in recs.iter().zip(&frames) {
-        assert_eq!(&r.data, f);
-    }
+    assert_same_frames(&recs, &frames);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

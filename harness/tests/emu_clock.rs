@@ -50,21 +50,9 @@ fn compensate_from_truth(net: &mut Network, t: u64) -> u64 {
         let off = r.wrapping_sub(locals[i]);
         let delay = (epu[i].unwrap() - epu[0].unwrap()) as u32;
         let st = 0x1000 + i as u16;
-        let (x, a) = one(
-            net,
-            t,
-            Command::Fpwr,
-            Address::configured(st, 0x0920),
-            &off.to_le_bytes(),
-        );
+        let (x, a) = fpwr_at(net, t, st, 0x0920, &off.to_le_bytes());
         assert_eq!(x.wkc, 1);
-        let (x, a) = one(
-            net,
-            a + 1000,
-            Command::Fpwr,
-            Address::configured(st, 0x0928),
-            &delay.to_le_bytes(),
-        );
+        let (x, a) = fpwr_at(net, a + 1000, st, 0x0928, &delay.to_le_bytes());
         assert_eq!(x.wkc, 1);
         t = a + 1000;
     }
@@ -112,8 +100,7 @@ fn needed_ppm(ppm_r: f64, ppm_s: f64) -> f64 {
 // verifies: REQ-ESC-040
 #[test]
 fn uncompensated_slave_drifts_at_configured_ppm() {
-    let mut net = Network::new(&scenario(&[0.0, 30.0, -45.0])).unwrap();
-    address_all(&mut net, 0);
+    let (mut net, _) = addressed(&scenario(&[0.0, 30.0, -45.0]));
     let t = compensate_from_truth(&mut net, 1_000_000);
     let e1 = [error_ns(&mut net, 1, t), error_ns(&mut net, 2, t)];
     let t2 = t + 1_000_000_000;
@@ -135,8 +122,7 @@ fn uncompensated_slave_drifts_at_configured_ppm() {
 #[test]
 fn frmw_converges() {
     let ppms = [0.0, 40.0, -25.0, 60.0, -80.0];
-    let mut net = Network::new(&scenario(&ppms)).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&scenario(&ppms));
     let t = compensate_from_truth(&mut net, t + 1_000_000);
     let mut t = drift_frames(&mut net, t, 1_000_000, 3_500);
     let n = ppms.len();
@@ -178,8 +164,7 @@ fn frmw_converges() {
 // verifies: REQ-ESC-052
 #[test]
 fn loop_remembers_rate() {
-    let mut net = Network::new(&scenario(&[0.0, 70.0])).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&scenario(&[0.0, 70.0]));
     let t = compensate_from_truth(&mut net, t + 1_000_000);
     let t = drift_frames(&mut net, t, 1_000_000, 4_000);
     let e0 = error_ns(&mut net, 1, t);
@@ -193,18 +178,11 @@ fn loop_remembers_rate() {
 // verifies: REQ-ESC-056
 #[test]
 fn slew_is_limited() {
-    let mut net = Network::new(&scenario(&[0.0, 0.0])).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&scenario(&[0.0, 0.0]));
     let t = compensate_from_truth(&mut net, t + 1_000_000);
     // Put slave 1 100 µs ahead.
     let off = u64_of(&net.peek(1, 0x0920, 8).unwrap()).wrapping_add(100_000);
-    let (_, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0920),
-        &off.to_le_bytes(),
-    );
+    let (_, a) = fpwr_at(&mut net, t, 0x1001, 0x0920, &off.to_le_bytes());
     let t = a + 1000;
     let e0 = error_ns(&mut net, 1, t);
     let t2 = drift_frames(&mut net, t, 100_000, 100); // 10 ms of samples every 100 µs
@@ -219,19 +197,12 @@ fn slew_is_limited() {
 // verifies: REQ-ESC-053
 #[test]
 fn speed_counter_start_write_resets() {
-    let mut net = Network::new(&scenario(&[0.0, 50.0])).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&scenario(&[0.0, 50.0]));
     let t = compensate_from_truth(&mut net, t + 1_000_000);
     let t = drift_frames(&mut net, t, 1_000_000, 200);
     net.advance_to(t).unwrap();
     assert_ne!(u16_of(&net.peek(1, 0x0932, 2).unwrap()), 0);
-    let (x, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0930),
-        &[0x00, 0x10],
-    );
+    let (x, a) = fpwr_at(&mut net, t, 0x1001, 0x0930, &[0x00, 0x10]);
     assert_eq!(x.wkc, 1);
     net.advance_to(a).unwrap();
     assert_eq!(u16_of(&net.peek(1, 0x0932, 2).unwrap()), 0);
@@ -247,65 +218,28 @@ fn difference_sign_magnitude() {
     let mut sc = scenario(&[0.0, 0.0]);
     sc.timing.tick_ns = 1;
     sc.timing.phy_jitter_ns = 0;
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
-    let (_, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0934),
-        &[1],
-    );
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0930),
-        &[0, 0x10],
-    );
+    let (mut net, t) = addressed(&sc);
+    let (_, a) = fpwr_at(&mut net, t, 0x1001, 0x0934, &[1]);
+    let (_, a) = fpwr_at(&mut net, a + 1000, 0x1001, 0x0930, &[0, 0x10]);
     // Read slave 1's system time as the ECAT side sees it, then write it back 1000 ns ahead
     // of what it will be: the local copy is then behind by 1000 ns.
     let t1 = a + 1000;
-    let (x, a) = one(
-        &mut net,
-        t1,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0910),
-        &[0; 8],
-    );
+    let (x, a) = fprd_at(&mut net, t1, 0x1001, 0x0910, 8);
     let v1 = u64_of(&x.data);
     let t2 = a + 1000;
     let ahead = v1 + (t2 - t1) + 1000;
-    let (_, a) = one(
-        &mut net,
-        t2,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0910),
-        &ahead.to_le_bytes(),
-    );
+    let (_, a) = fpwr_at(&mut net, t2, 0x1001, 0x0910, &ahead.to_le_bytes());
     net.advance_to(a).unwrap();
     assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 0x8000_03E8);
     let t3 = a + 1000;
     let behind = v1 + (t3 - t1) - 250;
-    let (_, a) = one(
-        &mut net,
-        t3,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0910),
-        &behind.to_le_bytes(),
-    );
+    let (_, a) = fpwr_at(&mut net, t3, 0x1001, 0x0910, &behind.to_le_bytes());
     net.advance_to(a).unwrap();
     assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 250);
     // Only the lower 32 bits count: a wrong upper half changes nothing.
     let t4 = a + 1000;
     let w = (v1 + (t4 - t1) - 250) ^ 0xFFFF_0000_0000_0000;
-    let (_, a) = one(
-        &mut net,
-        t4,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0910),
-        &w.to_le_bytes(),
-    );
+    let (_, a) = fpwr_at(&mut net, t4, 0x1001, 0x0910, &w.to_le_bytes());
     net.advance_to(a).unwrap();
     assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 250);
 }
@@ -318,31 +252,12 @@ fn system_time_read_subtracts_delay() {
     sc.timing.tick_ns = 1;
     sc.timing.phy_jitter_ns = 0;
     sc.slaves[1].initial_local_ns = Some(5_000_000);
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
-    let (_, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0920),
-        &7_000u64.to_le_bytes(),
-    );
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0928),
-        &300u32.to_le_bytes(),
-    );
+    let (mut net, t) = addressed(&sc);
+    let (_, a) = fpwr_at(&mut net, t, 0x1001, 0x0920, &7_000u64.to_le_bytes());
+    let (_, a) = fpwr_at(&mut net, a + 1000, 0x1001, 0x0928, &300u32.to_le_bytes());
     let ts = a + 1000;
     let sof = net.epu_arrival_times(ts)[1].unwrap();
-    let (x, _) = one(
-        &mut net,
-        ts,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0910),
-        &[0; 8],
-    );
+    let (x, _) = fprd_at(&mut net, ts, 0x1001, 0x0910, 8);
     assert_eq!(u64_of(&x.data), 5_000_000 + sof + 7_000 - 300);
 }
 
@@ -377,8 +292,7 @@ fn local_time_quantised_to_tick() {
 fn offset_write_moves_local_copy_at_once() {
     let mut sc = scenario(&[0.0, 50.0]).ideal();
     sc.timing.tick_ns = 1;
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&sc);
     let t = compensate_from_truth(&mut net, t + 1_000_000);
     let t = drift_frames(&mut net, t, 1_000_000, 200);
     net.advance_to(t).unwrap();
@@ -392,13 +306,7 @@ fn offset_write_moves_local_copy_at_once() {
     let t = t + 1_000_000;
     let before = net.clock(1, t).unwrap();
     let rate_before = before.local.unwrap() - r0;
-    let (x, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0920),
-        &new.to_le_bytes(),
-    );
+    let (x, a) = fpwr_at(&mut net, t, 0x1001, 0x0920, &new.to_le_bytes());
     assert_eq!(x.wkc, 1);
     let after = net.clock(1, a).unwrap();
     let dl = after.local.unwrap() - before.local.unwrap();

@@ -10,9 +10,7 @@ use ecdc_harness::emu::{Delivery, EscKind, Fault, LossReason, Network, Scenario,
 use emu_support::*;
 
 fn net3() -> (Network, u64) {
-    let mut net = Network::new(&Scenario::line(3).ideal()).unwrap();
-    let t = address_all(&mut net, 0);
-    (net, t)
+    addressed(&Scenario::line(3).ideal())
 }
 
 /// REQ-ESC-002: APRD acts at ADP 0, every slave increments ADP.
@@ -75,21 +73,9 @@ fn apwr_aprw() {
 #[test]
 fn configured_address_commands() {
     let (mut net, t) = net3();
-    let (r, _) = one(
-        &mut net,
-        t,
-        Command::Fprd,
-        Address::configured(0x1002, 0x0010),
-        &[0; 2],
-    );
+    let (r, _) = fprd_at(&mut net, t, 0x1002, 0x0010, 2);
     assert_eq!((r.wkc, u16_of(&r.data), r.adp), (1, 0x1002, 0x1002));
-    let (r, _) = one(
-        &mut net,
-        t + 100_000,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x1004),
-        &[7],
-    );
+    let (r, _) = fpwr_at(&mut net, t + 100_000, 0x1001, 0x1004, &[7]);
     assert_eq!(r.wkc, 1);
     assert_eq!(net.peek(1, 0x1004, 1).unwrap(), vec![7]);
     let (r, _) = one(
@@ -100,13 +86,7 @@ fn configured_address_commands() {
         &[9],
     );
     assert_eq!((r.wkc, r.data.clone()), (3, vec![7]));
-    let (r, _) = one(
-        &mut net,
-        t + 300_000,
-        Command::Fprd,
-        Address::configured(0x7777, 0x0010),
-        &[0; 2],
-    );
+    let (r, _) = fprd_at(&mut net, t + 300_000, 0x7777, 0x0010, 2);
     assert_eq!(r.wkc, 0);
 }
 
@@ -127,13 +107,7 @@ fn alias_addressing() {
         &[0],
     );
     assert_eq!(r.wkc, 0);
-    let (r, t) = one(
-        &mut net,
-        t + 1000,
-        Command::Fpwr,
-        Address::configured(0, 0x0103),
-        &[1],
-    );
+    let (r, t) = fpwr_at(&mut net, t + 1000, 0, 0x0103, &[1]);
     assert_eq!(r.wkc, 1);
     let (r, _) = one(
         &mut net,
@@ -151,13 +125,7 @@ fn alias_addressing() {
 fn broadcast_commands() {
     let (mut net, mut t) = net3();
     for (i, v) in [0x01u8, 0x02, 0x10].iter().enumerate() {
-        let (r, a) = one(
-            &mut net,
-            t,
-            Command::Fpwr,
-            Address::configured(0x1000 + i as u16, 0x1010),
-            &[*v],
-        );
+        let (r, a) = fpwr_at(&mut net, t, 0x1000 + i as u16, 0x1010, &[*v]);
         assert_eq!(r.wkc, 1);
         t = a + 1000;
     }
@@ -211,29 +179,17 @@ fn fmmu(log: u32, len: u16, phys: u16, typ: u8) -> Vec<u8> {
 fn logical_commands() {
     let (mut net, t) = net3();
     // Slave 0: logical 0x10000..0x10004 written to 0x1100. Slave 1: same range read from 0x1200.
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1000, 0x0600),
-        &fmmu(0x10000, 4, 0x1100, 2),
-    );
+    let (r, a) = fpwr_at(&mut net, t, 0x1000, 0x0600, &fmmu(0x10000, 4, 0x1100, 2));
     assert_eq!(r.wkc, 1);
-    let (r, a) = one(
+    let (r, a) = fpwr_at(
         &mut net,
         a + 1000,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0600),
+        0x1001,
+        0x0600,
         &fmmu(0x10000, 4, 0x1200, 1),
     );
     assert_eq!(r.wkc, 1);
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x1200),
-        &[1, 2, 3, 4],
-    );
+    let (r, a) = fpwr_at(&mut net, a + 1000, 0x1001, 0x1200, &[1, 2, 3, 4]);
     assert_eq!(r.wkc, 1);
     let (r, a) = one(
         &mut net,
@@ -323,8 +279,7 @@ fn frmw_counts_dc_slaves_only() {
             ..SlaveSpec::default()
         });
     }
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&sc);
     let (r, a) = one(
         &mut net,
         t,
@@ -334,21 +289,9 @@ fn frmw_counts_dc_slaves_only() {
     );
     assert_eq!(r.wkc, 2);
     // IgH's "has system time" probe: FPRD 0x0910 answers only with system time.
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1002, 0x0910),
-        &[0; 8],
-    );
+    let (r, a) = fprd_at(&mut net, a + 1000, 0x1002, 0x0910, 8);
     assert_eq!(r.wkc, 0);
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1002, 0x0900),
-        &[0; 4],
-    );
+    let (r, a) = fprd_at(&mut net, a + 1000, 0x1002, 0x0900, 4);
     assert_eq!(r.wkc, 1);
     let (r, _) = one(
         &mut net,

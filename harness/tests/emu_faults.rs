@@ -62,22 +62,9 @@ fn link_break_and_restore() {
 // verifies: REQ-ESC-090
 #[test]
 fn power_cycle_resets_slave() {
-    let mut net = Network::new(&Scenario::line(3)).unwrap();
-    let t = address_all(&mut net, 0);
-    let (_, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0920),
-        &123_456u64.to_le_bytes(),
-    );
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fpwr,
-        Address::configured(0x1001, 0x0930),
-        &[0x00, 0x20],
-    );
+    let (mut net, t) = addressed(&Scenario::line(3));
+    let (_, a) = fpwr_at(&mut net, t, 0x1001, 0x0920, &123_456u64.to_le_bytes());
+    let (_, a) = fpwr_at(&mut net, a + 1000, 0x1001, 0x0930, &[0x00, 0x20]);
     let off_at = a + 1_000_000;
     net.schedule_fault(
         off_at,
@@ -91,13 +78,7 @@ fn power_cycle_resets_slave() {
     let on_at = off_at + 10_000_000;
     assert_eq!(brd_wkc(&mut net, on_at + 1_000_000), Some(3));
     // Station address reset to 0: the old address no longer answers.
-    let (r, a) = one(
-        &mut net,
-        on_at + 2_000_000,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0010),
-        &[0; 2],
-    );
+    let (r, a) = fprd_at(&mut net, on_at + 2_000_000, 0x1001, 0x0010, 2);
     assert_eq!(r.wkc, 0);
     let (r, _) = one(
         &mut net,
@@ -122,8 +103,7 @@ fn power_cycle_resets_slave() {
 // verifies: REQ-ESC-093
 #[test]
 fn reference_loss() {
-    let mut net = Network::new(&Scenario::line(3)).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&Scenario::line(3));
     let (r, a) = one(
         &mut net,
         t,
@@ -153,8 +133,7 @@ fn deterministic_from_seed() {
         let mut sc = Scenario::line(5);
         sc.seed = seed;
         sc.frame_loss_rate = 0.05;
-        let mut net = Network::new(&sc).unwrap();
-        let mut t = address_all(&mut net, 0);
+        let (mut net, mut t) = addressed(&sc);
         t = start_sync0_all(&mut net, t, 5_000_000_000, 1_000_000);
         let mut out = Vec::new();
         for _ in 0..300 {

@@ -20,25 +20,17 @@ fn net_of(devices: &[Device], mailbox: bool) -> (Network, u64) {
             ..SlaveSpec::default()
         });
     }
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
-    (net, t)
+    addressed(&sc)
 }
 
 fn fpwr(net: &mut Network, t: &mut u64, st: u16, ado: u16, d: &[u8]) -> u16 {
-    let (r, a) = one(net, *t, Command::Fpwr, Address::configured(st, ado), d);
+    let (r, a) = fpwr_at(net, *t, st, ado, d);
     *t = a + 1_000;
     r.wkc
 }
 
 fn fprd(net: &mut Network, t: &mut u64, st: u16, ado: u16, len: usize) -> Vec<u8> {
-    let (r, a) = one(
-        net,
-        *t,
-        Command::Fprd,
-        Address::configured(st, ado),
-        &vec![0; len],
-    );
+    let (r, a) = fprd_at(net, *t, st, ado, len);
     *t = a + 1_000;
     r.data
 }
@@ -425,8 +417,7 @@ fn checks_follow_an_image_file() {
         sii_file: Some(path),
         ..SlaveSpec::default()
     });
-    let mut net = Network::new(&sc).unwrap();
-    let mut t = address_all(&mut net, 0);
+    let (mut net, mut t) = addressed(&sc);
     let st = 0x1000;
     request(&mut net, &mut t, st, 2);
     sm(&mut net, &mut t, st, 1, 0x1180, 1, 0x20);

@@ -17,9 +17,7 @@ fn kinds_net(kinds: &[EscKind]) -> (Network, u64) {
             ..SlaveSpec::default()
         });
     }
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
-    (net, t)
+    addressed(&sc)
 }
 
 /// REQ-ESC-011/014: type, features per kind and DC reset values as the master reads them.
@@ -36,43 +34,19 @@ fn reset_values_per_kind() {
     let want_features = [0x01CCu16, 0x00C4, 0x00C4, 0x00C0];
     for (i, f) in want_features.iter().enumerate() {
         let st = 0x1000 + i as u16;
-        let (r, a) = one(
-            &mut net,
-            t,
-            Command::Fprd,
-            Address::configured(st, 0x0000),
-            &[0; 10],
-        );
+        let (r, a) = fprd_at(&mut net, t, st, 0x0000, 10);
         assert_eq!(u16_of(&r.data[8..]), *f, "slave {i}");
-        let (r, a) = one(
-            &mut net,
-            a + 1000,
-            Command::Fprd,
-            Address::configured(st, 0x0130),
-            &[0; 2],
-        );
+        let (r, a) = fprd_at(&mut net, a + 1000, st, 0x0130, 2);
         assert_eq!(u16_of(&r.data), 0x0001, "AL status INIT");
         t = a + 1000;
     }
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Fprd,
-        Address::configured(0x1000, 0x092C),
-        &[0; 10],
-    );
+    let (r, a) = fprd_at(&mut net, t, 0x1000, 0x092C, 10);
     assert_eq!(u32_of(&r.data), 0, "0x092C");
     assert_eq!(u16_of(&r.data[4..]), 0x1000, "0x0930");
     assert_eq!(u16_of(&r.data[6..]), 0, "0x0932");
     assert_eq!(r.data[8], 4, "0x0934");
     assert_eq!(r.data[9], 0x0C, "0x0935");
-    let (r, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1000, 0x0980),
-        &[0; 0x30],
-    );
+    let (r, _) = fprd_at(&mut net, a + 1000, 0x1000, 0x0980, 0x30);
     assert!(
         r.data.iter().enumerate().all(|(i, b)| *b == 0 || i == 2),
         "SYNC block resets to 0"
@@ -85,22 +59,10 @@ fn reset_values_per_kind() {
 #[test]
 fn read_only_registers() {
     let (mut net, t) = kinds_net(&[EscKind::Dc64]);
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1000, 0x0000),
-        &[0xFF; 2],
-    );
+    let (r, a) = fpwr_at(&mut net, t, 0x1000, 0x0000, &[0xFF; 2]);
     assert_eq!(r.wkc, 1);
     assert_eq!(net.peek(0, 0x0000, 1).unwrap(), vec![0x11]);
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fpwr,
-        Address::configured(0x1000, 0x092C),
-        &[0xFF; 8],
-    );
+    let (r, a) = fpwr_at(&mut net, a + 1000, 0x1000, 0x092C, &[0xFF; 8]);
     assert_eq!(r.wkc, 1);
     net.advance_to(a).unwrap();
     assert_eq!(net.peek(0, 0x092C, 4).unwrap(), vec![0; 4]);
@@ -117,28 +79,10 @@ fn read_only_registers() {
 fn dc32_widths() {
     let (mut net, t) = kinds_net(&[EscKind::Dc32]);
     let v = 0x1122_3344_5566_7788u64.to_le_bytes();
-    let (_, a) = one(
-        &mut net,
-        t,
-        Command::Fpwr,
-        Address::configured(0x1000, 0x0920),
-        &v,
-    );
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1000, 0x0920),
-        &[0; 8],
-    );
+    let (_, a) = fpwr_at(&mut net, t, 0x1000, 0x0920, &v);
+    let (r, a) = fprd_at(&mut net, a + 1000, 0x1000, 0x0920, 8);
     assert_eq!(u64_of(&r.data), 0x5566_7788);
-    let (r, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1000, 0x0910),
-        &[0; 8],
-    );
+    let (r, _) = fprd_at(&mut net, a + 1000, 0x1000, 0x0910, 8);
     assert_eq!(u32_of(&r.data[4..]), 0, "upper half of 0x0910 reads 0");
 }
 
@@ -150,20 +94,8 @@ fn al_state_machine() {
     let (mut net, t) = kinds_net(&[EscKind::Dc64]);
     let mut t = t;
     let mut req = |net: &mut Network, v: u16| {
-        let (_, a) = one(
-            net,
-            t,
-            Command::Fpwr,
-            Address::configured(0x1000, 0x0120),
-            &v.to_le_bytes(),
-        );
-        let (r, a) = one(
-            net,
-            a + 1000,
-            Command::Fprd,
-            Address::configured(0x1000, 0x0130),
-            &[0; 6],
-        );
+        let (_, a) = fpwr_at(net, t, 0x1000, 0x0120, &v.to_le_bytes());
+        let (r, a) = fprd_at(net, a + 1000, 0x1000, 0x0130, 6);
         t = a + 1000;
         (u16_of(&r.data), u16_of(&r.data[4..]))
     };
@@ -179,33 +111,14 @@ fn al_state_machine() {
 // verifies: REQ-ESC-015
 #[test]
 fn dl_status_matches_topology() {
-    let mut net = Network::new(&Scenario::line(3).ideal()).unwrap();
-    let t = address_all(&mut net, 0);
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Fprd,
-        Address::configured(0x1000, 0x0110),
-        &[0; 2],
-    );
+    let (mut net, t) = addressed(&Scenario::line(3).ideal());
+    let (r, a) = fprd_at(&mut net, t, 0x1000, 0x0110, 2);
     assert_eq!(u16_of(&r.data), 0x5A31);
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1002, 0x0110),
-        &[0; 2],
-    );
+    let (r, a) = fprd_at(&mut net, a + 1000, 0x1002, 0x0110, 2);
     assert_eq!(u16_of(&r.data), 0x5611);
     net.schedule_fault(a + 500, Fault::LinkBreak { slave: 1, port: 1 })
         .unwrap();
-    let (r, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0110),
-        &[0; 2],
-    );
+    let (r, _) = fprd_at(&mut net, a + 1000, 0x1001, 0x0110, 2);
     assert_eq!(u16_of(&r.data), 0x5611, "port 1 lost link and closed");
 }
 
@@ -217,8 +130,7 @@ fn dl_status_matches_topology() {
 fn receive_time_latch_rules() {
     let mut sc = Scenario::line(3).ideal();
     sc.defaults.ppm = PpmSpec::Fixed(0.0);
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&sc);
     let (r, ret) = send(
         &mut net,
         t,
@@ -229,13 +141,7 @@ fn receive_time_latch_rules() {
     );
     assert_eq!(r[0].wkc, 3);
     assert_eq!(r[1].data, vec![0; 16], "same frame sees the old values");
-    let (x, a) = one(
-        &mut net,
-        ret.arrival + 1000,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0900),
-        &[0; 32],
-    );
+    let (x, a) = fprd_at(&mut net, ret.arrival + 1000, 0x1001, 0x0900, 32);
     let p0 = u32_of(&x.data);
     let p1 = u32_of(&x.data[4..]);
     assert_ne!(p0, 0);
@@ -254,13 +160,7 @@ fn receive_time_latch_rules() {
         Address::position(1, 0x0900),
         &[0; 4],
     );
-    let (y, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0900),
-        &[0; 8],
-    );
+    let (y, a) = fprd_at(&mut net, a + 1000, 0x1001, 0x0900, 8);
     assert_eq!(y.data, x.data[..8].to_vec());
     // Break slave 1's port 1: the next latch updates port 0 only; port 1 keeps its value.
     net.schedule_fault(a + 100, Fault::LinkBreak { slave: 1, port: 1 })
@@ -272,13 +172,7 @@ fn receive_time_latch_rules() {
         Address::broadcast(0x0900),
         &[0; 4],
     );
-    let (z, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Fprd,
-        Address::configured(0x1001, 0x0900),
-        &[0; 8],
-    );
+    let (z, _) = fprd_at(&mut net, a + 1000, 0x1001, 0x0900, 8);
     assert_ne!(u32_of(&z.data), p0);
     assert_eq!(u32_of(&z.data[4..]), p1);
 }

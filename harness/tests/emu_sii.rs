@@ -14,9 +14,7 @@ use emu_support::*;
 const BUSY: u16 = 1 << 15;
 
 fn net_with(sc: Scenario) -> (Network, u64) {
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
-    (net, t)
+    addressed(&sc)
 }
 
 fn io8_scenario(timing: SiiTiming) -> Scenario {
@@ -30,19 +28,13 @@ fn io8_scenario(timing: SiiTiming) -> Scenario {
 }
 
 fn fprd(net: &mut Network, t: &mut u64, st: u16, ado: u16, len: usize) -> Reply {
-    let (r, a) = one(
-        net,
-        *t,
-        Command::Fprd,
-        Address::configured(st, ado),
-        &vec![0; len],
-    );
+    let (r, a) = fprd_at(net, *t, st, ado, len);
     *t = a + 1_000;
     r
 }
 
 fn fpwr(net: &mut Network, t: &mut u64, st: u16, ado: u16, d: &[u8]) -> Reply {
-    let (r, a) = one(net, *t, Command::Fpwr, Address::configured(st, ado), d);
+    let (r, a) = fpwr_at(net, *t, st, ado, d);
     *t = a + 1_000;
     r
 }

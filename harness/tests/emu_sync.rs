@@ -26,19 +26,13 @@ fn one_slave(kind: EscKind, l0: u64) -> (Network, u64) {
 }
 
 fn wr(net: &mut Network, t: u64, ado: u16, d: &[u8]) -> u64 {
-    let (r, a) = one(net, t, Command::Fpwr, Address::configured(0x1000, ado), d);
+    let (r, a) = fpwr_at(net, t, 0x1000, ado, d);
     assert_eq!(r.wkc, 1);
     a + 1000
 }
 
 fn rd(net: &mut Network, t: u64, ado: u16, len: usize) -> (Vec<u8>, u64) {
-    let (r, a) = one(
-        net,
-        t,
-        Command::Fprd,
-        Address::configured(0x1000, ado),
-        &vec![0; len],
-    );
+    let (r, a) = fprd_at(net, t, 0x1000, ado, len);
     (r.data, a + 1000)
 }
 
@@ -306,20 +300,8 @@ fn skew_after_drift_compensation() {
     for i in 1..4u16 {
         let off = r.wrapping_sub(locals[usize::from(i)]);
         let delay = (epu[usize::from(i)].unwrap() - epu[0].unwrap()) as u32;
-        let (_, a) = one(
-            &mut net,
-            t,
-            Command::Fpwr,
-            Address::configured(0x1000 + i, 0x0920),
-            &off.to_le_bytes(),
-        );
-        let (_, a) = one(
-            &mut net,
-            a + 1000,
-            Command::Fpwr,
-            Address::configured(0x1000 + i, 0x0928),
-            &delay.to_le_bytes(),
-        );
+        let (_, a) = fpwr_at(&mut net, t, 0x1000 + i, 0x0920, &off.to_le_bytes());
+        let (_, a) = fpwr_at(&mut net, a + 1000, 0x1000 + i, 0x0928, &delay.to_le_bytes());
         t = a + 1000;
     }
     let (_, a) = one(
@@ -345,13 +327,7 @@ fn skew_after_drift_compensation() {
         t += 1_000_000;
     }
     // Start SYNC0 on a common 1 ms grid 50 ms ahead of the reference's time.
-    let (x, a) = one(
-        &mut net,
-        t,
-        Command::Fprd,
-        Address::configured(0x1000, 0x0910),
-        &[0; 8],
-    );
+    let (x, a) = fprd_at(&mut net, t, 0x1000, 0x0910, 8);
     let start = (u64_of(&x.data) / 1_000_000 + 50) * 1_000_000;
     t = start_sync0_all(&mut net, a + 1000, start, 1_000_000);
     for _ in 0..500 {

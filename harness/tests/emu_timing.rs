@@ -23,13 +23,7 @@ fn latch_and_read(net: &mut Network, t: u64, station: u16) -> [u32; 4] {
         t,
         &[(Command::Bwr, Address::broadcast(0x0900), &[0; 4])],
     );
-    let (r, _) = one(
-        net,
-        ret.arrival + 1000,
-        Command::Fprd,
-        Address::configured(station, 0x0900),
-        &[0; 16],
-    );
+    let (r, _) = fprd_at(net, ret.arrival + 1000, station, 0x0900, 16);
     [0, 4, 8, 12].map(|o| u32_of(&r.data[o..]))
 }
 
@@ -62,8 +56,7 @@ fn cross_topology_stamps_reproduce_delays() {
             cable_m: Some(30.0),
             ..SlaveSpec::default()
         });
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&sc);
     let p = latch_and_read(&mut net, t, 0x1000);
     // t_P = 540, t_F = 460; cables 50/10/150 ns; end slaves return after their t_P.
     assert_eq!(p[3].wrapping_sub(p[0]), 540 + 50 + 600 + 50);
@@ -80,8 +73,7 @@ fn line_round_trips() {
     sc.defaults.t_p_ns = 500;
     sc.defaults.t_f_ns = 300;
     sc.defaults.cable_m = 4.0; // 20 ns
-    let mut net = Network::new(&sc).unwrap();
-    let t = address_all(&mut net, 0);
+    let (mut net, t) = addressed(&sc);
     let p0 = latch_and_read(&mut net, t, 0x1000);
     let p1 = latch_and_read(&mut net, t + 1_000_000, 0x1001);
     let p2 = latch_and_read(&mut net, t + 2_000_000, 0x1002);
@@ -125,8 +117,7 @@ fn return_time_and_non_dc_delay() {
 fn port_time_wrap_during_measurement() {
     let wrap_at = 50_000_000;
     let sc = exact(Scenario::line(2)).with_fault(wrap_at, Fault::PortTimeWrap { slave: None });
-    let mut net = Network::new(&sc).unwrap();
-    address_all(&mut net, 0);
+    let (mut net, _) = addressed(&sc);
     // Slave 0's port 0 is stamped ≈ 500 ns before the wrap, its port 1 ≈ 590 ns after.
     let p = latch_and_read(&mut net, wrap_at - 505, 0x1000);
     assert!(p[0] > 0xFFFF_F000, "{:#x}", p[0]);
@@ -141,8 +132,7 @@ fn jitter_is_bounded() {
     let mut sc = Scenario::line(2);
     sc.defaults.ppm = PpmSpec::Fixed(0.0);
     sc.timing.wander_interval_ns = 0;
-    let mut net = Network::new(&sc).unwrap();
-    address_all(&mut net, 0);
+    let (mut net, _) = addressed(&sc);
     let mut seen = std::collections::BTreeSet::new();
     for k in 1..50u64 {
         let p = latch_and_read(&mut net, k * 1_000_000, 0x1000);

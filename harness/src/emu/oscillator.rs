@@ -264,6 +264,35 @@ impl Oscillator {
         (ns as u64 + 1).max(1)
     }
 
+    /// The start of the inversion for an advance by `d` from `local_now`: `Ok((t, target))`,
+    /// a first instant within the piece (the rounded-up f64 estimate of the continuous
+    /// crossing, or the piece's last ns) and the observed local time to reach; `Err(answer)`
+    /// when the answer needs no search (`d` too large or 0, or no crossing in the piece).
+    fn crossing_estimate(&self, d: u64, local_now: i128) -> Result<(u64, i128), Option<u64>> {
+        if u128::from(d) > MAX_SOLVE_NS {
+            return Err(None);
+        }
+        if d == 0 {
+            return Err(Some(self.anchor));
+        }
+        let target = local_now + i128::from(d);
+        // Part of the continuous value not yet shown (< tick + 1 ns): small, exact in f64.
+        let hidden = (self.raw + self.corr - (local_now << FRAC)) as i64 as f64 / ONE as f64;
+        let x = ((d as f64 - hidden) / self.speed_f).max(0.0);
+        let xi = x as u64;
+        let est = if (xi as f64) < x { xi + 1 } else { xi };
+        let mut t = self.anchor.checked_add(est).ok_or(None)?;
+        if t >= self.piece_end {
+            // The estimate may be a hair late: check the last ns of the piece exactly.
+            let last = self.piece_end.checked_sub(1).ok_or(None)?;
+            if last < self.anchor || self.observed_at(last) < target {
+                return Err(None);
+            }
+            t = last;
+        }
+        Ok((t, target))
+    }
+
     /// True time (≥ anchor) at which the observed local time has advanced by `d` ns from its
     /// value at the anchor, if that happens before the end of the current piece: the first
     /// integer ns at which the quantised counter plus correction reaches the target.
@@ -277,27 +306,10 @@ impl Oscillator {
     /// [`Oscillator::time_to_advance`] given `local_now = self.local_wide()` (callers that
     /// have it already save a quantisation).
     pub(crate) fn time_to_advance_from(&self, d: u64, local_now: i128) -> Option<u64> {
-        if u128::from(d) > MAX_SOLVE_NS {
-            return None;
-        }
-        if d == 0 {
-            return Some(self.anchor);
-        }
-        let target = local_now + i128::from(d);
-        // Part of the continuous value not yet shown (< tick + 1 ns): small, exact in f64.
-        let hidden = (self.raw + self.corr - (local_now << FRAC)) as i64 as f64 / ONE as f64;
-        let x = ((d as f64 - hidden) / self.speed_f).max(0.0);
-        let xi = x as u64;
-        let est = if (xi as f64) < x { xi + 1 } else { xi };
-        let mut t = self.anchor.checked_add(est)?;
-        if t >= self.piece_end {
-            // The estimate may be a hair late: check the last ns of the piece exactly.
-            let last = self.piece_end.checked_sub(1)?;
-            if last < self.anchor || self.observed_at(last) < target {
-                return None;
-            }
-            t = last;
-        }
+        let (mut t, target) = match self.crossing_estimate(d, local_now) {
+            Ok(x) => x,
+            Err(answer) => return answer,
+        };
         let (mut raw, mut p, obs) = self.eval_at(t);
         if obs >= target {
             // Normally `t − 1` lies before the continuous crossing; guard the f64 rounding.
@@ -439,29 +451,13 @@ mod test {
         }
     }
 
-    /// The inversion as first written (three separate exact evaluations per step): the
-    /// reference `time_to_advance` must match bit for bit.
+    /// The inversion's search as first written (three separate exact evaluations per step,
+    /// from the same first estimate): the reference `time_to_advance` must match bit for bit.
     fn reference_time_to_advance(o: &Oscillator, d: u64) -> Option<u64> {
-        if u128::from(d) > MAX_SOLVE_NS {
-            return None;
-        }
-        if d == 0 {
-            return Some(o.anchor);
-        }
-        let local_now = o.local_wide();
-        let target = local_now + i128::from(d);
-        let hidden = (o.raw + o.corr - (local_now << FRAC)) as i64 as f64 / ONE as f64;
-        let x = ((d as f64 - hidden) / o.speed_f).max(0.0);
-        let xi = x as u64;
-        let est = if (xi as f64) < x { xi + 1 } else { xi };
-        let mut t = o.anchor.checked_add(est)?;
-        if t >= o.piece_end {
-            let last = o.piece_end.checked_sub(1)?;
-            if last < o.anchor || o.observed_at(last) < target {
-                return None;
-            }
-            t = last;
-        }
+        let (mut t, target) = match o.crossing_estimate(d, o.local_wide()) {
+            Ok(x) => x,
+            Err(answer) => return answer,
+        };
         if o.observed_at(t) >= target {
             if t > o.anchor && o.observed_at(t - 1) >= target {
                 t -= 1;

@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use ecdc_core::wire::{Address, Command, EcatFrame, EthernetFrame, FrameBuilder};
-use ecdc_harness::emu::{Delivery, Network, Returned};
+use ecdc_harness::emu::{Delivery, Network, Returned, Scenario};
 
 /// One datagram as the master sees it in the reply.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -64,6 +64,22 @@ pub fn one(net: &mut Network, t: u64, c: Command, a: Address, d: &[u8]) -> (Repl
     (r.into_iter().next().unwrap(), ret.arrival)
 }
 
+/// FPWR of `d` to register `ado` of station `st` at `t`; returns (reply, arrival).
+pub fn fpwr_at(net: &mut Network, t: u64, st: u16, ado: u16, d: &[u8]) -> (Reply, u64) {
+    one(net, t, Command::Fpwr, Address::configured(st, ado), d)
+}
+
+/// FPRD of `len` bytes from register `ado` of station `st` at `t`; returns (reply, arrival).
+pub fn fprd_at(net: &mut Network, t: u64, st: u16, ado: u16, len: usize) -> (Reply, u64) {
+    one(
+        net,
+        t,
+        Command::Fprd,
+        Address::configured(st, ado),
+        &vec![0; len],
+    )
+}
+
 pub fn u16_of(d: &[u8]) -> u16 {
     u16::from_le_bytes([d[0], d[1]])
 }
@@ -72,6 +88,14 @@ pub fn u32_of(d: &[u8]) -> u32 {
 }
 pub fn u64_of(d: &[u8]) -> u64 {
     u64::from_le_bytes(d[..8].try_into().unwrap())
+}
+
+/// The network of `sc` with its slaves addressed ([`address_all`] from 0); returns it and the
+/// time after the last reply.
+pub fn addressed(sc: &Scenario) -> (Network, u64) {
+    let mut net = Network::new(sc).unwrap();
+    let t = address_all(&mut net, 0);
+    (net, t)
 }
 
 /// Assigns station addresses 0x1000 + i by APWR, returns the time after the last reply.
