@@ -36,6 +36,14 @@ fn relock<const N: usize>(s: &mut Sim<N>, limit: u64, count: usize) {
     }
 }
 
+/// `fault` 10 ms from now, then a re-lock with `count` slaves (within 3 s); the events since
+/// the fault was scheduled.
+fn fault_and_relock(s: &mut Sim<8>, fault: Fault, count: usize) -> Vec<Event> {
+    let (mark, _) = fault_in_10ms(s, fault);
+    relock(s, 3_000_000_000, count);
+    events_since(s, mark)
+}
+
 #[test]
 fn frame_loss_is_retried_and_coasted() {
     let mut sc = Scenario::line(6);
@@ -58,9 +66,7 @@ fn frame_loss_is_retried_and_coasted() {
 #[test]
 fn link_break_and_repair_relock() {
     let mut s = locked_line(6);
-    let (mark, _) = fault_in_10ms(&mut s, Fault::LinkBreak { slave: 3, port: 1 });
-    relock(&mut s, 3_000_000_000, 4);
-    let ev = events_since(&s, mark);
+    let ev = fault_and_relock(&mut s, Fault::LinkBreak { slave: 3, port: 1 }, 4);
     assert!(
         ev.contains(&Event::Error(Error::TopologyChanged {
             expected: 6,
@@ -70,9 +76,7 @@ fn link_break_and_repair_relock() {
     );
     assert!(ev.contains(&Event::Restarting));
     // Repair: the two slaves come back, the machine notices and re-locks with six.
-    let (mark, _) = fault_in_10ms(&mut s, Fault::LinkRestore { slave: 3, port: 1 });
-    relock(&mut s, 3_000_000_000, 6);
-    let ev = events_since(&s, mark);
+    let ev = fault_and_relock(&mut s, Fault::LinkRestore { slave: 3, port: 1 }, 6);
     assert!(
         ev.contains(&Event::Error(Error::TopologyChanged {
             expected: 4,
@@ -113,15 +117,14 @@ fn slave_power_cycle_relocks() {
 #[test]
 fn reference_power_cycle_relocks() {
     let mut s = locked_line(6);
-    let (mark, _) = fault_in_10ms(
+    let ev = fault_and_relock(
         &mut s,
         Fault::PowerCycle {
             slave: 0,
             off_ns: 50_000_000,
         },
+        6,
     );
-    relock(&mut s, 3_000_000_000, 6);
-    let ev = events_since(&s, mark);
     println!("{ev:?}");
     // While the first slave is off nothing answers: a typed error, then retries.
     assert!(ev.iter().any(|e| matches!(e, Event::Error(_))), "{ev:?}");
@@ -158,11 +161,9 @@ fn reference_lost_in_tree_moves_reference() {
     let mut s = sim::<8>(&sc, config());
     lock(&mut s, 2_000_000_000);
     assert_eq!(s.machine.reference(), Some(1));
-    let (mark, _) = fault_in_10ms(&mut s, Fault::PowerOff { slave: 1 });
-    relock(&mut s, 3_000_000_000, 3);
+    let ev = fault_and_relock(&mut s, Fault::PowerOff { slave: 1 }, 3);
     assert_eq!(s.machine.reference(), Some(1));
     assert_eq!(s.machine.slaves()[1].station, 0x1002);
-    let ev = events_since(&s, mark);
     assert!(ev.iter().any(|e| matches!(e, Event::Error(_))), "{ev:?}");
     // Slave 4 of the scenario is now the reference: its clock and slave 5's agree.
     s.run_until(s.now() + 300_000_000).unwrap();

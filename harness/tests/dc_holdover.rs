@@ -28,6 +28,22 @@ fn locked() -> Sim<8> {
     s
 }
 
+/// The wire falls silent for `duration_ns` from 10 ms on ([`fault_in_10ms`]).
+fn silence_in_10ms(s: &mut Sim<8>, duration_ns: u64) -> (usize, u64) {
+    fault_in_10ms(s, Fault::WireSilence { duration_ns })
+}
+
+/// Runs to `end`, then on until the machine locks again (by `limit`); the events since
+/// `mark`, printed.
+fn relock_after(s: &mut Sim<8>, mark: usize, end: u64, limit: u64) -> Vec<Event> {
+    s.run_until(end).unwrap();
+    s.drive_until(limit, |e| matches!(e, Event::Locked { .. }))
+        .expect("re-lock");
+    let ev = events_since(s, mark);
+    println!("{ev:?}");
+    ev
+}
+
 /// (true time of the reference's edge, skew) of every SYNC0 pulse taken from the emulator
 /// since the last call.
 fn pulse_skews(s: &mut Sim<8>, reference: usize) -> Vec<(u64, i64)> {
@@ -212,17 +228,8 @@ fn master_stall_1s_holds_over() {
 #[test]
 fn silence_beyond_limit_reinitialises() {
     let mut s = locked();
-    let (mark, at) = fault_in_10ms(
-        &mut s,
-        Fault::WireSilence {
-            duration_ns: 1_500_000_000,
-        },
-    );
-    s.run_until(at + 1_500_000_000).unwrap();
-    s.drive_until(at + 6_000_000_000, |e| matches!(e, Event::Locked { .. }))
-        .expect("re-lock");
-    let ev = events_since(&s, mark);
-    println!("{ev:?}");
+    let (mark, at) = silence_in_10ms(&mut s, 1_500_000_000);
+    let ev = relock_after(&mut s, mark, at + 1_500_000_000, at + 6_000_000_000);
     let silent = ev.iter().find_map(|e| match e {
         Event::Error(Error::HoldoverExpired { silent_ns }) => Some(*silent_ns),
         _ => None,
@@ -242,12 +249,7 @@ fn silence_beyond_limit_reinitialises() {
 #[test]
 fn restarts_back_off() {
     let mut s = locked();
-    let (mark, at) = fault_in_10ms(
-        &mut s,
-        Fault::WireSilence {
-            duration_ns: 3_000_000_000,
-        },
-    );
+    let (mark, at) = silence_in_10ms(&mut s, 3_000_000_000);
     s.run_until(at + 3_000_000_000).unwrap();
     let ev = &s.events()[mark..];
     let restarts: Vec<u64> = ev
@@ -292,12 +294,7 @@ fn holdover_off_faults_after_lost_cycles() {
     };
     let mut s = sim::<8>(&Scenario::seed000_line(), cfg);
     lock(&mut s, 3_000_000_000);
-    let (mark, at) = fault_in_10ms(
-        &mut s,
-        Fault::WireSilence {
-            duration_ns: 300_000_000,
-        },
-    );
+    let (mark, at) = silence_in_10ms(&mut s, 300_000_000);
     s.run_until(at + 100_000_000).unwrap();
     let ev = events_since(&s, mark);
     assert_eq!(
@@ -317,12 +314,7 @@ fn holdover_off_faults_after_lost_cycles() {
 #[test]
 fn slave_reset_during_silence_fails_the_check() {
     let mut s = locked();
-    let (mark, at) = fault_in_10ms(
-        &mut s,
-        Fault::WireSilence {
-            duration_ns: 300_000_000,
-        },
-    );
+    let (mark, at) = silence_in_10ms(&mut s, 300_000_000);
     s.net
         .schedule_fault(
             at + 50_000_000,
@@ -332,11 +324,7 @@ fn slave_reset_during_silence_fails_the_check() {
             },
         )
         .unwrap();
-    s.run_until(at + 300_000_000).unwrap();
-    s.drive_until(at + 5_000_000_000, |e| matches!(e, Event::Locked { .. }))
-        .expect("re-lock");
-    let ev = events_since(&s, mark);
-    println!("{ev:?}");
+    let ev = relock_after(&mut s, mark, at + 300_000_000, at + 5_000_000_000);
     let failure = ev.iter().find_map(|e| match e {
         Event::Error(Error::ResumeCheckFailed { failure }) => Some(*failure),
         _ => None,

@@ -251,6 +251,17 @@ struct Probe {
     adjust: i64,
 }
 
+impl Probe {
+    /// A probe that has seen nothing yet and moves every next deadline by `adjust` ns.
+    fn adjusting(adjust: i64) -> Self {
+        Probe {
+            completed: 0,
+            missing: 0,
+            adjust,
+        }
+    }
+}
+
 impl CycleTask for Probe {
     fn build(&mut self, cycle: u64, _deadline: u64, _now: u64, buf: &mut [u8]) -> Option<usize> {
         let f = frame(MAC, (cycle % 256) as u8);
@@ -282,11 +293,7 @@ impl CycleTask for Probe {
 #[test]
 fn cyclic_loop_runs_fixed_cycles_and_applies_adjustment() {
     let mut t = Transport::new(LoopLink::new(Behaviour::Reflect), MAC);
-    let mut task = Probe {
-        completed: 0,
-        missing: 0,
-        adjust: 100_000,
-    };
+    let mut task = Probe::adjusting(100_000);
     let mut cfg = CycleConfig::new(1_000_000);
     cfg.max_cycles = Some(40);
     let stop = AtomicBool::new(false);
@@ -312,11 +319,7 @@ fn cyclic_loop_runs_fixed_cycles_and_applies_adjustment() {
 #[test]
 fn cyclic_loop_counts_lost_replies_as_lost_not_wkc_errors() {
     let mut t = Transport::new(LoopLink::new(Behaviour::Drop), MAC);
-    let mut task = Probe {
-        completed: 0,
-        missing: 0,
-        adjust: 0,
-    };
+    let mut task = Probe::adjusting(0);
     let mut cfg = CycleConfig::new(1_000_000);
     cfg.max_cycles = Some(5);
     cfg.reply_timeout_ns = 100_000;
@@ -332,11 +335,7 @@ fn cyclic_loop_counts_lost_replies_as_lost_not_wkc_errors() {
 #[test]
 fn stop_flag_ends_loop_as_interrupted() {
     let mut t = Transport::new(LoopLink::new(Behaviour::Reflect), MAC);
-    let mut task = Probe {
-        completed: 0,
-        missing: 0,
-        adjust: 0,
-    };
+    let mut task = Probe::adjusting(0);
     let cfg = CycleConfig::new(1_000_000);
     let stop = AtomicBool::new(true);
     let s = cyclic::run(&mut t, &mut task, &cfg, &stop, |_| {}).unwrap();

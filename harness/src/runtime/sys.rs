@@ -276,10 +276,15 @@ pub fn recv_stamped(
 
 /// `CLOCK_REALTIME` in nanoseconds (only to convert kernel receive stamps).
 pub fn realtime_ns() -> u64 {
+    clock_ns(libc::CLOCK_REALTIME)
+}
+
+/// `clock` (one that `clock_gettime` cannot fail for) in nanoseconds.
+fn clock_ns(clock: libc::clockid_t) -> u64 {
     // SAFETY: timespec is plain data; clock_gettime writes it.
     let mut ts: libc::timespec = unsafe { std::mem::zeroed() };
     // SAFETY: `ts` is a live, exclusively borrowed timespec.
-    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    unsafe { libc::clock_gettime(clock, &mut ts) };
     let secs = u64::try_from(ts.tv_sec).unwrap_or(0);
     let nanos = u64::try_from(ts.tv_nsec).unwrap_or(0);
     secs.saturating_mul(1_000_000_000).saturating_add(nanos)
@@ -316,13 +321,7 @@ fn timespec_from_ns(ns: u64) -> libc::timespec {
 
 /// `CLOCK_MONOTONIC` in nanoseconds.
 pub fn monotonic_ns() -> u64 {
-    // SAFETY: timespec is plain data; clock_gettime writes it and cannot fail for this clock.
-    let mut ts: libc::timespec = unsafe { std::mem::zeroed() };
-    // SAFETY: `ts` is a live, exclusively borrowed timespec.
-    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
-    let secs = u64::try_from(ts.tv_sec).unwrap_or(0);
-    let nanos = u64::try_from(ts.tv_nsec).unwrap_or(0);
-    secs.saturating_mul(1_000_000_000).saturating_add(nanos)
+    clock_ns(libc::CLOCK_MONOTONIC)
 }
 
 /// Sleeps until the absolute `CLOCK_MONOTONIC` time `deadline_ns` (`TIMER_ABSTIME`: no drift
