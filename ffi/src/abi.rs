@@ -154,6 +154,24 @@ fn status(r: Result<(), ecdc_status>) -> ecdc_status {
     r.err().unwrap_or(S::ECDC_OK)
 }
 
+/// `ECDC_OK` with `r`'s value written to `*out` (not written when `out` is NULL), or `r`'s
+/// error.
+///
+/// # Safety
+/// `out` is NULL or valid for writes of a `T`.
+unsafe fn write_out<T>(r: Result<T, ecdc_status>, out: *mut T) -> ecdc_status {
+    match r {
+        Ok(v) => {
+            if !out.is_null() {
+                // SAFETY: non-null, writable (contract).
+                unsafe { out.write(v) };
+            }
+            S::ECDC_OK
+        }
+        Err(e) => e,
+    }
+}
+
 // ----- library information ------------------------------------------------------------------
 
 /// Library version ("0.1.0"), a static NUL-terminated string.
@@ -485,18 +503,7 @@ pub unsafe extern "C" fn ecdc_set_slave_t_diff(
     t_diff_ns: i32,
 ) -> ecdc_status {
     // SAFETY: forwarded contract.
-    unsafe {
-        with_mut(
-            m,
-            |e| e,
-            |a| {
-                status(
-                    a.set_slave_t_diff(position, Some(t_diff_ns))
-                        .map_err(status_of_config_error),
-                )
-            },
-        )
-    }
+    unsafe { set_t_diff(m, position, Some(t_diff_ns)) }
 }
 
 /// Removes the `t_Diff` override of a slave (it uses `ecdc_config.t_diff_ns` again).
@@ -509,13 +516,22 @@ pub unsafe extern "C" fn ecdc_clear_slave_t_diff(
     position: u16,
 ) -> ecdc_status {
     // SAFETY: forwarded contract.
+    unsafe { set_t_diff(m, position, None) }
+}
+
+/// Sets (`Some`) or removes (`None`) the `t_Diff` override of the slave at `position`.
+///
+/// # Safety
+/// As [`ecdc_start`].
+unsafe fn set_t_diff(m: *mut ecdc_machine, position: u16, t_diff_ns: Option<i32>) -> ecdc_status {
+    // SAFETY: forwarded contract.
     unsafe {
         with_mut(
             m,
             |e| e,
             |a| {
                 status(
-                    a.set_slave_t_diff(position, None)
+                    a.set_slave_t_diff(position, t_diff_ns)
                         .map_err(status_of_config_error),
                 )
             },
@@ -717,16 +733,8 @@ pub unsafe extern "C" fn ecdc_frame_push(
             })
         })
     });
-    match r {
-        Ok(s) => {
-            if !slot.is_null() {
-                // SAFETY: non-null, writable (contract).
-                unsafe { slot.write(s) };
-            }
-            S::ECDC_OK
-        }
-        Err(e) => e,
-    }
+    // SAFETY: `slot` is NULL or writable (contract).
+    unsafe { write_out(r, slot) }
 }
 
 /// Ends a frame: pads it to 60 bytes and writes its length (the bytes to send are
@@ -751,14 +759,8 @@ pub unsafe extern "C" fn ecdc_frame_finish(f: *mut ecdc_frame, len: *mut usize) 
         fr.len = b.len();
         b.finish().map_err(frame_error)
     });
-    match r {
-        Ok(n) => {
-            // SAFETY: non-null, writable (contract).
-            unsafe { len.write(n) };
-            S::ECDC_OK
-        }
-        Err(e) => e,
-    }
+    // SAFETY: `len` is NULL or writable (contract).
+    unsafe { write_out(r, len) }
 }
 
 /// Appends the machine's datagrams for `now_ns` to the caller's frame (for example its
@@ -786,16 +788,8 @@ pub unsafe extern "C" fn ecdc_poll_transmit_into(
             with_builder(fr, bytes, |b| Ok(a.poll_transmit_into(now_ns, b)))
         })
     };
-    match r {
-        Ok(any) => {
-            if !appended.is_null() {
-                // SAFETY: non-null, writable (contract).
-                unsafe { appended.write(any) };
-            }
-            S::ECDC_OK
-        }
-        Err(e) => e,
-    }
+    // SAFETY: `appended` is NULL or writable (contract).
+    unsafe { write_out(r, appended) }
 }
 
 /// The getters with an optional result: `get`'s value into `*out` and true, or false (with
@@ -979,14 +973,9 @@ pub unsafe extern "C" fn ecdc_get_stats(
         return S::ECDC_ERR_NULL;
     }
     // SAFETY: forwarded contract.
-    match unsafe { with_ref(m, Err, |a| Ok(stats_to_c(&a.stats()))) } {
-        Ok(s) => {
-            // SAFETY: non-null, writable (contract).
-            unsafe { out.write(s) };
-            S::ECDC_OK
-        }
-        Err(e) => e,
-    }
+    let r = unsafe { with_ref(m, Err, |a| Ok(stats_to_c(&a.stats()))) };
+    // SAFETY: `out` is NULL or writable (contract).
+    unsafe { write_out(r, out) }
 }
 
 /// Number of slaves found by the last bring-up (0 for an invalid handle).
@@ -1021,12 +1010,7 @@ pub unsafe extern "C" fn ecdc_slave_info(
     }
     let pos = usize::try_from(position).unwrap_or(usize::MAX);
     // SAFETY: forwarded contract.
-    match unsafe { with_ref(m, Err, |a| a.slave(pos).ok_or(S::ECDC_ERR_CAPACITY)) } {
-        Ok(s) => {
-            // SAFETY: non-null, writable (contract).
-            unsafe { out.write(s) };
-            S::ECDC_OK
-        }
-        Err(e) => e,
-    }
+    let r = unsafe { with_ref(m, Err, |a| a.slave(pos).ok_or(S::ECDC_ERR_CAPACITY)) };
+    // SAFETY: `out` is NULL or writable (contract).
+    unsafe { write_out(r, out) }
 }
