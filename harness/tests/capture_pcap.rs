@@ -5,8 +5,8 @@
 
 use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
 use ecdc_harness::capture::{pcap, PcapReader, PcapWriter, TimeResolution};
-use std::path::Path;
-use std::process::Command as Process;
+use std::path::{Path, PathBuf};
+use std::process::{Command as Process, Output};
 
 fn sample_frames() -> Vec<Vec<u8>> {
     (0..5u8)
@@ -68,17 +68,37 @@ fn write_then_read_back_equal() {
 
 /// Wireshark's `text2pcap -F format` turns the hex dump `txt` into `out`.
 fn text2pcap(format: &str, txt: &Path, out: &Path) {
-    let st = Process::new("text2pcap")
-        .args(["-q", "-F", format, "-l", "1"])
-        .arg(txt)
-        .arg(out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "text2pcap -F {format}: {}",
-        String::from_utf8_lossy(&st.stderr)
+    succeed(
+        Process::new("text2pcap")
+            .args(["-q", "-F", format, "-l", "1"])
+            .arg(txt)
+            .arg(out),
+        &format!("text2pcap -F {format}"),
     );
+}
+
+/// A fresh directory `ecdc-TAG-PID` under the temporary directory for `test`, which needs
+/// Wireshark's `tool`; `None` (the test is skipped, and says so) when `tool` is not installed.
+fn work_dir(tool: &str, test: &str, tag: &str) -> Option<PathBuf> {
+    if Process::new(tool).arg("-v").output().is_err() {
+        eprintln!("SKIPPED {test}: {tool} not installed (it comes with tshark)");
+        return None;
+    }
+    let dir = std::env::temp_dir().join(format!("ecdc-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    Some(dir)
+}
+
+/// Runs `cmd`, which must succeed (`what` and its stderr in the message otherwise); returns
+/// its output.
+fn succeed(cmd: &mut Process, what: &str) -> Output {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{what}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }
 
 /// The records hold exactly `frames`, in order.
@@ -91,13 +111,10 @@ fn assert_same_frames(recs: &[pcap::Record], frames: &[Vec<u8>]) {
 
 #[test]
 fn reads_text2pcap_output() {
-    if Process::new("text2pcap").arg("-v").output().is_err() {
-        eprintln!("SKIPPED reads_text2pcap_output: text2pcap not installed (comes with tshark)");
+    let Some(dir) = work_dir("text2pcap", "reads_text2pcap_output", "capture") else {
         return;
-    }
+    };
     let frames = sample_frames();
-    let dir = std::env::temp_dir().join(format!("ecdc-capture-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
     // od-style hex dump: one block per frame, offsets restart at 0000.
     let mut dump = String::new();
     for f in &frames {
@@ -129,13 +146,14 @@ fn reads_text2pcap_output() {
 /// Our pcapng (nanosecond interface) is read by tshark with the same times and bytes.
 #[test]
 fn tshark_reads_our_pcapng_with_ns_times() {
-    if Process::new("tshark").arg("-v").output().is_err() {
-        eprintln!("SKIPPED tshark_reads_our_pcapng_with_ns_times: tshark not installed");
+    let Some(dir) = work_dir(
+        "tshark",
+        "tshark_reads_our_pcapng_with_ns_times",
+        "capture-ng",
+    ) else {
         return;
-    }
+    };
     let frames = sample_frames();
-    let dir = std::env::temp_dir().join(format!("ecdc-capture-ng-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("ours.pcapng");
     let stamps: Vec<u64> = (0..frames.len() as u64)
         .map(|i| 1_700_000_000_123_456_789 + i * 1_001)
@@ -145,16 +163,16 @@ fn tshark_reads_our_pcapng_with_ns_times() {
         stamps.iter().copied().zip(frames.iter().map(|f| &f[..])),
     )
     .unwrap();
-    let out = Process::new("tshark")
-        .arg("-r")
-        .arg(&path)
-        .args(["-T", "fields", "-e", "frame.time_epoch", "-e", "frame.len"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "tshark: {}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = succeed(
+        Process::new("tshark").arg("-r").arg(&path).args([
+            "-T",
+            "fields",
+            "-e",
+            "frame.time_epoch",
+            "-e",
+            "frame.len",
+        ]),
+        "tshark",
     );
     let text = String::from_utf8_lossy(&out.stdout);
     let rows: Vec<_> = text.lines().collect();
