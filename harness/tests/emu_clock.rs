@@ -25,6 +25,14 @@ fn scenario(ppms: &[f64]) -> Scenario {
     sc
 }
 
+/// Two slaves with exact crystals, a 1 ns tick and no PHY jitter: register values to the ns.
+fn exact_pair() -> Scenario {
+    let mut sc = scenario(&[0.0, 0.0]);
+    sc.timing.tick_ns = 1;
+    sc.timing.phy_jitter_ns = 0;
+    sc
+}
+
 /// Sign-magnitude decode of 0x092C.
 fn diff_ns(raw: u32) -> i64 {
     let m = i64::from(raw & 0x7FFF_FFFF);
@@ -215,9 +223,7 @@ fn speed_counter_start_write_resets() {
 // verifies: REQ-ESC-051
 #[test]
 fn difference_sign_magnitude() {
-    let mut sc = scenario(&[0.0, 0.0]);
-    sc.timing.tick_ns = 1;
-    sc.timing.phy_jitter_ns = 0;
+    let sc = exact_pair();
     let (mut net, t) = addressed(&sc);
     let (_, a) = fpwr_at(&mut net, t, 0x1001, 0x0934, &[1]);
     let (_, a) = fpwr_at(&mut net, a + 1000, 0x1001, 0x0930, &[0, 0x10]);
@@ -248,9 +254,7 @@ fn difference_sign_magnitude() {
 // verifies: REQ-ESC-042
 #[test]
 fn system_time_read_subtracts_delay() {
-    let mut sc = scenario(&[0.0, 0.0]);
-    sc.timing.tick_ns = 1;
-    sc.timing.phy_jitter_ns = 0;
+    let mut sc = exact_pair();
     sc.slaves[1].initial_local_ns = Some(5_000_000);
     let (mut net, t) = addressed(&sc);
     let (_, a) = fpwr_at(&mut net, t, 0x1001, 0x0920, &7_000u64.to_le_bytes());
