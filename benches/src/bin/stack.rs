@@ -1,7 +1,8 @@
-//! How much thread stack the core needs (issue 8 item 4, memory): the smallest stack a thread
-//! can be given and still (a) construct a `Machine<N>` into a `Box` (`Machine::new` returns it
-//! by value, so the value itself passes over the stack) and (b) run a whole bring-up to lock
-//! plus cyclic operation on a machine that lives on the heap — the calls of a recorded
+//! How much thread stack the core needs (issue 8 item 4, memory; issue 15): the smallest stack
+//! a thread can be given and still (a) get a `Machine<N>`, by value (`Box::new(Machine::new
+//! (cfg))`: the value passes over the stack) or in place (`Machine::configure` on a machine
+//! in a `static` initialised by the `const fn Machine::idle`), and (b) run a whole bring-up to
+//! lock plus cyclic operation on a machine that lives on the heap — the calls of a recorded
 //! emulator run (`timed::try_bring_up`) replayed without the emulator, so only the core's own
 //! frames count. Each size is tried in a child process (a stack overflow aborts the process);
 //! the smallest working size is found by bisection to 1 KiB. Writes `benches/results/stack.md`.
@@ -12,14 +13,16 @@
 //!
 //! Setup: an emulated line of N default slaves (seed 0; 2 ms cycle above 512 slaves), the
 //! configuration of `ecdc simulate`. The baseline row is a thread that does nothing (what the
-//! platform needs for any thread).
+//! platform needs for any thread). Each kind of work is a function of its own, never inlined,
+//! so that the thread's closure does not reserve the frames of the other kinds.
 
 use std::fmt::Write as _;
 use std::process::Command;
 
 use ecdc_benches::cyclic::{self, config_with_cycle, Shape};
 use ecdc_benches::timed::{self, CallLog};
-use ecdc_core::dc::Machine;
+use ecdc_core::dc::{Config, Machine};
+use std::sync::Mutex;
 
 const LIMIT_NS: u64 = 300_000_000_000;
 
@@ -30,6 +33,8 @@ enum Work {
     Nothing,
     /// `Box::new(Machine::<N>::new(cfg))`.
     New,
+    /// `Machine::configure(cfg)` on a machine in a `static` (`Machine::idle()`).
+    Configure,
     /// Replay a recorded bring-up to lock on a boxed machine.
     Run,
 }
@@ -39,6 +44,7 @@ impl Work {
         match s {
             "nothing" => Some(Work::Nothing),
             "new" => Some(Work::New),
+            "configure" => Some(Work::Configure),
             "run" => Some(Work::Run),
             _ => None,
         }
@@ -47,12 +53,66 @@ impl Work {
         match self {
             Work::Nothing => "nothing",
             Work::New => "new",
+            Work::Configure => "configure",
             Work::Run => "run",
         }
     }
 }
 
-fn child<const N: usize>(work: Work, stack: usize) -> anyhow::Result<()> {
+static MACHINE_64: Mutex<Machine<64>> = Mutex::new(Machine::idle());
+static MACHINE_256: Mutex<Machine<256>> = Mutex::new(Machine::idle());
+static MACHINE_1024: Mutex<Machine<1024>> = Mutex::new(Machine::idle());
+
+/// Bytes every measured thread first puts on its stack, so that the smallest stacks found lie
+/// above the platform's minimum thread stack (16 KiB with glibc: a smaller request gets that
+/// much anyway, which would hide the work's own need). It counts in the baseline too.
+const BALLAST: usize = 64 * 1024;
+
+/// Runs `work` above a frame of [`BALLAST`] bytes.
+#[inline(never)]
+fn on_ballast(work: impl FnOnce() -> u64) -> u64 {
+    let ballast = [0u8; BALLAST];
+    std::hint::black_box(&ballast);
+    let r = work();
+    std::hint::black_box(&ballast);
+    r
+}
+
+/// Nothing: the platform's own need for a thread.
+#[inline(never)]
+fn nothing() -> u64 {
+    std::hint::black_box(0)
+}
+
+/// A machine by value, moved into a `Box`.
+#[inline(never)]
+fn construct_by_value<const N: usize>(cfg: Config) -> u64 {
+    let m: Option<Box<Machine<N>>> = Machine::new(cfg).ok().map(Box::new);
+    std::hint::black_box(&m);
+    u64::from(m.is_some())
+}
+
+/// The machine in `slot` (a `static`, const-initialised) configured in place.
+#[inline(never)]
+fn construct_in_place<const N: usize>(slot: &Mutex<Machine<N>>, cfg: Config) -> u64 {
+    let Ok(mut m) = slot.lock() else { return 0 };
+    let ok = m.configure(cfg).is_ok();
+    std::hint::black_box(&*m);
+    u64::from(ok)
+}
+
+/// The recorded calls replayed on a machine on the heap.
+#[inline(never)]
+fn operate<const N: usize>(m: Box<Machine<N>>, log: &CallLog) -> u64 {
+    let (_, _, sent) = timed::replay_boxed(m, log);
+    sent
+}
+
+fn child<const N: usize>(
+    work: Work,
+    stack: usize,
+    slot: &'static Mutex<Machine<N>>,
+) -> anyhow::Result<()> {
     let cycle_ns = if N > 512 { 2_000_000 } else { 1_000_000 };
     let sc = cyclic::scenario(Shape::Line, N, 0);
     let cfg = config_with_cycle(&sc, cycle_ns);
@@ -68,21 +128,20 @@ fn child<const N: usize>(work: Work, stack: usize) -> anyhow::Result<()> {
             Err(_) => anyhow::bail!("{N} slaves did not lock"),
         };
     }
+    let want = if work == Work::Configure {
+        format!("{:?}", *fresh)
+    } else {
+        String::new()
+    };
     let handle = std::thread::Builder::new()
         .stack_size(stack)
         .spawn(move || -> u64 {
-            match work {
-                Work::Nothing => 0,
-                Work::New => {
-                    let m: Option<Box<Machine<N>>> = Machine::new(cfg).ok().map(Box::new);
-                    std::hint::black_box(&m);
-                    u64::from(m.is_some())
-                }
-                Work::Run => {
-                    let (_, _, sent) = timed::replay_boxed(fresh, &log);
-                    sent
-                }
-            }
+            on_ballast(move || match work {
+                Work::Nothing => nothing(),
+                Work::New => construct_by_value::<N>(cfg),
+                Work::Configure => construct_in_place(slot, cfg),
+                Work::Run => operate(fresh, &log),
+            })
         })?;
     let sent = handle
         .join()
@@ -92,6 +151,11 @@ fn child<const N: usize>(work: Work, stack: usize) -> anyhow::Result<()> {
         work == Work::Nothing || sent == expect,
         "{sent} != {expect}"
     );
+    if work == Work::Configure {
+        // The machine configured in place is the one `new` returns.
+        let m = slot.lock().map_err(|_| anyhow::anyhow!("poisoned"))?;
+        anyhow::ensure!(format!("{:?}", *m) == want, "configure differs from new");
+    }
     Ok(())
 }
 
@@ -136,9 +200,9 @@ fn main() -> anyhow::Result<()> {
             .ok_or_else(|| anyhow::anyhow!("work"))?;
         let stack: usize = args.get(3).map_or(Ok(0), |s| s.parse())?;
         return match n {
-            64 => child::<64>(work, stack),
-            256 => child::<256>(work, stack),
-            1024 => child::<1024>(work, stack),
+            64 => child::<64>(work, stack, &MACHINE_64),
+            256 => child::<256>(work, stack, &MACHINE_256),
+            1024 => child::<1024>(work, stack, &MACHINE_1024),
             _ => anyhow::bail!("N must be 64, 256 or 1024"),
         };
     }
@@ -154,31 +218,44 @@ fn main() -> anyhow::Result<()> {
          (seed 0, `ecdc simulate`'s configuration, 2 ms cycle above 512 slaves); the smallest \
          stack (bisection to 1 KiB, each size in a child process: an overflow aborts it) with \
          which a thread can\n\n\
-         - *construct*: `Box::new(Machine::<N>::new(cfg))` (the machine is returned by value, \
-         so it passes over the stack);\n\
+         - *construct in place*: `configure(cfg)` on a machine in a `static` initialised by \
+         `Machine::idle()` (a `const fn`, evaluated at compile time): the way to get a machine \
+         without an O(N) value on the stack;\n\
+         - *construct by value*: `Box::new(Machine::<N>::new(cfg))` (the machine is returned \
+         by value, so it passes over the stack);\n\
          - *operate*: replay a whole recorded bring-up to lock and the cyclic cycles up to it \
          (every `start`, `handle_frame`, `handle_timeout`, `poll_transmit`, `poll_event`, \
          `poll_timeout` call of an emulator run) on a machine that lives on the heap.\n\n\
-         The baseline is a thread that does nothing: {} bytes.\n",
+         Every thread first puts a {} KiB ballast on its stack (the platform gives no thread \
+         less than 16 KiB, which would hide small needs); the baseline is such a thread that \
+         then does nothing: {} bytes. The differences to it are what the work itself needs; the \
+         platform hands out thread stacks in whole pages (4 KiB here), so a need below about \
+         a page shows as 0 or 1024.\n",
         ecdc_benches::provenance::note(),
+        BALLAST / 1024,
         base
     )?;
     writeln!(
         md,
-        "| N | `size_of::<Machine<N>>()` | construct (bytes) | operate (bytes) | operate − baseline |"
+        "| N | `size_of::<Machine<N>>()` | construct in place (bytes) | construct by value \
+         (bytes) | operate (bytes) | construct in place − baseline | construct by value − \
+         baseline | operate − baseline |"
     )?;
-    writeln!(md, "|---:|---:|---:|---:|---:|")?;
+    writeln!(md, "|---:|---:|---:|---:|---:|---:|---:|---:|")?;
     for (n, size) in [
         (64usize, std::mem::size_of::<Machine<64>>()),
         (256, std::mem::size_of::<Machine<256>>()),
         (1024, std::mem::size_of::<Machine<1024>>()),
     ] {
+        let configure = smallest(n, Work::Configure)?;
         let new = smallest(n, Work::New)?;
         let run = smallest(n, Work::Run)?;
-        eprintln!("{n}: construct {new}, operate {run}");
+        eprintln!("{n}: construct in place {configure}, by value {new}, operate {run}");
         writeln!(
             md,
-            "| {n} | {size} | {new} | {run} | {} |",
+            "| {n} | {size} | {configure} | {new} | {run} | {} | {} | {} |",
+            configure.saturating_sub(base),
+            new.saturating_sub(base),
             run.saturating_sub(base)
         )?;
     }

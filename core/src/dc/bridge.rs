@@ -4,29 +4,34 @@
 //! it. Nothing here touches the wire.
 
 use crate::dc::config::SyncConfig;
-use crate::dc::delay::{self, DelayError, Delays};
+use crate::dc::delay::{self, DelayError};
 use crate::dc::error::Error;
 use crate::dc::machine::Machine;
 use crate::dc::offset::{self, ClockWidth};
 use crate::dc::port::{Port, PortSet};
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::sync;
-use crate::dc::topology::{Latches, Node, SlaveSample, Topology, TopologyError};
+use crate::dc::topology::{Latches, Node, SlaveSample, TopologyError};
 use crate::num::low32;
 use crate::time::{PortTime, SystemTime};
 use crate::wire::register::reg;
 
 impl<const N: usize> Machine<N> {
-    /// REQ-DC-101, REQ-DC-012..018: the topology and exact delays of the latest latch round.
+    /// REQ-DC-101, REQ-DC-012..018: the topology (`scratch.topo`) and exact delays
+    /// (`scratch.round`) of the latest latch round, built in the machine's working tables.
     ///
     /// Stale-latch detection: a port that DL status calls open but whose receive time did not
     /// change across the trigger was not passed by the frame (bypassed, e.g. a redundancy
     /// link); it is treated as closed. A latching slave with no changed port at all was not
     /// reached, and the round is rejected.
-    fn latch_round_delays(&self) -> Result<(Topology<N>, Delays<N>), Error> {
+    fn latch_round_delays(&mut self) -> Result<(), Error> {
         let count = usize::from(self.count);
-        let mut samples = [SlaveSample::default(); N];
-        for (s, out) in self.slaves.iter().zip(samples.iter_mut()).take(count) {
+        for (s, out) in self
+            .slaves
+            .iter()
+            .zip(self.scratch.samples.iter_mut())
+            .take(count)
+        {
             let open = PortSet::from_dl_status(s.dl_status);
             let mut ports = open;
             let latches = if s.dc.has_latches() {
@@ -53,35 +58,43 @@ impl<const N: usize> Machine<N> {
                 t_diff: s.t_diff_ns, // REQ-DC-015, REQ-DC-126
             };
         }
-        let samples = samples.get(..count).unwrap_or(&[]);
-        let topo = Topology::<N>::build(samples).map_err(|e| self.topology_error(e))?;
-        let delays = delay::compute(samples, &topo, usize::from(self.reference))
-            .map_err(|e| self.delay_error(e))?;
-        Ok((topo, delays))
+        let sc = &mut self.scratch;
+        let samples = sc.samples.get(..count).unwrap_or(&[]);
+        let built = sc.topo.build_in_place(samples, &mut sc.stack);
+        built.map_err(|e| self.topology_error(e))?;
+        let sc = &mut self.scratch;
+        let samples = sc.samples.get(..count).unwrap_or(&[]);
+        let reference = usize::from(self.reference);
+        let computed =
+            delay::compute_in_place(samples, &sc.topo, reference, &mut sc.delay, &mut sc.round);
+        computed.map_err(|e| self.delay_error(e))
     }
 
     /// REQ-DC-101, REQ-DC-019: adds the latest latch round of the bring-up measurement to the
     /// exact sum of its rounds (`self.delays`, restarted at round 0) with
-    /// [`Delays::accumulate`], so the mean over the K rounds is rounded once, not once per
-    /// round. Returns this round's topology (its entry ports are needed for the offsets).
-    pub(crate) fn add_latch_round(&mut self) -> Result<Topology<N>, Error> {
-        let (topo, round) = self.latch_round_delays()?;
-        let sum = match self.delays.take() {
-            Some(mut sum) if self.latch_round > 0 => {
-                sum.accumulate(&round).map_err(|e| self.delay_error(e))?;
-                sum
+    /// [`Delays::accumulate`](delay::Delays::accumulate), so the mean over the K rounds is
+    /// rounded once, not once per round. This round's topology stays in `scratch.topo` (its
+    /// entry ports are needed for the offsets). A failed sum is dropped, so the next round
+    /// starts a new one.
+    pub(crate) fn add_latch_round(&mut self) -> Result<(), Error> {
+        self.latch_round_delays()?;
+        if self.latch_round > 0 && self.delays.has_rounds() {
+            if let Err(e) = self.delays.accumulate(&self.scratch.round) {
+                self.delays.clear();
+                return Err(self.delay_error(e));
             }
-            _ => round,
-        };
-        self.delays = Some(sum);
-        Ok(topo)
+        } else {
+            self.delays.copy_from(&self.scratch.round);
+        }
+        Ok(())
     }
 
     /// REQ-DC-107: one latch round (a re-measurement during cyclic operation) into every
     /// slave's `delay_sum`: its 0x0928 value, rounded once. Bring-up rounds are averaged
     /// exactly by [`Self::add_latch_round`] instead.
     pub(crate) fn accumulate_round(&mut self) -> Result<(), Error> {
-        let (_, delays) = self.latch_round_delays()?;
+        self.latch_round_delays()?;
+        let delays = &self.scratch.round;
         for (i, s) in self
             .slaves
             .iter_mut()
@@ -136,13 +149,14 @@ impl<const N: usize> Machine<N> {
 
     /// REQ-DC-102, REQ-DC-021..023: the offset of every slave with a system time, with its
     /// propagation delay (`delay_ns`, the 0x0928 value) folded in, from the latches of the last
-    /// round and its topology `topo`. The frame entered slave `s` at local time
+    /// round and its topology (`scratch.topo`). The frame entered slave `s` at local time
     /// [`offset::entry_local_time`] — 0x0918 moved back to the entry port's stamp, which is not
     /// 0x0918 itself when the slave is entered through port 1, 2 or 3 — and the offset is
     /// [`offset::initial_offset`] of the slave's clock width.
     ///
     /// REQ-DC-112: no offset is derived from an implausible EPU time ([`epu_plausible`]).
-    pub(crate) fn compute_offsets(&mut self, topo: &Topology<N>) -> Result<(), Error> {
+    pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
+        let topo = &self.scratch.topo;
         let master = SystemTime(self.latch_time);
         let count = usize::from(self.count);
         for (i, s) in self.slaves.iter_mut().enumerate().take(count) {
@@ -422,7 +436,7 @@ mod tests {
             assert_eq!(finish_round(&mut m), Ok(next));
         }
         assert_eq!(m.slaves[1].delay_ns, 604);
-        assert_eq!(m.delays, None, "the sum is consumed");
+        assert!(!m.delays.has_rounds(), "the sum is consumed");
     }
 
     /// REQ-DC-050, REQ-DC-105: a start that would lie 2^31 ns or more ahead of the reference's

@@ -75,18 +75,23 @@ pub struct DriftConfig {
     pub check_pause_ns: u64,
 }
 
+impl DriftConfig {
+    /// The defaults (`Default::default()`), usable in a `const` context.
+    pub const DEFAULT: DriftConfig = DriftConfig {
+        burst_frames: 20,
+        threshold_ns: 100,
+        scatter_ns: 200,
+        spike_ns: 400,
+        consecutive: 20,
+        max_frames: 30_000,
+        check: DriftCheck::Both,
+        check_pause_ns: 1_000_000,
+    };
+}
+
 impl Default for DriftConfig {
     fn default() -> Self {
-        DriftConfig {
-            burst_frames: 20,
-            threshold_ns: 100,
-            scatter_ns: 200,
-            spike_ns: 400,
-            consecutive: 20,
-            max_frames: 30_000,
-            check: DriftCheck::Both,
-            check_pause_ns: 1_000_000,
-        }
+        DriftConfig::DEFAULT
     }
 }
 
@@ -107,15 +112,20 @@ pub struct SyncConfig {
     pub start_delay_ns: u64,
 }
 
+impl SyncConfig {
+    /// The defaults (`Default::default()`), usable in a `const` context.
+    pub const DEFAULT: SyncConfig = SyncConfig {
+        assign_activate: 0x0300,
+        sync0_cycle_ns: 1_000_000,
+        sync1_cycle_ns: 0,
+        shift_ns: 0,
+        start_delay_ns: 100_000_000,
+    };
+}
+
 impl Default for SyncConfig {
     fn default() -> Self {
-        SyncConfig {
-            assign_activate: 0x0300,
-            sync0_cycle_ns: 1_000_000,
-            sync1_cycle_ns: 0,
-            shift_ns: 0,
-            start_delay_ns: 100_000_000,
-        }
+        SyncConfig::DEFAULT
     }
 }
 
@@ -149,19 +159,24 @@ pub struct MonitorConfig {
     pub max_wkc_errors: u16,
 }
 
+impl MonitorConfig {
+    /// The defaults (`Default::default()`), usable in a `const` context.
+    pub const DEFAULT: MonitorConfig = MonitorConfig {
+        cycle_ns: 1_000_000,
+        slaves_per_cycle: 8,
+        lock_ns: 200,
+        unlock_ns: 1_000,
+        lock_cycles: 10,
+        unlock_cycles: 3,
+        lock_timeout_cycles: 5_000,
+        max_lost_cycles: 5,
+        max_wkc_errors: 3,
+    };
+}
+
 impl Default for MonitorConfig {
     fn default() -> Self {
-        MonitorConfig {
-            cycle_ns: 1_000_000,
-            slaves_per_cycle: 8,
-            lock_ns: 200,
-            unlock_ns: 1_000,
-            lock_cycles: 10,
-            unlock_cycles: 3,
-            lock_timeout_cycles: 5_000,
-            max_lost_cycles: 5,
-            max_wkc_errors: 3,
-        }
+        MonitorConfig::DEFAULT
     }
 }
 
@@ -252,31 +267,36 @@ pub struct Config {
     pub tdiff: TdiffConfig,
 }
 
+impl Config {
+    /// The defaults (`Default::default()`), usable in a `const` context.
+    pub const DEFAULT: Config = Config {
+        station_base: 0x1001,
+        stations: crate::dc::Stations::Assign,
+        index_first: 0x80,
+        index_count: 0x80,
+        response_timeout_ns: 10_000_000,
+        retries: 3,
+        latch_rounds: 4,
+        t_diff_ns: 0,
+        max_delay_ns: 1_000_000,
+        filter_depths: 0x0C00,
+        speed_counter_start: 0x0C00,
+        drift: DriftConfig::DEFAULT,
+        drift_command: DriftCommand::Frmw,
+        sync: Some(SyncConfig::DEFAULT),
+        monitor: MonitorConfig::DEFAULT,
+        auto_restart: true,
+        restart_delay_ns: 10_000_000,
+        restart_backoff_max_ns: 1_000_000_000,
+        holdover_ns: 1_000_000_000,
+        holdover_check_ns: 100_000,
+        tdiff: TdiffConfig::DEFAULT,
+    };
+}
+
 impl Default for Config {
     fn default() -> Self {
-        Config {
-            station_base: 0x1001,
-            stations: crate::dc::Stations::Assign,
-            index_first: 0x80,
-            index_count: 0x80,
-            response_timeout_ns: 10_000_000,
-            retries: 3,
-            latch_rounds: 4,
-            t_diff_ns: 0,
-            max_delay_ns: 1_000_000,
-            filter_depths: 0x0C00,
-            speed_counter_start: 0x0C00,
-            drift: DriftConfig::default(),
-            drift_command: DriftCommand::Frmw,
-            sync: Some(SyncConfig::default()),
-            monitor: MonitorConfig::default(),
-            auto_restart: true,
-            restart_delay_ns: 10_000_000,
-            restart_backoff_max_ns: 1_000_000_000,
-            holdover_ns: 1_000_000_000,
-            holdover_check_ns: 100_000,
-            tdiff: TdiffConfig::default(),
-        }
+        Config::DEFAULT
     }
 }
 
@@ -401,15 +421,20 @@ pub struct TdiffConfig {
     pub types: [Option<TdiffType>; 4],
 }
 
+impl TdiffConfig {
+    /// The defaults (`Default::default()`), usable in a `const` context.
+    pub const DEFAULT: TdiffConfig = TdiffConfig {
+        mode: TdiffMode::PerSlave,
+        rounds: 48,
+        base_rounds: 128,
+        min_ns: -10,
+        max_ns: 500,
+        types: [None; 4],
+    };
+}
+
 impl Default for TdiffConfig {
     fn default() -> Self {
-        TdiffConfig {
-            mode: TdiffMode::PerSlave,
-            rounds: 48,
-            base_rounds: 128,
-            min_ns: -10,
-            max_ns: 500,
-            types: [None; 4],
-        }
+        TdiffConfig::DEFAULT
     }
 }

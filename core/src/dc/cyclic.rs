@@ -72,6 +72,39 @@ pub(crate) struct CyclicState {
     pub(crate) cycle_bound_ns: Option<u32>,
 }
 
+impl CyclicState {
+    /// Nothing cyclic yet (the `Default`), usable in a `const` context.
+    pub(crate) const IDLE: CyclicState = CyclicState {
+        next_due: 0,
+        cycles: 0,
+        rr: 0,
+        lost_streak: 0,
+        wkc_streak: 0,
+        topo_streak: 0,
+        locked: false,
+        good_streak: 0,
+        bad_streak: 0,
+        not_locked_reported: false,
+        bound_ns: None,
+        ref_time: None,
+        frmw_wkc: None,
+        bound_wkc: None,
+        topo_wkc: None,
+        lost_station: None,
+        sent_at: 0,
+        remeasure_requested: false,
+        remeasure: Remeasure::Idle,
+        rm_cursor: 0,
+        rm_sent_to: 0,
+        rm_error: None,
+        holdover: None,
+        last_good: 0,
+        al_status: None,
+        al_ok: None,
+        cycle_bound_ns: None,
+    };
+}
+
 impl<const N: usize> Machine<N> {
     pub(crate) fn cyclic_enter(&mut self) {
         self.cyc = CyclicState::default();

@@ -165,6 +165,38 @@ pub struct Delays<const N: usize> {
 }
 
 impl<const N: usize> Delays<N> {
+    /// No delays: no slave, no round (every [`ns`](Self::ns) is `None`). The initial value of
+    /// an output buffer for [`compute_in_place`].
+    pub const fn new() -> Self {
+        Delays {
+            sum: [None; N],
+            weight: 0,
+            len: 0,
+            reference: 0,
+        }
+    }
+
+    /// Makes `self` equal to `other` without a temporary of size `N` on the stack.
+    pub fn copy_from(&mut self, other: &Delays<N>) {
+        self.sum.copy_from_slice(&other.sum);
+        self.weight = other.weight;
+        self.len = other.len;
+        self.reference = other.reference;
+    }
+
+    /// Whether this holds at least one round (not [`Delays::new`] or cleared).
+    pub(crate) fn has_rounds(&self) -> bool {
+        self.weight != 0
+    }
+
+    /// Back to [`Delays::new`], in place.
+    pub(crate) fn clear(&mut self) {
+        self.sum.fill(None);
+        self.weight = 0;
+        self.len = 0;
+        self.reference = 0;
+    }
+
     /// Number of slaves covered (latched or not).
     pub fn len(&self) -> usize {
         usize::from(self.len)
@@ -235,6 +267,12 @@ impl<const N: usize> Delays<N> {
     }
 }
 
+impl<const N: usize> Default for Delays<N> {
+    fn default() -> Self {
+        Delays::new()
+    }
+}
+
 // implements: REQ-DC-061
 /// REQ-DC-014..018: computes every latched slave's propagation delay relative to `reference`
 /// (usually the first slave with a system time) from one latch round.
@@ -248,20 +286,70 @@ pub fn compute<const N: usize>(
     topology: &Topology<N>,
     reference: usize,
 ) -> Result<Delays<N>, DelayError> {
+    let mut scratch = DelayScratch::new();
+    let mut out = Delays::new();
+    compute_in_place(samples, topology, reference, &mut scratch, &mut out)?;
+    Ok(out)
+}
+
+/// The working space of [`compute_in_place`]: the walk's input and output for up to `N`
+/// slaves. Kept by the caller (e.g. inside a long-lived state machine) so that a delay
+/// computation puts nothing of size `N` on the thread's stack.
+#[derive(Clone)]
+pub struct DelayScratch<const N: usize> {
+    slaves: [WalkSlave<u64>; N],
+    walk: Walk<u64, N>,
+}
+
+impl<const N: usize> DelayScratch<N> {
+    /// Fresh working space (its contents never carry over between computations).
+    pub const fn new() -> Self {
+        DelayScratch {
+            slaves: [WalkSlave::non_dc(); N],
+            walk: Walk::new(),
+        }
+    }
+}
+
+impl<const N: usize> Default for DelayScratch<N> {
+    fn default() -> Self {
+        DelayScratch::new()
+    }
+}
+
+impl<const N: usize> core::fmt::Debug for DelayScratch<N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("DelayScratch")
+    }
+}
+
+/// [`compute`] into `out`, with `scratch` as working space: nothing of size `N` goes on the
+/// thread's stack. On `Ok`, `out` equals what `compute` returns; on `Err` its contents are
+/// unspecified (but valid).
+pub fn compute_in_place<const N: usize>(
+    samples: &[SlaveSample],
+    topology: &Topology<N>,
+    reference: usize,
+    scratch: &mut DelayScratch<N>,
+    out: &mut Delays<N>,
+) -> Result<(), DelayError> {
     if samples.len() != topology.len() {
         return Err(DelayError::Mismatch);
     }
     let len = u16::try_from(samples.len()).map_err(|_| DelayError::Mismatch)?;
     let ref16 = u16::try_from(reference).unwrap_or(u16::MAX);
-    let slaves: [WalkSlave<u64>; N] = core::array::from_fn(|i| {
-        samples
-            .get(i)
-            .map_or_else(WalkSlave::non_dc, WalkSlave::from_sample)
-    });
-    let walked = walk(
+    let DelayScratch {
+        slaves,
+        walk: walked,
+    } = scratch;
+    for (slot, sample) in slaves.iter_mut().zip(samples) {
+        *slot = WalkSlave::from_sample(sample);
+    }
+    walk_in_place(
         slaves.get(..samples.len()).ok_or(DelayError::Mismatch)?,
         topology,
         reference,
+        walked,
     )?;
     for (c, hop) in (0u16..).zip(walked.hops.iter()) {
         if let Some(hop) = hop {
@@ -271,8 +359,11 @@ pub fn compute<const N: usize>(
     if let Some(e) = walked.stopped {
         return Err(e);
     }
-    let mut sum: [Option<i64>; N] = [None; N];
-    for (i, (out, rel)) in (0u16..).zip(sum.iter_mut().zip(walked.twice.iter())) {
+    out.sum.fill(None);
+    out.weight = 2;
+    out.len = len;
+    out.reference = ref16;
+    for (i, (out, rel)) in (0u16..).zip(out.sum.iter_mut().zip(walked.twice.iter())) {
         if let Some((twice, overflow)) = rel {
             if *overflow {
                 return Err(DelayError::Overflow { slave: i });
@@ -280,12 +371,7 @@ pub fn compute<const N: usize>(
             *out = Some(twice.to_signed());
         }
     }
-    Ok(Delays {
-        sum,
-        weight: 2,
-        len,
-        reference: ref16,
-    })
+    Ok(())
 }
 
 /// One slave's input to [`walk`] over a word type `W` (at least 64 bits wide): the four 32-bit
@@ -311,7 +397,7 @@ impl WalkSlave<u64> {
         }
     }
 
-    fn non_dc() -> WalkSlave<u64> {
+    const fn non_dc() -> WalkSlave<u64> {
         WalkSlave {
             stamps: None,
             t_diff: 0,
@@ -346,6 +432,34 @@ pub struct Walk<W: Word, const N: usize> {
     pub stopped: Option<DelayError>,
 }
 
+impl<W: Word, const N: usize> Walk<W, N> {
+    /// An empty result (no slave, not stopped): the initial value of an output buffer for
+    /// [`walk_in_place`].
+    pub const fn new() -> Self {
+        Walk {
+            twice: [None; N],
+            hops: [None; N],
+            stopped: None,
+        }
+    }
+}
+
+impl<W: Word, const N: usize> Default for Walk<W, N> {
+    fn default() -> Self {
+        Walk::new()
+    }
+}
+
+impl<W: Word, const N: usize> Clone for Walk<W, N> {
+    fn clone(&self) -> Self {
+        Walk {
+            twice: self.twice,
+            hops: self.hops,
+            stopped: self.stopped,
+        }
+    }
+}
+
 /// REQ-DC-014..018: the delay walk over any [`Word`] of at least 64 bits: twice each latched
 /// slave's delay from the first latched slave (the root of the timed tree, delay 0), hop by hop
 /// through [`twice_delay_step`], then relative to `reference`. Which slaves, ports and `t_Diff`
@@ -357,6 +471,21 @@ pub fn walk<W: Word, const N: usize>(
     topology: &Topology<N>,
     reference: usize,
 ) -> Result<Walk<W, N>, DelayError> {
+    let mut out = Walk::new();
+    walk_in_place(slaves, topology, reference, &mut out)?;
+    Ok(out)
+}
+
+/// [`walk`] into `out` (whatever it held before): nothing of size `N` goes on the thread's
+/// stack. On `Ok`, `out` equals what `walk` returns; on `Err` its contents are unspecified.
+/// While the walk runs, `out.twice` holds each latched slave's doubled delay from the root
+/// (the hops read their ancestors' there); it becomes relative to `reference` at the end.
+pub fn walk_in_place<W: Word, const N: usize>(
+    slaves: &[WalkSlave<W>],
+    topology: &Topology<N>,
+    reference: usize,
+    out: &mut Walk<W, N>,
+) -> Result<(), DelayError> {
     if slaves.len() != topology.len() {
         return Err(DelayError::Mismatch);
     }
@@ -366,19 +495,18 @@ pub fn walk<W: Word, const N: usize>(
     if slaves.get(reference).ok_or(bad_ref)?.stamps.is_none() {
         return Err(bad_ref);
     }
-    let mut out = Walk {
-        twice: [None; N],
-        hops: [None; N],
-        stopped: None,
-    };
-    let mut abs2: [Option<W>; N] = [None; N];
+    out.twice.fill(None);
+    out.hops.fill(None);
+    out.stopped = None;
+    let zero = W::lit(0);
+    let no = zero.ult(zero);
     let mut root_seen = false;
     for (i, slave) in (0u16..).zip(slaves) {
         if slave.stamps.is_none() {
             continue;
         }
         let value = if root_seen {
-            match hop(slaves, topology, &abs2, i) {
+            match hop(slaves, topology, &out.twice, i) {
                 Ok(checks) => {
                     let hop_slot = out.hops.get_mut(usize::from(i));
                     let hop_slot = hop_slot.ok_or(DelayError::Mismatch)?;
@@ -386,25 +514,30 @@ pub fn walk<W: Word, const N: usize>(
                     checks.step.abs2
                 }
                 Err(e) => {
+                    out.twice.fill(None);
                     out.stopped = Some(e);
-                    return Ok(out);
+                    return Ok(());
                 }
             }
         } else {
             root_seen = true;
             W::lit(0)
         };
-        let slot = abs2.get_mut(usize::from(i)).ok_or(DelayError::Mismatch)?;
-        *slot = Some(value);
+        let slot = out
+            .twice
+            .get_mut(usize::from(i))
+            .ok_or(DelayError::Mismatch)?;
+        *slot = Some((value, no));
     }
-    let Some(base) = abs2.get(reference).copied().flatten() else {
+    let Some((base, _)) = out.twice.get(reference).copied().flatten() else {
+        out.twice.fill(None);
         out.stopped = Some(bad_ref);
-        return Ok(out);
+        return Ok(());
     };
-    for (rel, a) in out.twice.iter_mut().zip(abs2.iter()) {
-        *rel = a.map(|a| overflowing_sub(a, base));
+    for rel in out.twice.iter_mut() {
+        *rel = rel.map(|(a, _)| overflowing_sub(a, base));
     }
-    Ok(out)
+    Ok(())
 }
 
 /// The hop of latched slave `c` from its nearest latched ancestor, given the doubled delays of
@@ -412,7 +545,7 @@ pub fn walk<W: Word, const N: usize>(
 fn hop<W: Word, const N: usize>(
     slaves: &[WalkSlave<W>],
     topology: &Topology<N>,
-    abs2: &[Option<W>; N],
+    abs2: &[Option<(W, W::Bool)>; N],
     c: u16,
 ) -> Result<HopChecks<W>, DelayError> {
     let zero = W::lit(0);
@@ -463,7 +596,7 @@ fn hop<W: Word, const N: usize>(
     let node_a = topology.node(usize::from(a)).ok_or(DelayError::Mismatch)?;
     let lat_a = stamps_of(slaves, a)?;
     let diff_a = t_diff_of(slaves, a)?;
-    let abs_a = abs2
+    let (abs_a, _) = abs2
         .get(usize::from(a))
         .copied()
         .flatten()

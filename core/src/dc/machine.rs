@@ -7,6 +7,7 @@ use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
 use crate::dc::monitor::MonitorList;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
+use crate::dc::scratch::Scratch;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::tdiff::Tdiff;
@@ -41,6 +42,24 @@ pub struct Stats {
     pub events_dropped: u64,
     /// Frames from the last `start`/re-initialisation to the last `Locked` event.
     pub lock_frames: Option<u64>,
+}
+
+impl Stats {
+    /// All zero (the `Default`), usable in a `const` context.
+    pub const ZERO: Stats = Stats {
+        frames_sent: 0,
+        frames_received: 0,
+        foreign_frames: 0,
+        foreign_datagrams: 0,
+        timeouts: 0,
+        retries: 0,
+        restarts: 0,
+        holdovers: 0,
+        cycles: 0,
+        lost_cycles: 0,
+        events_dropped: 0,
+        lock_frames: None,
+    };
 }
 
 /// One item of a request step.
@@ -94,8 +113,9 @@ pub struct Machine<const N: usize> {
     pub(crate) last_sent: u64,
     pub(crate) frames_at_start: u64,
     pub(crate) latch_round: u8,
-    /// Exact sum of the bring-up's latch rounds so far (REQ-DC-019); taken when they are done.
-    pub(crate) delays: Option<Delays<N>>,
+    /// Exact sum of the bring-up's latch rounds so far (REQ-DC-019); cleared (no rounds) when
+    /// they are done.
+    pub(crate) delays: Delays<N>,
     /// Per-slave `t_Diff` overrides by auto-increment position (REQ-DC-015); `None` uses
     /// `Config::t_diff_ns`.
     pub(crate) t_diff: [Option<i32>; N],
@@ -117,16 +137,135 @@ pub struct Machine<const N: usize> {
     pub(crate) tdiff: Tdiff<N>,
     /// Re-initialisations since the last lock (or `start`): the backoff's exponent.
     pub(crate) restart_streak: u8,
+    /// Working tables of the computations (`dc/scratch.rs`).
+    pub(crate) scratch: Scratch<N>,
 }
 
 impl<const N: usize> Machine<N> {
     /// A machine in `Idle`. Fails if the configuration is inconsistent.
+    ///
+    /// The machine is returned by value, so it passes over the caller's stack (about
+    /// `size_of::<Machine<N>>()`, 460 bytes per slave). Where that does not fit (e.g.
+    /// thousands of slaves on a small thread stack), put a [`Machine::idle`] in a `static`
+    /// and [`configure`](Self::configure) it in place.
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate(N)?;
-        Ok(Machine {
+        Ok(Self::blank(cfg))
+    }
+
+    /// A machine in `Idle` with [`Config::DEFAULT`], built at compile time: the initial value
+    /// of a `static` (or of any place that is never on the stack), to be given its
+    /// configuration in place with [`configure`](Self::configure). No method ever puts a value
+    /// of size `N` on the stack, so a machine obtained this way runs on a stack independent of
+    /// `N`. Compiling it fails if `N` is too large for the default station addresses
+    /// (`N` > 0xEFFF).
+    ///
+    /// ```
+    /// use std::sync::Mutex;
+    /// use ecdc_core::dc::{Config, Machine, State};
+    ///
+    /// // 1024 slaves: about 460 KiB, in the program's data, not on a stack.
+    /// static MACHINE: Mutex<Machine<1024>> = Mutex::new(Machine::idle());
+    ///
+    /// let cfg = Config {
+    ///     latch_rounds: 8,
+    ///     ..Config::DEFAULT
+    /// };
+    /// let mut m = MACHINE.lock().unwrap();
+    /// m.configure(cfg).unwrap();
+    /// assert_eq!(m.config().latch_rounds, 8);
+    /// assert_eq!(m.state(), State::Idle);
+    /// ```
+    pub const fn idle() -> Self {
+        const { assert!(N <= 0x1_0000 - 0x1001, "N too large for Config::DEFAULT") };
+        Self::blank(Config::DEFAULT)
+    }
+
+    /// Validates `cfg` and makes this machine what [`Machine::new(cfg)`](Self::new) returns,
+    /// in place (nothing of size `N` on the stack): in `Idle`, with no slaves, counters,
+    /// events, per-slave `t_Diff` overrides or kept `t_Diff` values. The one exception: a
+    /// slave whose ports an interrupted `t_Diff` measurement may have left closed is still
+    /// reopened first by the next [`start`](Self::start) (REQ-DC-124). On `Err` the machine is
+    /// unchanged.
+    pub fn configure(&mut self, cfg: Config) -> Result<(), ConfigError> {
+        cfg.validate(N)?;
+        // Every field is named, so that a new one cannot be forgotten here.
+        let Machine {
+            cfg: c,
+            state,
+            slaves,
+            count,
+            reference,
+            sys_count,
+            inflight,
+            busy,
+            cursor,
+            chunk_start,
+            tries,
+            step_error,
+            events,
+            stats,
+            next_index,
+            wake_at,
+            last_sent,
+            frames_at_start,
+            latch_round,
+            delays,
+            t_diff,
+            latch_time,
+            domain_shift,
+            drift_frames,
+            drift_ok,
+            drift_bound,
+            drift_bound_sum,
+            sync_start,
+            cyc,
+            monitor,
+            tdiff,
+            restart_streak,
+            scratch: _,
+        } = self;
+        *c = cfg;
+        *state = State::Idle;
+        slaves.fill(SlaveInfo::EMPTY);
+        *count = 0;
+        *reference = 0;
+        *sys_count = 0;
+        *inflight = Inflight::new();
+        *busy = false;
+        *cursor = 0;
+        *chunk_start = 0;
+        *tries = 0;
+        *step_error = None;
+        *events = EventQueue::new();
+        *stats = Stats::ZERO;
+        *next_index = cfg.index_first;
+        *wake_at = 0;
+        *last_sent = 0;
+        *frames_at_start = 0;
+        *latch_round = 0;
+        delays.clear();
+        t_diff.fill(None);
+        *latch_time = 0;
+        *domain_shift = 0;
+        *drift_frames = 0;
+        *drift_ok = 0;
+        *drift_bound = None;
+        *drift_bound_sum = 0;
+        *sync_start = 0;
+        *cyc = CyclicState::IDLE;
+        monitor.invalidate();
+        tdiff.forget();
+        *restart_streak = 0;
+        Ok(())
+    }
+
+    /// The machine of [`new`](Self::new) and [`idle`](Self::idle), for a validated `cfg`.
+    const fn blank(cfg: Config) -> Self {
+        Machine {
             cfg,
             state: State::Idle,
-            slaves: [SlaveInfo::default(); N],
+            slaves: [SlaveInfo::EMPTY; N],
             count: 0,
             reference: 0,
             sys_count: 0,
@@ -137,13 +276,13 @@ impl<const N: usize> Machine<N> {
             tries: 0,
             step_error: None,
             events: EventQueue::new(),
-            stats: Stats::default(),
+            stats: Stats::ZERO,
             next_index: cfg.index_first,
             wake_at: 0,
             last_sent: 0,
             frames_at_start: 0,
             latch_round: 0,
-            delays: None,
+            delays: Delays::new(),
             t_diff: [None; N],
             latch_time: 0,
             domain_shift: 0,
@@ -152,11 +291,12 @@ impl<const N: usize> Machine<N> {
             drift_bound: None,
             drift_bound_sum: 0,
             sync_start: 0,
-            cyc: CyclicState::default(),
+            cyc: CyclicState::IDLE,
             monitor: MonitorList::new(),
             tdiff: Tdiff::new(),
             restart_streak: 0,
-        })
+            scratch: Scratch::new(),
+        }
     }
 
     // ----- commands -------------------------------------------------------------------------

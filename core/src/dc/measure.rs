@@ -10,7 +10,6 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Pending};
 use crate::dc::state::State;
-use crate::dc::topology::Topology;
 use crate::wire::register::reg;
 
 /// Bytes of one full latch read: 0x0900..0x091F (4 port times, system time, EPU time).
@@ -97,12 +96,12 @@ impl<const N: usize> Machine<N> {
             State::LatchReadBefore => Ok(State::LatchTrigger),
             State::LatchTrigger => Ok(State::LatchReadAfter),
             State::LatchReadAfter => {
-                let topo = self.add_latch_round()?;
+                self.add_latch_round()?;
                 self.latch_round = self.latch_round.saturating_add(1);
                 if self.latch_round < self.cfg.latch_rounds {
                     return Ok(State::LatchReadBefore);
                 }
-                self.finish_delays(&topo)?;
+                self.finish_delays()?;
                 Ok(State::ReadAlStatus)
             }
             _ => Ok(self.state),
@@ -111,11 +110,25 @@ impl<const N: usize> Machine<N> {
 
     /// REQ-DC-019, REQ-DC-101: the 0x0928 values from the exact sum of the K rounds (one
     /// rounding), range-checked, then the offsets from the last round (REQ-DC-102).
-    fn finish_delays(&mut self, topo: &Topology<N>) -> Result<(), Error> {
-        let delays = self
-            .delays
-            .take()
-            .ok_or(Error::Measurement { station: 0 })?;
+    fn finish_delays(&mut self) -> Result<(), Error> {
+        // The sum is used once: dropped whatever the outcome.
+        let applied = self.apply_delays();
+        self.delays.clear();
+        let max_seen = applied?;
+        self.compute_offsets()?;
+        self.push_event(Event::DelaysMeasured {
+            max_delay_ns: max_seen,
+        });
+        Ok(())
+    }
+
+    /// The 0x0928 value of every slave with a system time from the sum of the rounds; the
+    /// largest one.
+    fn apply_delays(&mut self) -> Result<u32, Error> {
+        let delays = &self.delays;
+        if !delays.has_rounds() {
+            return Err(Error::Measurement { station: 0 });
+        }
         let max_delay = self.cfg.max_delay_ns;
         let mut max_seen = 0u32;
         let count = self.count;
@@ -136,11 +149,7 @@ impl<const N: usize> Machine<N> {
             s.delay_ns = d;
             max_seen = max_seen.max(d);
         }
-        self.compute_offsets(topo)?;
-        self.push_event(Event::DelaysMeasured {
-            max_delay_ns: max_seen,
-        });
-        Ok(())
+        Ok(max_seen)
     }
 }
 

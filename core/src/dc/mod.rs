@@ -28,6 +28,7 @@ mod measure;
 mod monitor;
 mod remeasure;
 mod request;
+mod scratch;
 pub mod slave;
 pub mod state;
 pub mod stations;

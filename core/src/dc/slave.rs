@@ -92,6 +92,32 @@ pub(crate) const AL_PREOP: u16 = 0x2;
 pub(crate) const AL_BOOT: u16 = 0x3;
 
 impl SlaveInfo {
+    /// A slave not found yet (the `Default`), usable in a `const` context.
+    pub const EMPTY: SlaveInfo = SlaveInfo {
+        station: 0,
+        features: 0,
+        dl_status: 0,
+        dc: DcKind::None,
+        al_status: None,
+        times_before: [0; 4],
+        times_after: [0; 4],
+        epu_time: 0,
+        delay_sum: 0,
+        delay_ns: 0,
+        delay_new: 0,
+        offset: 0,
+        offset_written: false,
+        entry_local: 0,
+        running_offset: None,
+        sync_programmed: false,
+        last_diff_ns: None,
+        diff_abs_sum: 0,
+        diff_sum: 0,
+        esc_type: 0,
+        t_diff_ns: 0,
+        t_diff_source: crate::dc::tdiff::TdiffSource::Default,
+    };
+
     /// REQ-DC-103: a slave may get a new 0x0920 (a step of its system time) only if its AL
     /// status was read in this bring-up and says INIT, PRE-OP or BOOT. SAFE-OP, OP, an error
     /// combination or an unread status all mean "possibly running": leave the offset alone.

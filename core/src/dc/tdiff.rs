@@ -41,7 +41,7 @@ use crate::dc::port::{Port, PortSet};
 use crate::dc::request::{le, Op, Pending};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
-use crate::dc::topology::{Latches, SlaveSample, Topology};
+use crate::dc::topology::{Latches, SlaveSample};
 use crate::time::PortTime;
 use crate::wire::register::reg;
 
@@ -218,13 +218,47 @@ impl<const N: usize> Tdiff<N> {
         }
     }
 
+    /// Back to [`Tdiff::new`] in place, except `pending`: a target whose ports may still be
+    /// closed is reopened by the next bring-up whatever the configuration (REQ-DC-124).
+    pub(crate) fn forget(&mut self) {
+        let Tdiff {
+            phase,
+            running,
+            plan,
+            dl_control,
+            cur,
+            prev,
+            base,
+            rtt,
+            first,
+            closed,
+            pending: _,
+            recovering,
+            kept,
+            kept_count,
+        } = self;
+        *phase = Phase::Pre;
+        *running = false;
+        plan.fill(Plan::Skip);
+        dl_control.fill(0);
+        cur.fill([0; 4]);
+        prev.fill([0; 4]);
+        base.fill(0);
+        rtt.fill(0);
+        first.fill((0, 0));
+        *closed = 0;
+        *recovering = false;
+        kept.fill(None);
+        *kept_count = 0;
+    }
+
     fn clear(&mut self) {
         self.phase = Phase::Pre;
         self.running = false;
-        self.plan = [Plan::Skip; N];
+        self.plan.fill(Plan::Skip);
         self.closed = 0;
-        self.base = [0; N];
-        self.rtt = [0; N];
+        self.base.fill(0);
+        self.rtt.fill(0);
     }
 
     fn plan_of(&self, i: u16) -> Plan {
@@ -268,15 +302,7 @@ impl<const N: usize> Machine<N> {
 
     /// The user's value for slave `i`, if any: a per-slave override, else a per-type entry.
     fn configured_t_diff(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
-        if let Some(v) = self.t_diff.get(usize::from(i)).copied().flatten() {
-            return Some(v);
-        }
-        self.tdiff_cfg()
-            .types
-            .iter()
-            .flatten()
-            .find(|t| t.esc_type == s.esc_type)
-            .map(|t| t.t_diff_ns)
+        configured(&self.t_diff, self.tdiff_cfg(), i, s)
     }
 
     /// Number of items of the current t_Diff step.
@@ -691,11 +717,10 @@ impl<const N: usize> Machine<N> {
     /// which upstream port pair.
     fn tdiff_plan(&mut self) -> Result<(), Error> {
         let count = usize::from(self.count);
-        let mut samples = [SlaveSample::default(); N];
         for ((s, out), (cur, prev)) in self
             .slaves
             .iter()
-            .zip(samples.iter_mut())
+            .zip(self.scratch.samples.iter_mut())
             .zip(self.tdiff.cur.iter().zip(self.tdiff.prev.iter()))
             .take(count)
         {
@@ -719,10 +744,15 @@ impl<const N: usize> Machine<N> {
                 t_diff: 0,
             };
         }
-        let samples = samples.get(..count).unwrap_or(&[]);
-        let topo = Topology::<N>::build(samples).map_err(|_| Error::Measurement { station: 0 })?;
+        let sc = &mut self.scratch;
+        let samples = sc.samples.get(..count).unwrap_or(&[]);
+        sc.topo
+            .build_in_place(samples, &mut sc.stack)
+            .map_err(|_| Error::Measurement { station: 0 })?;
+        let topo = &sc.topo;
         // Subtree ends: preorder, so the subtree of i is i..i+size(i).
-        let mut size = [1u16; N];
+        let size = &mut sc.subtree;
+        size.fill(1);
         for i in (0..count).rev() {
             let own = size.get(i).copied().unwrap_or(1);
             if let Some(parent) = topo.node(i).and_then(|n| n.parent) {
@@ -731,12 +761,16 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        let mode = self.tdiff_cfg().mode;
+        let mode = self.cfg.tdiff.mode;
         let mut types_done: [Option<u16>; 8] = [None; 8];
-        let mut plan = [Plan::Skip; N];
+        let (samples, topo, size) = (&sc.samples, &sc.topo, &sc.subtree);
+        let plan = &mut self.tdiff.plan;
+        plan.fill(Plan::Skip);
         for (b, slot) in (0u16..).zip(plan.iter_mut()).take(count) {
-            let Some(s) = self.slave(b) else { continue };
-            if !s.dc.has_latches() || self.configured_t_diff(b, s).is_some() {
+            let Some(s) = self.slaves.get(usize::from(b)) else {
+                continue;
+            };
+            if !s.dc.has_latches() || configured(&self.t_diff, &self.cfg.tdiff, b, s).is_some() {
                 continue;
             }
             let Some(node) = topo.node(usize::from(b)) else {
@@ -806,7 +840,6 @@ impl<const N: usize> Machine<N> {
                 end: b.saturating_add(own),
             };
         }
-        self.tdiff.plan = plan;
         Ok(())
     }
 
@@ -819,14 +852,14 @@ impl<const N: usize> Machine<N> {
         let mut same_type = 0u16;
         let mut configured = 0u16;
         let mut fallback = 0u16;
-        let mut resolved = [(0i32, TdiffSource::Default); N];
-        for (i, out) in (0u16..).zip(resolved.iter_mut()).take(count) {
+        self.scratch.resolved.fill((0, TdiffSource::Default));
+        for i in (0u16..).take(count) {
             let Some(s) = self.slave(i) else { continue };
             let r = match self.tdiff.plan_of(i) {
                 Plan::Done { mean } => mean,
                 _ => None,
             };
-            *out = if let Some(v) = self.configured_t_diff(i, s) {
+            let v = if let Some(v) = self.configured_t_diff(i, s) {
                 (v, TdiffSource::Configured)
             } else if let Some(v) = r.filter(|v| (cfg.min_ns..=cfg.max_ns).contains(v)) {
                 (v, TdiffSource::Measured)
@@ -842,7 +875,11 @@ impl<const N: usize> Machine<N> {
             } else {
                 (default, TdiffSource::Default)
             };
+            if let Some(out) = self.scratch.resolved.get_mut(usize::from(i)) {
+                *out = v;
+            }
         }
+        let resolved = &mut self.scratch.resolved;
         // Slaves without their own value (including non-DC slaves, whose t_Diff enters the
         // delays of the DC slaves behind them, and slaves a running network kept from being
         // measured) take one measured on the same ESC type + revision.
@@ -873,7 +910,7 @@ impl<const N: usize> Machine<N> {
             .any(|(_, src)| *src == TdiffSource::Measured)
         {
             // A new measurement replaces what was kept (the slave count may have changed).
-            self.tdiff.kept = [None; N];
+            self.tdiff.kept.fill(None);
             self.tdiff.kept_count = self.count;
             for ((slot, s), (v, src)) in self
                 .tdiff
@@ -949,6 +986,19 @@ impl<const N: usize> Machine<N> {
         self.tdiff.pending = None;
         Ok(())
     }
+}
+
+/// The user's value for slave `i`, if any: its override in `t_diff`, else a per-type entry
+/// of `cfg`.
+fn configured(t_diff: &[Option<i32>], cfg: &TdiffConfig, i: u16, s: &SlaveInfo) -> Option<i32> {
+    if let Some(v) = t_diff.get(usize::from(i)).copied().flatten() {
+        return Some(v);
+    }
+    cfg.types
+        .iter()
+        .flatten()
+        .find(|t| t.esc_type == s.esc_type)
+        .map(|t| t.t_diff_ns)
 }
 
 #[cfg(test)]

@@ -420,3 +420,54 @@ fn running_offsets_read_after_al_states_and_anchor_the_others() {
     assert_eq!(m.domain_shift, 5_000);
     assert_eq!(m.slaves[2].offset.wrapping_add(7_000), T0 + 5_000 + 300);
 }
+
+/// The `const` values behind `Machine::idle` are the `Default`s, and `idle` is `new` of the
+/// default configuration.
+#[test]
+fn const_defaults_match_default() {
+    use crate::dc::config::{DriftConfig, MonitorConfig, SyncConfig, TdiffConfig};
+    use crate::dc::cyclic::CyclicState;
+    use crate::dc::machine::Stats;
+    use crate::dc::slave::SlaveInfo;
+    assert_eq!(Config::DEFAULT, Config::default());
+    assert_eq!(DriftConfig::DEFAULT, DriftConfig::default());
+    assert_eq!(SyncConfig::DEFAULT, SyncConfig::default());
+    assert_eq!(MonitorConfig::DEFAULT, MonitorConfig::default());
+    assert_eq!(TdiffConfig::DEFAULT, TdiffConfig::default());
+    assert_eq!(SlaveInfo::EMPTY, SlaveInfo::default());
+    assert_eq!(Stats::ZERO, Stats::default());
+    assert_eq!(CyclicState::IDLE, CyclicState::default());
+    assert_eq!(
+        std::format!("{:?}", Machine::<4>::idle()),
+        std::format!("{:?}", machine())
+    );
+}
+
+/// `configure` makes a used machine the one `new` returns (slaves found, counters, events,
+/// overrides all forgotten); a rejected configuration changes nothing.
+#[test]
+fn configure_in_place_is_new() {
+    let mut m = machine();
+    m.set_slave_t_diff(2, Some(40)).unwrap();
+    m.start(SystemTime(T0));
+    let mut buf = [0u8; 1514];
+    let n = m.poll_transmit(SystemTime(T0), &mut buf).unwrap();
+    m.handle_frame(SystemTime(T0), &reply(&buf[..n], 3));
+    assert_ne!(m.state(), State::Idle);
+    let bad = Config {
+        latch_rounds: 0,
+        ..Config::default()
+    };
+    let before = std::format!("{m:?}");
+    assert_eq!(m.configure(bad), Err(ConfigError::Zero));
+    assert_eq!(std::format!("{m:?}"), before);
+    let cfg = Config {
+        index_first: 0x10,
+        latch_rounds: 2,
+        ..Config::default()
+    };
+    m.configure(cfg).unwrap();
+    let fresh = Machine::<4>::new(cfg).unwrap();
+    assert_eq!(std::format!("{m:?}"), std::format!("{fresh:?}"));
+    assert_eq!(m.slave_t_diff(2), cfg.t_diff_ns);
+}

@@ -196,16 +196,37 @@ pub struct Topology<const N: usize> {
 impl<const N: usize> Topology<N> {
     /// Reconstructs the tree from per-slave samples in auto-increment order.
     pub fn build(samples: &[SlaveSample]) -> Result<Self, TopologyError> {
+        let mut topo = Topology::new();
+        let mut stack = [(0, Port::P0); N];
+        topo.build_in_place(samples, &mut stack)?;
+        Ok(topo)
+    }
+
+    /// An empty tree (no slaves), e.g. the initial value of a buffer for
+    /// [`build_in_place`](Self::build_in_place).
+    pub const fn new() -> Self {
+        Topology {
+            nodes: [Node::EMPTY; N],
+            len: 0,
+        }
+    }
+
+    /// [`build`](Self::build) into `self`, with `stack` as the depth-first walk's working
+    /// space: nothing of size `N` goes on the thread's stack. On `Err` the contents of `self`
+    /// are unspecified (but valid); on `Ok` it equals what `build` returns.
+    pub fn build_in_place(
+        &mut self,
+        samples: &[SlaveSample],
+        stack: &mut [(u16, Port); N],
+    ) -> Result<(), TopologyError> {
+        self.nodes.fill(Node::EMPTY);
+        self.len = 0;
         if samples.len() > N {
             return Err(TopologyError::Capacity);
         }
         let len = u16::try_from(samples.len()).map_err(|_| TopologyError::Capacity)?;
-        let mut topo = Topology {
-            nodes: [Node::EMPTY; N],
-            len,
-        };
-        // Replay of the depth-first walk: (slave, last port handed out).
-        let mut stack: [(u16, Port); N] = [(0, Port::P0); N];
+        // Replay of the depth-first walk: (slave, last port handed out). Only entries below
+        // `depth` are read, and each is written before.
         let mut depth = 0usize;
         for (i, sample) in (0u16..).zip(samples) {
             let entry = entry_port(sample).ok_or(TopologyError::NoOpenPort { slave: i })?;
@@ -216,9 +237,9 @@ impl<const N: usize> Topology<N> {
             let parent = if i == 0 {
                 None
             } else {
-                Some(attach(&mut topo.nodes, &mut stack, &mut depth, i)?)
+                Some(attach(&mut self.nodes, stack, &mut depth, i)?)
             };
-            let node = topo
+            let node = self
                 .nodes
                 .get_mut(usize::from(i))
                 .ok_or(TopologyError::Capacity)?;
@@ -232,10 +253,11 @@ impl<const N: usize> Topology<N> {
             *top = (i, entry);
             depth = depth.saturating_add(1);
         }
+        self.len = len;
         // Every open port must have been handed out.
         while let Some(d) = depth.checked_sub(1) {
             let (slave, cursor) = stack.get(d).copied().ok_or(TopologyError::Capacity)?;
-            let node = topo
+            let node = self
                 .node(usize::from(slave))
                 .ok_or(TopologyError::Capacity)?;
             if let Some(port) = next_downstream(node, cursor) {
@@ -243,7 +265,7 @@ impl<const N: usize> Topology<N> {
             }
             depth = d;
         }
-        Ok(topo)
+        Ok(())
     }
 
     /// Number of slaves.
@@ -264,6 +286,12 @@ impl<const N: usize> Topology<N> {
     /// All nodes in auto-increment order.
     pub fn nodes(&self) -> &[Node] {
         self.nodes.get(..self.len()).unwrap_or(&[])
+    }
+}
+
+impl<const N: usize> Default for Topology<N> {
+    fn default() -> Self {
+        Topology::new()
     }
 }
 
