@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """Summarise cargo-mutants runs (benches/results/mutants.md, issue #17 deliverable 4).
 
-usage: scripts/mutants-summary.py OUT_DIR... > table
+usage: scripts/mutants-summary.py [--tsv] SOURCE... > table
 
-Each OUT_DIR is a cargo-mutants `--output` directory (the one holding mutants.out/).
+Each SOURCE is a cargo-mutants `--output` directory (the one holding mutants.out/) or a TSV
+written by `--tsv` (earlier results). A mutant named in several sources takes its outcome from
+the last one, so `mutants.tsv NEW_DIR` updates the committed results with a re-run.
 Prints, as Markdown: per file caught / missed / timeout / unviable and the score
 caught / (caught + missed + timeout); per area (dc/, wire/, servo/, num+time) the same; then
 every missed or timed-out mutant. `--tsv` prints one row per mutant instead (file, line,
@@ -25,18 +27,23 @@ def area(path):
     return "num+time"
 
 
-def load(dirs):
-    rows = []
-    for d in dirs:
-        data = json.loads((Path(d) / "mutants.out" / "outcomes.json").read_text())
+def load(sources):
+    by_name = {}
+    for src in sources:
+        if src.endswith(".tsv"):
+            for line in Path(src).read_text().splitlines()[1:]:
+                f, ln, k, name = line.split("\t")
+                by_name[name] = (f, int(ln), k, name)
+            continue
+        data = json.loads((Path(src) / "mutants.out" / "outcomes.json").read_text())
         for o in data["outcomes"]:
             m = o["scenario"]
             if not isinstance(m, dict) or "Mutant" not in m:
                 continue  # the baseline
             m = m["Mutant"]
-            rows.append((m["file"], m["span"]["start"]["line"], KINDS.get(o["summary"], o["summary"]),
-                         m["name"]))
-    return sorted(set(rows))
+            by_name[m["name"]] = (m["file"], m["span"]["start"]["line"],
+                                  KINDS.get(o["summary"], o["summary"]), m["name"])
+    return sorted(by_name.values())
 
 
 def score(c):
