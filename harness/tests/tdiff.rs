@@ -9,8 +9,8 @@ mod dc_support;
 
 use std::path::Path;
 
-use dc_support::{fault_in_10ms, sim, to_op};
-use ecdc_core::dc::{Config, Event, TdiffFallback, TdiffMode, TdiffSource};
+use dc_support::{fault_in_10ms, side_write, sim, to_op};
+use ecdc_core::dc::{Config, Error, Event, TdiffFallback, TdiffMode, TdiffSource};
 use ecdc_harness::emu::Scenario;
 
 /// Target of the measurement, ns.
@@ -324,6 +324,67 @@ fn restart_while_closed_restores_the_port_first() {
         .events()
         .iter()
         .any(|(_, e)| matches!(e, Event::SlavesFound { count: 5, .. })));
+}
+
+/// REQ-DC-124 after a topology change: the restore of a port left closed is addressed by the
+/// target's station address, which another slave may hold too by then (a bring-up after a link
+/// break addresses only the slaves it reaches; the ones behind the break keep their old
+/// addresses and come back with them). Found by `ecdc soak --topology tree100 --stay-init`:
+/// treating the working counter 2 as a fault repeated the same restore before every count, so
+/// the bring-up never reached the address step that ends the duplicate.
+// verifies: REQ-DC-124
+#[test]
+fn restore_answered_by_two_slaves_ends_the_recovery() {
+    let station = |s: &ecdc_harness::sim::Sim<8>, i: usize| {
+        let b = s.net.peek(i, 0x0010, 2).unwrap();
+        u16::from_le_bytes([b[0], b[1]])
+    };
+    let sc = Scenario::line(5);
+    let mut s = sim::<8>(&sc, nothing_told());
+    let mut closed_at = None;
+    for _ in 0..200_000 {
+        s.step().unwrap();
+        if let Some(i) = (0..5).find(|i| dl_control(&s, *i) != 0x0001) {
+            closed_at = Some(i);
+            break;
+        }
+    }
+    let target = closed_at.expect("a port was closed");
+    for _ in 0..4 {
+        s.step().unwrap();
+    }
+    assert_ne!(
+        dl_control(&s, target),
+        0x0001,
+        "slave {target} still closed"
+    );
+    // The first slave (upstream of the target, so reachable) takes the target's address, as a
+    // slave re-addressed by a bring-up that did not reach the target would.
+    assert_ne!(target, 0, "the first slave is never a target");
+    let (first, shared) = (station(&s, 0), station(&s, target));
+    assert_eq!(side_write(&mut s, first, 0x0010, &shared.to_le_bytes()), 1);
+
+    let now = s.master_time_at(s.now());
+    s.machine.start(now);
+    s.drive_until(10_000_000_000, |e| {
+        matches!(e, Event::DelaysMeasured { .. })
+    })
+    .expect("the bring-up passes the restore and measures the delays");
+    assert_eq!(s.machine.slaves().len(), 5, "every slave counted");
+    let stations: Vec<u16> = (0..5).map(|k| station(&s, k)).collect();
+    for k in 0..5 {
+        assert_eq!(dl_control(&s, k), 0x0001, "DL control of slave {k}");
+        assert!(
+            !stations[..k].contains(&stations[k]),
+            "unique again: {stations:?}"
+        );
+    }
+    assert!(
+        !s.events()
+            .iter()
+            .any(|(_, e)| matches!(e, Event::Error(Error::Wkc { .. }))),
+        "the duplicate restore is no working-counter fault"
+    );
 }
 
 /// REQ-DC-121: one frame per latch round. On seed 000's 6-slave line (every read step fits one

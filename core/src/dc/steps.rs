@@ -134,7 +134,10 @@ impl<const N: usize> Machine<N> {
     ) -> Result<(), Error> {
         if self.state == State::CountSlaves && self.tdiff.recovering {
             return match i {
-                0 => self.tdiff_recover_reply(p, wkc),
+                0 => {
+                    self.tdiff_recover_reply();
+                    Ok(())
+                }
                 _ => self.discovery_reply(0, p, wkc, data),
             };
         }

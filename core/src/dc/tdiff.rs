@@ -977,14 +977,18 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// Its reply: WKC 1 (restored) or 0 (the slave is gone or was power-cycled, which also
-    /// resets DL control) ends the recovery.
-    pub(crate) fn tdiff_recover_reply(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
-        if wkc > 1 {
-            return self.expect_wkc(p, 1, wkc);
-        }
+    /// Its reply ends the recovery whatever its working counter (REQ-DC-124):
+    /// - 1: restored;
+    /// - 0: the slave is gone or was power-cycled (which also resets DL control);
+    /// - 2 or more: the target kept its address while a topology change re-assigned that
+    ///   address to another slave (the bring-up after a link break addresses only the slaves
+    ///   it reaches; the ones behind the break keep their old addresses and come back with
+    ///   them). The write has already been executed by every slave with that address, the
+    ///   target among them, so its ports are open again. Sending it again would not change
+    ///   that and, if treated as a fault, would repeat before every count: the bring-up could
+    ///   never reach the address step that ends the duplicate.
+    pub(crate) fn tdiff_recover_reply(&mut self) {
         self.tdiff.pending = None;
-        Ok(())
     }
 }
 
