@@ -313,10 +313,12 @@ pub fn entry_port(sample: &SlaveSample) -> Option<Port> {
 }
 
 /// Latched times must be non-decreasing along the processing order from the entry port (each
-/// later port sees the frame come back later); all differences are taken by wrapping.
+/// later port sees the frame come back later); all differences are taken by wrapping. The walk
+/// round the ports is bounded by their number: an entry port that is not among `ports` never
+/// comes round again and fails the check instead of looping.
 fn check_latch_order(ports: PortSet, entry: Port, latches: &Latches) -> Option<()> {
     let mut prev = entry;
-    loop {
+    for _ in 0..Port::PROCESSING_ORDER.len() {
         let next = ports.next_after(prev)?;
         if next == entry {
             return Some(());
@@ -328,6 +330,7 @@ fn check_latch_order(ports: PortSet, entry: Port, latches: &Latches) -> Option<(
         }
         prev = next;
     }
+    None
 }
 
 /// The open port after `cursor` (exclusive) and before the entry port, in processing order.
@@ -378,6 +381,25 @@ mod tests {
             latches: times.map(|t| Latches::from_raw(t, u64::from(t[0]))),
             t_diff: 0,
         }
+    }
+
+    #[test]
+    fn latch_order_walk_is_bounded() {
+        use Port::*;
+        let l = Latches::from_raw([0, 100, 200, 50], 0);
+        let open = PortSet::EMPTY.with(P0).with(P3).with(P1).with(P2);
+        assert_eq!(check_latch_order(open, P0, &l), Some(()));
+        assert_eq!(check_latch_order(open, P1, &l), None);
+        // An entry port that is not open never comes round again: the check fails, it does
+        // not loop.
+        // (Equal times never fail the order test, so only the bound ends the walk.)
+        let same = Latches::from_raw([7; 4], 7);
+        let without_entry = PortSet::EMPTY.with(P1).with(P2);
+        assert_eq!(check_latch_order(without_entry, P0, &same), None);
+        assert_eq!(
+            check_latch_order(without_entry.with(P0), P0, &same),
+            Some(())
+        );
     }
 
     #[test]
