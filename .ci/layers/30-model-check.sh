@@ -2,7 +2,8 @@
 # `model-check` profile (release optimisation, debug assertions and overflow checks on, so a
 # panic path only debug builds have is part of the search):
 # proofs/tests/model_check_bfs.rs: explicit-state BFS with state hashing (proofs/src/model.rs)
-#   over (real no_std Machine, emulated line, wire, clock) from every fault-free bring-up state
+#   over (real no_std Machine, emulated line with 32/64-bit clocks, wire, master clock) from every
+#   fault-free bring-up state
 #   to depth 5-6 with 15+2k fault/input actions (AL races included), bounded liveness from
 #   every visited state;
 # proofs/tests/model_check.rs: every placement of <= 3 faults along the bring-up, and every

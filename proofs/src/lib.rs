@@ -7,6 +7,7 @@
 //! The SMT layer ([`smt`], feature `smt`) instantiates `ecdc_core::num` kernels with z3
 //! bit-vectors so the solver checks the shipped code.
 
+pub mod clocks;
 pub mod dc_math;
 #[cfg(not(kani))]
 pub mod kani_shim;

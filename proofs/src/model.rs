@@ -3,8 +3,9 @@
 //! (real no_std [`Machine`], emulated ring, frames on the wire, master time).
 //!
 //! A [`World`] is one global state: the machine under test, a bounded line of `k ≤ 4` ideal DC
-//! slaves (station addresses, truthful AL states, latch counter, 32-bit port-time base: the
-//! `Model` of [`crate::machine`]), the replies of the last two transmitted frames (each already
+//! slaves (station addresses, truthful AL states, latch counter: the `Model` of
+//! [`crate::machine`]) whose DC registers come from [`crate::clocks`] (a free-running local
+//! clock per slave, 32- or 64-bit system time, the offset written), the replies of the last two transmitted frames (each already
 //! processed by the ring, waiting on the wire) and the master clock. [`Action`]s are the
 //! machine's inputs and the faults: transmit (alone or after a foreign datagram in the caller's
 //! frame), deliver the newest or the older reply (reordering; a second delivery is a duplicate),
@@ -29,16 +30,24 @@
 //! 4. the machine stops awaiting a reply once the master clock passed transmission time +
 //!    `response_timeout_ns` and it was told the time;
 //!
+//! 5. lock is reported only on a reply produced while every slave's system time was within
+//!    the lock threshold of the reference's (judged on the clocks, not on what the machine read);
+//!
 //! and on every state (liveness, bounded): the fault-free continuation (transmit, deliver,
 //! advance to the deadline) reaches `Cyclic` within [`LIVENESS_STEPS`] steps, or the state is
-//! `Idle` (only a `reset` leads there). Typed errors on the way are allowed (they restart).
+//! `Idle` (only a `reset` leads there), or the continuation splits the running slaves between
+//! two domains ([`World::split_domains`], exempt and counted). Typed errors on the way are
+//! allowed (they restart). With the clocks, reaching `Cyclic` needs offsets that pass the drift
+//! gate on the modelled 0x092C: a wrong offset shows as lost liveness.
 //!
-//! Limits: the ring has no clocks (offset *values* are checked elsewhere: P3/P4 and the harness
-//! end-to-end tests), AL states change only by a slave reset, and the depth bound is per seed.
+//! Limits: the clocks are ideal (no drift, so no time-control loop: the servo and the loop are
+//! checked elsewhere, P5 and the harness end-to-end tests), AL states change only by a slave
+//! reset or another master starting a slave, and the depth bound is per seed.
 //! The seeds are the states of the fault-free bring-up, so every phase is a root of the search.
 //!
 //! verifies: P3, P4, P6, REQ-CONV-008, REQ-DC-032, REQ-DC-103, REQ-DC-110, REQ-DC-113
 
+use crate::clocks::Clocks;
 use crate::machine::{al_truth, check_tx, script_config, Model, Outcome, Violation, CAP};
 use ecdc_core::dc::{Config, Error, Event, Machine, State};
 use ecdc_core::time::SystemTime;
@@ -129,6 +138,9 @@ struct OnWire {
     sent_at: u64,
     /// Bit j: slave j changed AL state after this reply was produced (its AL answer is old).
     moved: u8,
+    /// Every slave's system time agreed with the reference's within the lock threshold when
+    /// the reply was produced.
+    agree: bool,
 }
 
 /// One global state of the model.
@@ -137,6 +149,8 @@ pub struct World {
     m: Machine<CAP>,
     cfg: Config,
     line: Model,
+    /// `None`: the ideal ring of [`crate::machine::Model`] alone (see [`World::without_clocks`]).
+    clocks: Option<Clocks>,
     al: [u16; CAP],
     /// The AL status of each slave in the last reply to an FPRD 0x0130 the machine used in this
     /// bring-up (cleared whenever the machine is back before the slave count).
@@ -155,6 +169,9 @@ pub struct World {
     /// without a station address for ever.
     lie: u8,
     dead: u8,
+    /// Whether the reply the last [`World::step`] delivered and the machine used was produced
+    /// with every clock in agreement (not part of the state).
+    used_agree: Option<bool>,
     /// Events and the frame transmitted by the last [`World::step`] (not part of the state).
     last_events: Vec<Event>,
     last_tx: Option<(State, Vec<u8>)>,
@@ -194,11 +211,16 @@ pub enum ModelViolation {
     /// The machine reported `Error::Internal` (one of its consistency guards fired) in this
     /// state.
     Internal(State),
+    /// The machine reported lock on a reply produced while some slave's system time was
+    /// more than the lock threshold away from the reference's.
+    LockedApart,
 }
 
 impl World {
     /// A started machine (`start` at a fixed epoch) and a line of `k` slaves with these AL
-    /// states (0x01 INIT, 0x02 PREOP, 0x04 SAFEOP, 0x08 OP, 0x14 SAFEOP+error).
+    /// states (0x01 INIT, 0x02 PREOP, 0x04 SAFEOP, 0x08 OP, 0x14 SAFEOP+error), every one with
+    /// a 64-bit system time (see [`World::with_bits32`]); the slaves in SAFE-OP/OP run in a
+    /// domain ahead of the master's clock ([`crate::clocks`]).
     pub fn new(k: u16, al: [u16; CAP]) -> Option<World> {
         let cfg = script_config();
         let mut m: Machine<CAP> = Machine::new(cfg).ok()?;
@@ -213,6 +235,7 @@ impl World {
                 unaddressed: 0,
                 wrap_base: 0,
             },
+            clocks: Some(Clocks::new(now, &al, 0)),
             al,
             known_al: [None; CAP],
             al_moved: 0,
@@ -222,9 +245,24 @@ impl World {
             out: Outcome::default(),
             lie: 0,
             dead: 0,
+            used_agree: None,
             last_events: Vec::new(),
             last_tx: None,
         })
+    }
+
+    /// The slaves in bit set `bits32` have a 32-bit system time (a 32/64-bit mix).
+    pub fn with_bits32(mut self, bits32: u8) -> World {
+        self.clocks = Some(Clocks::new(self.now, &self.al, bits32));
+        self
+    }
+
+    /// Mutation knob: slave `p`'s latch unit reports receive times `ns` late, so the offset
+    /// written from them is `ns` off. The clocks must then never agree and the bounded liveness
+    /// check must fail (a test of the checker's clocks).
+    pub fn with_latch_error(mut self, p: usize, ns: u64) -> World {
+        self.clocks = self.clocks.map(|c| c.with_latch_error(p, ns));
+        self
     }
 
     /// Mutation knob: the slaves in bit set `lie` answer "INIT" to every AL status read.
@@ -239,6 +277,46 @@ impl World {
     pub fn with_dead_slaves(mut self, dead: u8) -> World {
         self.dead = dead;
         self
+    }
+
+    /// The ideal ring without clocks: every slave's DC registers as [`crate::machine::Model`]
+    /// answers them (a latch counter, one common time base), so time need not pass between two
+    /// latches. For the model-based test against the reference model, which compares states
+    /// and events, not clock values.
+    pub fn without_clocks(mut self) -> World {
+        self.clocks = None;
+        self
+    }
+
+    /// The line's clocks (`None` without them).
+    pub fn clocks(&self) -> Option<&Clocks> {
+        self.clocks.as_ref()
+    }
+
+    /// Master time (true time) now.
+    pub fn now(&self) -> u64 {
+        self.now
+    }
+
+    /// Whether two slaves in SAFE-OP/OP disagree on the time by more than the lock
+    /// threshold. Only faults make it so: an AL race lets the machine write an offset to a
+    /// slave that another master started a moment before, in that master's domain. No
+    /// bring-up can then converge without writing 0x0920 under a running application, which
+    /// REQ-DC-030 forbids, so such states are exempt from the liveness check (the machine keeps
+    /// retrying, as it should, until a slave leaves SAFE-OP/OP); the search counts them.
+    pub fn split_domains(&self) -> bool {
+        let k = usize::from(self.line.k).min(CAP);
+        let running: Vec<usize> = (0..k)
+            .filter(|&p| matches!(self.al[p] & 0x0F, 4 | 8))
+            .collect();
+        let tol = u64::from(self.cfg.monitor.lock_ns);
+        running.iter().any(|&p| {
+            running.iter().any(|&q| {
+                self.clocks
+                    .as_ref()
+                    .is_some_and(|c| c.apart(p, q, self.now) > tol)
+            })
+        })
     }
 
     /// The machine.
@@ -260,9 +338,10 @@ impl World {
     /// 128-bit fingerprint of the state (machine control state, ring, wire, clock, flags).
     pub fn fingerprint(&self) -> u128 {
         let text = format!(
-            "{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}|{}|{}|{}",
+            "{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}|{}|{}|{}",
             self.m.control_state(),
             self.line,
+            self.clocks,
             self.al,
             self.known_al,
             self.al_moved,
@@ -293,6 +372,15 @@ impl World {
                 let wkc = self
                     .line
                     .answer(cmd, adp, ado, base, self.now, d.data_mut());
+                if wkc > 0 {
+                    let pos = [Command::Fprd.code(), Command::Fpwr.code()]
+                        .contains(&cmd)
+                        .then(|| adp.wrapping_sub(base));
+                    let (k, now) = (self.line.k, self.now);
+                    if let Some(c) = self.clocks.as_mut() {
+                        c.answer(cmd, pos, ado, k, now, d.data_mut());
+                    }
+                }
                 if cmd == Command::Fprd.code() && ado == 0x0130 {
                     let pos = adp.wrapping_sub(base);
                     let lies = pos < 8 && self.lie & (1u8 << pos) != 0;
@@ -324,12 +412,15 @@ impl World {
         )
         .map_err(ModelViolation::Frame)?;
         self.out.frames += 1;
+        let (k, now, tol) = (self.line.k, self.now, u64::from(self.cfg.monitor.lock_ns));
+        let agree = self.clocks.as_ref().is_none_or(|c| c.agree(k, now, tol, 0));
         let reply = self.process(&frame);
         self.last_tx = Some((self.m.state(), frame));
         self.wire.push(OnWire {
             reply,
             sent_at: self.now,
             moved: 0,
+            agree,
         });
         if self.wire.len() > 2 {
             self.wire.remove(0);
@@ -371,6 +462,7 @@ impl World {
                 self.wire.first()
             };
             let since = src.map_or(0xFF, |w| w.moved);
+            self.used_agree = Some(src.is_some_and(|w| w.agree));
             self.note_al_reads(bytes, since);
         }
         Ok(())
@@ -430,6 +522,7 @@ impl World {
         let mut buf = [0u8; 1514];
         self.last_events.clear();
         self.last_tx = None;
+        self.used_agree = None;
         match a {
             Action::Tx => {
                 if let Some(n) = self.m.poll_transmit(SystemTime(self.now), &mut buf) {
@@ -521,6 +614,9 @@ impl World {
                 if let Some(x) = self.al.get_mut(usize::from(j)) {
                     *x = 0x0001;
                     self.line.unaddressed |= 1u8 << j;
+                    if let Some(c) = self.clocks.as_mut() {
+                        c.reset(usize::from(j), self.now);
+                    }
                     self.al_moved |= 1u8 << j;
                     for w in &mut self.wire {
                         w.moved |= 1u8 << j;
@@ -535,6 +631,9 @@ impl World {
                     .filter(|x| !matches!(**x & 0x0F, 4 | 8))
                 {
                     *x = if j % 2 == 0 { 0x0004 } else { 0x0008 };
+                    if let Some(c) = self.clocks.as_mut() {
+                        c.join_running(usize::from(j), self.now);
+                    }
                     self.al_moved |= 1u8 << j;
                     for w in &mut self.wire {
                         w.moved |= 1u8 << j;
@@ -545,6 +644,9 @@ impl World {
                 let next = u64::from(self.line.latch.wrapping_add(1)) * 1_000_000;
                 let below_wrap = u32::MAX - 1_499;
                 self.line.wrap_base = u64::from(below_wrap.wrapping_sub(next as u32));
+                if let Some(c) = self.clocks.as_mut() {
+                    c.wrap();
+                }
             }
             Action::Reset => {
                 self.m.reset();
@@ -574,6 +676,15 @@ impl World {
             .find(|e| matches!(e, Event::Error(Error::Internal { .. })))
         {
             return Err(ModelViolation::Internal(*state));
+        }
+        // Lock is reported only on a reply whose clocks agreed (within the lock threshold).
+        if self.used_agree == Some(false)
+            && self
+                .last_events
+                .iter()
+                .any(|e| matches!(e, Event::Locked { .. }))
+        {
+            return Err(ModelViolation::LockedApart);
         }
         self.out.reached_cyclic |= self.m.state() == State::Cyclic;
         Ok(())
@@ -648,6 +759,12 @@ pub struct Report {
     pub al_races: u64,
     /// States whose fault-free continuation was followed to `Cyclic` (liveness).
     pub liveness_checked: u64,
+    /// Of the states, those exempt from liveness: their fault-free continuation splits the
+    /// running slaves between two domains ([`World::split_domains`]).
+    pub split_domains: u64,
+    /// Transitions on which the machine reported lock, each judged against the clocks (every
+    /// slave within the lock threshold of the reference when the reply was produced).
+    pub locks_judged: u64,
     /// Deepest level searched.
     pub depth: usize,
 }
@@ -658,8 +775,8 @@ pub struct Report {
 /// action order, fixed hash keys).
 pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexample>> {
     let mut seen: HashSet<u128> = HashSet::new();
-    // Fingerprints known to reach `Cyclic` without faults (liveness memo).
-    let mut live_ok: HashSet<u128> = HashSet::new();
+    // Liveness memo: fingerprints known to reach `Cyclic`, or a split of domains, without faults.
+    let mut live_ok = LiveMemo::default();
     let mut r = Report::default();
     let fail = |(violation, continuation), seed: usize, trace: &[Action]| {
         Box::new(Counterexample {
@@ -684,8 +801,10 @@ pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexamp
             if let Some(i) = State::ALL.iter().position(|s| *s == st) {
                 r.machine_states |= 1 << i;
             }
-            liveness(w, &mut live_ok).map_err(|v| fail(v, *si, trace))?;
-            r.liveness_checked += 1;
+            match liveness(w, &mut live_ok).map_err(|v| fail(v, *si, trace))? {
+                Liveness::Live => r.liveness_checked += 1,
+                Liveness::Exempt => r.split_domains += 1,
+            }
             if d == depth {
                 continue;
             }
@@ -696,6 +815,11 @@ pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexamp
                 t.push(a);
                 guarded(|| w2.step(a)).map_err(|v| fail((v, 0), *si, &t))?;
                 r.transitions += 1;
+                r.locks_judged += u64::from(
+                    w2.last_events
+                        .iter()
+                        .any(|e| matches!(e, Event::Locked { .. })),
+                );
                 r.offset_writes += u64::from(w2.out.offset_writes - writes);
                 r.al_races += u64::from(w2.out.al_races - races);
                 if seen.insert(w2.fingerprint()) {
@@ -712,47 +836,78 @@ pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexamp
     Ok(r)
 }
 
-/// Bounded liveness from `w`: the fault-free continuation reaches `Cyclic` (or `w` is `Idle`).
-fn liveness(w: &World, ok: &mut HashSet<u128>) -> Result<(), (ModelViolation, usize)> {
+/// What the bounded liveness check concluded for one state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Liveness {
+    /// The fault-free continuation reaches `Cyclic` (or the state is `Idle`).
+    Live,
+    /// The continuation splits the running slaves between two domains
+    /// ([`World::split_domains`]) before reaching `Cyclic`: exempt.
+    Exempt,
+}
+
+/// Memo of the liveness check: fingerprints known to reach `Cyclic`, and those known to reach a
+/// split of the running slaves first.
+#[derive(Default)]
+struct LiveMemo {
+    live: HashSet<u128>,
+    exempt: HashSet<u128>,
+}
+
+/// Bounded liveness from `w`: the fault-free continuation reaches `Cyclic`, or `w` is `Idle`,
+/// or the continuation meets a state whose running slaves are split between domains.
+fn liveness(w: &World, memo: &mut LiveMemo) -> Result<Liveness, (ModelViolation, usize)> {
     if w.m.state() == State::Idle {
-        return Ok(());
+        return Ok(Liveness::Live);
     }
     let mut w = w.clone();
     let mut path = Vec::new();
+    let mut verdict = None;
     for _ in 0..LIVENESS_STEPS {
         if w.m.state() == State::Cyclic {
+            verdict = Some(Liveness::Live);
             break;
         }
         let fp = w.fingerprint();
-        if ok.contains(&fp) {
+        if memo.live.contains(&fp) {
+            verdict = Some(Liveness::Live);
+            break;
+        }
+        if memo.exempt.contains(&fp) || w.split_domains() {
+            verdict = Some(Liveness::Exempt);
             break;
         }
         path.push(fp);
         let n = path.len();
         guarded(|| w.nominal_step()).map_err(|v| (v, n))?;
     }
-    let st = w.m.state();
-    if st != State::Cyclic && !path.is_empty() && !ok.contains(&w.fingerprint()) {
-        return Err((ModelViolation::NoProgress(st), path.len()));
+    let Some(verdict) = verdict else {
+        return Err((ModelViolation::NoProgress(w.m.state()), path.len()));
+    };
+    match verdict {
+        Liveness::Live => memo.live.extend(path),
+        Liveness::Exempt => memo.exempt.extend(path),
     }
-    ok.extend(path);
-    Ok(())
+    Ok(verdict)
 }
 
-/// Body for fuzzing and property tests: byte 0 chooses the line size (k = 1 + b % 4), bytes
+/// Body for fuzzing and property tests: byte 0 chooses the line size (k = 1 + b % 4) and
+/// which slaves have a 32-bit system time (bits 2..5: positions 0..3), bytes
 /// 1..=4 the AL states (INIT, PREOP, SAFEOP, OP), every further byte (at most 4096) one
 /// [`Action`] of [`Action::all`]; then the bounded liveness of the final state. Panics with the
 /// violation on any failed check.
 pub fn check_actions(data: &[u8]) {
     let mut it = data.iter().copied();
-    let k = 1 + u16::from(it.next().unwrap_or(0) % 4);
+    let first = it.next().unwrap_or(0);
+    let k = 1 + u16::from(first % 4);
     let mut al = [0x0001u16; CAP];
     for a in al.iter_mut() {
         *a = [0x01, 0x02, 0x04, 0x08][usize::from(it.next().unwrap_or(0) % 4)];
     }
-    let Some(mut w) = World::new(k, al) else {
+    let Some(w) = World::new(k, al) else {
         return;
     };
+    let mut w = w.with_bits32((first >> 2) & 0x0F);
     let actions = Action::all(k);
     for (i, b) in it.take(4096).enumerate() {
         let Some(&a) = actions.get(usize::from(b) % actions.len()) else {
@@ -762,7 +917,7 @@ pub fn check_actions(data: &[u8]) {
             panic!("P6 violated by action {i} ({a:?}): {v:?}");
         }
     }
-    if let Err((v, n)) = liveness(&w, &mut HashSet::new()) {
+    if let Err((v, n)) = liveness(&w, &mut LiveMemo::default()) {
         panic!("P6 liveness violated after {n} fault-free steps: {v:?}");
     }
 }

@@ -141,7 +141,9 @@ impl StateMachineTest for MachineTest {
     type Reference = RefSm;
 
     fn init_test(r: &Ref) -> World {
-        World::new(r.m.k, r.al).expect("valid config")
+        World::new(r.m.k, r.al)
+            .expect("valid config")
+            .without_clocks()
     }
 
     fn apply(mut w: World, r: &Ref, t: Input) -> World {

@@ -16,34 +16,44 @@ use ecdc_proofs::model::{explore, nominal_path, ModelViolation, Report, World};
 use std::time::Instant;
 
 /// Seeds: every state of the fault-free run from start to a few steps into `Cyclic`.
-fn seeds(k: u16, al: [u16; 4]) -> Vec<World> {
-    let w = World::new(k, al).expect("valid config");
+fn seeds(k: u16, al: [u16; 4], bits32: u8) -> Vec<World> {
+    let w = World::new(k, al).expect("valid config").with_bits32(bits32);
     nominal_path(&w, 4)
 }
 
 fn run(name: &str, k: u16, al: [u16; 4], depth: usize) -> Report {
+    run_mixed(name, k, al, 0, depth)
+}
+
+/// As `run`, with the slaves in bit set `bits32` on a 32-bit system time.
+fn run_mixed(name: &str, k: u16, al: [u16; 4], bits32: u8, depth: usize) -> Report {
     let t = Instant::now();
-    let s = seeds(k, al);
+    let s = seeds(k, al, bits32);
     let r = match explore(&s, depth) {
         Ok(r) => r,
         Err(c) => panic!("P6 violated on {name}: {c:?}"),
     };
     println!(
         "P6 BFS {name}: k={k} AL={al:04x?} seeds={} depth={depth}: {} states, {} transitions, \
-         {} in Cyclic, {} offset writes ({} after an AL race), liveness from {} states; {:.1} s",
+         {} in Cyclic, {} offset writes ({} after an AL race), {} locks judged on the clocks, \
+         liveness from {} states ({} exempt: split domains); {:.1} s",
         s.len(),
         r.states,
         r.transitions,
         r.cyclic_states,
         r.offset_writes,
         r.al_races,
+        r.locks_judged,
         r.liveness_checked,
+        r.split_domains,
         t.elapsed().as_secs_f64()
     );
     // Not vacuous: at least 17 of the 20 machine states are visited (`Failed` is unreachable
     // with auto_restart; a line without writable offsets skips `ResetLoops`), Cyclic among them.
     assert!(r.machine_states.count_ones() >= 17, "{r:?}");
     assert!(r.cyclic_states > 0 && r.depth == depth, "{r:?}");
+    // The clocks judge something: the search saw the machine lock.
+    assert!(r.locks_judged > 0, "{r:?}");
     r
 }
 
@@ -63,6 +73,16 @@ fn p6_bfs_two_slaves_init() {
 #[ignore]
 fn p6_bfs_four_slaves_mixed() {
     let r = run("4×mixed", 4, [0x01, 0x02, 0x08, 0x14], 5);
+    assert!(r.offset_writes > 0);
+}
+
+/// A 32/64-bit mix: a 64-bit reference, a 32-bit slave found in OP (its domain 3.1 ms ahead
+/// of the master's clock, joined through 32 bits), a 32-bit slave in INIT; depth 5. Offsets,
+/// wraps, resets and AL races run on clock arithmetic of both widths.
+#[test]
+#[ignore]
+fn p6_bfs_three_slaves_mixed_widths() {
+    let r = run_mixed("3×mixed widths", 3, [0x01, 0x08, 0x01, 0x01], 0b110, 5);
     assert!(r.offset_writes > 0);
 }
 
@@ -100,6 +120,22 @@ fn p6_bfs_finds_injected_faults() {
         matches!(c.violation, ModelViolation::NoProgress(_)),
         "{c:?}"
     );
+    // A latch unit 1 µs late: the offset written from it is 1 µs off, the drift gate never
+    // passes and the bounded liveness check fails. With it 0 ns late the same world locks.
+    for (late, fails) in [(1_000, true), (0, false)] {
+        let w = World::new(3, [1, 1, 1, 1])
+            .expect("valid config")
+            .with_bits32(0b010)
+            .with_latch_error(2, late);
+        let r = explore(&[w], 0);
+        assert_eq!(r.is_err(), fails, "latch {late} ns late: {r:?}");
+        if let Err(c) = r {
+            assert!(
+                matches!(c.violation, ModelViolation::NoProgress(_)),
+                "{c:?}"
+            );
+        }
+    }
 }
 
 /// Random action sequences (any length up to 300, any line) through the same checks, including
