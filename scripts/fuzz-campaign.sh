@@ -57,7 +57,8 @@ printf '%s\n' $targets | xargs -P "$JOBS" -I{} bash -c 'one {}'
 out=benches/results
 mkdir -p "$out"
 commit=$(git rev-parse --short HEAD)
-dirty=$(git status --porcelain -- core proofs fuzz | grep -q . && echo "+dirty")
+# Untracked files do not count: a failing run itself writes its input under fuzz/regressions/.
+dirty=$(git status --porcelain --untracked-files=no -- core proofs fuzz | grep -q . && echo "+dirty")
 day=$(date -u +%Y-%m-%d)
 header='target\trequested\texecutions\texec_per_s\twall_s\tedges\tfeatures\tcorpus\tpeak_rss_mb\tstatus\tcommit\tdate\ttoolchain'
 # A campaign over some targets replaces their rows and keeps the others' (each row says at
