@@ -229,7 +229,7 @@ fn one_cycle<const N: usize>(
 /// leaves `Cyclic`, loses lock or a cycle does not come back during the capture.
 pub fn capture<const N: usize>(sim: Sim<N>) -> anyhow::Result<Capture<N>> {
     let now = sim.master_time_at(sim.now());
-    capture_from(sim.machine, sim.net, now)
+    capture_from(*sim.machine, sim.net, now)
 }
 
 /// [`capture`] from a locked machine and its network, the machine's clock being `now`.

@@ -14,7 +14,7 @@
 //! the events holds or a true-time limit passes; [`Sim::drive_bounded`] gives up after a number
 //! of steps (livelock guard).
 
-use ecdc_core::dc::{Event, Machine, State};
+use ecdc_core::dc::{Config, ConfigError, Event, Machine, State};
 use ecdc_core::time::SystemTime;
 
 use crate::emu::{Delivery, EmuError, Network, TrueTime};
@@ -94,8 +94,9 @@ struct InFlight {
 
 /// The machine (capacity `N`) coupled to an emulated network.
 pub struct Sim<const N: usize> {
-    /// The state machine under test.
-    pub machine: Machine<N>,
+    /// The state machine under test, on the heap: a `Machine<1024>` is about 460 KiB, and an
+    /// unoptimised build copies a value that size several times on its way into a struct.
+    pub machine: Box<Machine<N>>,
     /// The emulated chain (observable in true time).
     pub net: Network,
     now: TrueTime,
@@ -108,11 +109,12 @@ pub struct Sim<const N: usize> {
 }
 
 impl<const N: usize> Sim<N> {
-    /// Couples `machine` and `net` at true time `net.now()` with an ideal master clock.
-    pub fn new(machine: Machine<N>, net: Network) -> Self {
+    /// Couples `machine` (a `Machine` or a `Box` of one) and `net` at true time `net.now()`
+    /// with an ideal master clock.
+    pub fn new(machine: impl Into<Box<Machine<N>>>, net: Network) -> Self {
         let now = net.now();
         Sim {
-            machine,
+            machine: machine.into(),
             net,
             now,
             master_epoch: DEFAULT_MASTER_EPOCH_NS,
@@ -122,6 +124,15 @@ impl<const N: usize> Sim<N> {
             buf: vec![0u8; 1514],
             stats: SimStats::default(),
         }
+    }
+
+    /// A machine configured with `cfg`, built in place on the heap (`Machine::idle` then
+    /// `configure`), coupled to `net`: no machine-sized value passes over the stack, whatever
+    /// `N`.
+    pub fn configured(cfg: Config, net: Network) -> Result<Self, ConfigError> {
+        let mut machine = Box::new(Machine::<N>::idle());
+        machine.configure(cfg)?;
+        Ok(Sim::new(machine, net))
     }
 
     /// Sets the master clock's rate error in ppb (positive = master clock fast).

@@ -325,9 +325,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         s.sync0_cycle_ns = u32::try_from(cycle_ns).context("cycle too long")?;
         Some(s)
     };
-    let mut m: Box<Machine<MAX_SLAVES>> = Box::new(
-        Machine::new(cfg).map_err(|e| anyhow::anyhow!("DC machine configuration: {e:?}"))?,
-    );
+    // Built in place on the heap: no machine-sized value passes over the stack.
+    let mut m: Box<Machine<MAX_SLAVES>> = Box::new(Machine::idle());
+    m.configure(cfg)
+        .map_err(|e| anyhow::anyhow!("DC machine configuration: {e:?}"))?;
     let dc = DcClock::from_realtime();
     let bar = std::cell::RefCell::new(ProgressBar::new(args.quiet));
     let total_cycles = args

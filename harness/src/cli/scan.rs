@@ -229,9 +229,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         auto_restart: true,
         ..Config::default()
     };
-    let mut m: Box<Machine<MAX_SLAVES>> = Box::new(
-        Machine::new(cfg).map_err(|e| anyhow::anyhow!("DC machine configuration: {e:?}"))?,
-    );
+    // Built in place on the heap: no machine-sized value passes over the stack.
+    let mut m: Box<Machine<MAX_SLAVES>> = Box::new(Machine::idle());
+    m.configure(cfg)
+        .map_err(|e| anyhow::anyhow!("DC machine configuration: {e:?}"))?;
     let dc = DcClock::from_realtime();
     let outcome = bringup::bring_up(
         &mut m,

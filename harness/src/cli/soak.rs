@@ -21,7 +21,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use ecdc_core::dc::{Config, Event, Machine, State};
+use ecdc_core::dc::{Config, Event, State};
 use ecdc_core::wire::{Address, Command, FrameBuilder};
 
 use crate::emu::yardstick::{wide_slaves, PulseMatcher};
@@ -514,9 +514,8 @@ pub fn soak(
     }
     let net = Network::new(&sc).map_err(|e| anyhow::anyhow!("emulator: {e}"))?;
     let narrow = wide_slaves(&net).iter().any(|w| !w);
-    let machine: Machine<N> =
-        Machine::new(cfg).map_err(|e| anyhow::anyhow!("machine config: {e:?}"))?;
-    let mut s = Sim::new(machine, net);
+    let mut s =
+        Sim::<N>::configured(cfg, net).map_err(|e| anyhow::anyhow!("machine config: {e:?}"))?;
     s.start();
     let mut chunks = Chunks {
         matcher: PulseMatcher::new(narrow),

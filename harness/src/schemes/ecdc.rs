@@ -56,8 +56,8 @@ impl<const N: usize> EcdcN<N> {
                 net.slave_count()
             );
         }
-        let m: Machine<N> = Machine::new(cfg).map_err(|e| anyhow::anyhow!("ecdc config: {e:?}"))?;
-        let mut sim = Sim::new(m, net);
+        let mut sim =
+            Sim::<N>::configured(cfg, net).map_err(|e| anyhow::anyhow!("ecdc config: {e:?}"))?;
         sim.start();
         Ok(EcdcN {
             sim,

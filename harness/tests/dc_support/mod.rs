@@ -2,7 +2,7 @@
 //! the emulator, bring-up to lock, steady-state measurement.
 #![allow(dead_code)]
 
-use ecdc_core::dc::{Config, Event, Machine};
+use ecdc_core::dc::{Config, Event};
 use ecdc_core::wire::{Address, Command, EthernetFrame, FrameBuilder};
 use ecdc_harness::emu::{EscKind, Fault, Network, Scenario, SEED000_T_F_NS, SEED000_T_P_NS};
 use ecdc_harness::sim::Sim;
@@ -27,8 +27,7 @@ pub fn seed000_config() -> Config {
 /// A machine and the emulator for `sc`, started.
 pub fn sim<const N: usize>(sc: &Scenario, cfg: Config) -> Sim<N> {
     let net = Network::new(sc).expect("scenario");
-    let m: Machine<N> = Machine::new(cfg).expect("config");
-    let mut s = Sim::new(m, net);
+    let mut s = Sim::<N>::configured(cfg, net).expect("config");
     s.start();
     s
 }
