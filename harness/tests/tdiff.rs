@@ -285,13 +285,10 @@ fn scan_report_lists_t_diff_and_source() {
     }
 }
 
-/// REQ-DC-124: a bring-up interrupted while a port is closed (here: `start` again) first
-/// reopens it, so the next count sees every slave and DL control ends as it was.
-// verifies: REQ-DC-124
-#[test]
-fn restart_while_closed_restores_the_port_first() {
-    let sc = Scenario::line(5);
-    let mut s = sim::<8>(&sc, nothing_told());
+/// A 5-slave line whose t_Diff step has closed a target's ports and run a closed latch with
+/// them: the machine and the target's position.
+fn line5_with_a_port_closed() -> (ecdc_harness::sim::Sim<8>, usize) {
+    let mut s = sim::<8>(&Scenario::line(5), nothing_told());
     let mut closed_at = None;
     for _ in 0..200_000 {
         s.step().unwrap();
@@ -301,11 +298,21 @@ fn restart_while_closed_restores_the_port_first() {
         }
     }
     let i = closed_at.expect("a port was closed");
-    // Let the close take effect and a closed latch run, then restart.
+    // Let the close take effect and a closed latch run.
     for _ in 0..4 {
         s.step().unwrap();
     }
     assert_ne!(dl_control(&s, i), 0x0001, "slave {i} still closed");
+    (s, i)
+}
+
+/// REQ-DC-124: a bring-up interrupted while a port is closed (here: `start` again) first
+/// reopens it, so the next count sees every slave and DL control ends as it was.
+// verifies: REQ-DC-124
+#[test]
+fn restart_while_closed_restores_the_port_first() {
+    let (mut s, _) = line5_with_a_port_closed();
+    // Restart with the port closed.
     let now = s.master_time_at(s.now());
     s.machine.start(now);
     s.drive_until(10_000_000_000, |e| {
@@ -339,25 +346,7 @@ fn restore_answered_by_two_slaves_ends_the_recovery() {
         let b = s.net.peek(i, 0x0010, 2).unwrap();
         u16::from_le_bytes([b[0], b[1]])
     };
-    let sc = Scenario::line(5);
-    let mut s = sim::<8>(&sc, nothing_told());
-    let mut closed_at = None;
-    for _ in 0..200_000 {
-        s.step().unwrap();
-        if let Some(i) = (0..5).find(|i| dl_control(&s, *i) != 0x0001) {
-            closed_at = Some(i);
-            break;
-        }
-    }
-    let target = closed_at.expect("a port was closed");
-    for _ in 0..4 {
-        s.step().unwrap();
-    }
-    assert_ne!(
-        dl_control(&s, target),
-        0x0001,
-        "slave {target} still closed"
-    );
+    let (mut s, target) = line5_with_a_port_closed();
     // The first slave (upstream of the target, so reachable) takes the target's address, as a
     // slave re-addressed by a bring-up that did not reach the target would.
     assert_ne!(target, 0, "the first slave is never a target");
