@@ -108,32 +108,29 @@ impl Clocks {
         self.local(p, t).wrapping_add(self.offset[p]) & self.mask(p)
     }
 
-    /// System time of `p` minus the reference's (position 0) at `t`, on the narrower width.
-    pub fn difference(&self, p: usize, t: u64) -> i64 {
-        let d = self.system(p, t).wrapping_sub(self.system(0, t));
-        if self.mask(p) != u64::MAX || self.mask(0) != u64::MAX {
+    /// System time of `p` minus system time of `q` at `t`, on the narrower width.
+    fn between(&self, p: usize, q: usize, t: u64) -> i64 {
+        let d = self.system(p, t).wrapping_sub(self.system(q, t));
+        if self.mask(p) != u64::MAX || self.mask(q) != u64::MAX {
             i64::from(d as u32 as i32)
         } else {
             d as i64
         }
     }
 
-    /// |system time of `p` − system time of `q`| at `t`, on the narrower width.
-    pub fn apart(&self, p: usize, q: usize, t: u64) -> u64 {
-        let d = self.system(p, t).wrapping_sub(self.system(q, t));
-        if self.mask(p) != u64::MAX || self.mask(q) != u64::MAX {
-            u64::from((d as u32 as i32).unsigned_abs())
-        } else {
-            (d as i64).unsigned_abs()
-        }
+    /// System time of `p` minus the reference's (position 0) at `t`, on the narrower width.
+    pub fn difference(&self, p: usize, t: u64) -> i64 {
+        self.between(p, 0, t)
     }
 
-    /// Whether every slave of a line of `k` agrees with the reference within `tol_ns` at `t`;
-    /// `skip`: slaves not to judge (bit per position).
-    pub fn agree(&self, k: u16, t: u64, tol_ns: u64, skip: u8) -> bool {
-        (1..usize::from(k).min(CAP))
-            .filter(|p| skip & (1u8 << p) == 0)
-            .all(|p| self.difference(p, t).unsigned_abs() <= tol_ns)
+    /// |system time of `p` − system time of `q`| at `t`, on the narrower width.
+    pub fn apart(&self, p: usize, q: usize, t: u64) -> u64 {
+        self.between(p, q, t).unsigned_abs()
+    }
+
+    /// Whether every slave of a line of `k` agrees with the reference within `tol_ns` at `t`.
+    pub fn agree(&self, k: u16, t: u64, tol_ns: u64) -> bool {
+        (1..usize::from(k).min(CAP)).all(|p| self.apart(p, 0, t) <= tol_ns)
     }
 
     /// Slave `j`, started by another master at `now`, joins that master's domain,

@@ -413,7 +413,7 @@ impl World {
         .map_err(ModelViolation::Frame)?;
         self.out.frames += 1;
         let (k, now, tol) = (self.line.k, self.now, u64::from(self.cfg.monitor.lock_ns));
-        let agree = self.clocks.as_ref().is_none_or(|c| c.agree(k, now, tol, 0));
+        let agree = self.clocks.as_ref().is_none_or(|c| c.agree(k, now, tol));
         let reply = self.process(&frame);
         self.last_tx = Some((self.m.state(), frame));
         self.wire.push(OnWire {
