@@ -9,6 +9,8 @@
 #   PARSER_RUNS   executions per parser target  (default 10000000)
 #   MACHINE_RUNS  executions per other target   (default 1000000)
 #   JOBS          targets run side by side      (default 1)
+#   TIMEOUT       libFuzzer's per-input limit, s (default 10; raise it for a run at low
+#                 priority on a loaded machine, where a slow input is starvation, not a hang)
 # A crash stops nothing else: it is saved under fuzz/regressions/<target>/ and its row says so;
 # the script then exits 1.
 set -uo pipefail
@@ -16,11 +18,16 @@ cd "$(dirname "$0")/.."
 PARSER_RUNS="${PARSER_RUNS:-10000000}"
 MACHINE_RUNS="${MACHINE_RUNS:-1000000}"
 JOBS="${JOBS:-1}"
+TIMEOUT="${TIMEOUT:-10}"
 PARSERS=" wire_parse wire_roundtrip wire_display registers "
 
 all=$(sed -n '/^\[\[bin\]\]/,/^name/ s/^name *= *"\(.*\)"/\1/p' fuzz/Cargo.toml)
 targets="${*:-$all}"
 cargo +nightly fuzz build --release || { echo "fuzz targets do not build"; exit 1; }
+# The code that runs is the code built now: its commit is recorded, not the one at the end.
+commit=$(git rev-parse --short HEAD)
+# Untracked files do not count: a failing run itself writes its input under fuzz/regressions/.
+dirty=$(git status --porcelain --untracked-files=no -- core proofs fuzz | grep -q . && echo "+dirty")
 
 work=$(mktemp -d /tmp/ecdc-fuzz.XXXXXX)
 trap 'rm -rf "$work"' EXIT
@@ -32,7 +39,7 @@ one() { # one TARGET: fuzz it, leave "$work/TARGET.row"
     log="$work/$t.log"
     start=$(date +%s.%N)
     cargo +nightly fuzz run --release "$t" "$work/$t" "fuzz/corpus/$t" -- \
-        -runs="$runs" -print_final_stats=1 -timeout=10 -rss_limit_mb=2048 \
+        -runs="$runs" -print_final_stats=1 -timeout="$TIMEOUT" -rss_limit_mb=2048 \
         -artifact_prefix="$PWD/fuzz/regressions/$t/" >"$log" 2>&1
     rc=$?
     end=$(date +%s.%N)
@@ -51,14 +58,11 @@ one() { # one TARGET: fuzz it, leave "$work/TARGET.row"
     echo "[fuzz-campaign] $t: $status, ${execs:-?} executions, ${eps:-?} exec/s, cov ${cov:-?}"
 }
 export -f one
-export work PARSERS PARSER_RUNS MACHINE_RUNS
+export work PARSERS PARSER_RUNS MACHINE_RUNS TIMEOUT
 printf '%s\n' $targets | xargs -P "$JOBS" -I{} bash -c 'one {}'
 
 out=benches/results
 mkdir -p "$out"
-commit=$(git rev-parse --short HEAD)
-# Untracked files do not count: a failing run itself writes its input under fuzz/regressions/.
-dirty=$(git status --porcelain --untracked-files=no -- core proofs fuzz | grep -q . && echo "+dirty")
 day=$(date -u +%Y-%m-%d)
 header='target\trequested\texecutions\texec_per_s\twall_s\tedges\tfeatures\tcorpus\tpeak_rss_mb\tstatus\tcommit\tdate\ttoolchain'
 # A campaign over some targets replaces their rows and keeps the others' (each row says at
