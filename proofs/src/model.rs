@@ -16,8 +16,9 @@
 //!
 //! [`explore`] visits every state reachable within `depth` actions from each seed, deduplicated
 //! by a 128-bit fingerprint of the state ([`World::fingerprint`]: the machine's
-//! [`Machine::control_state`] — its diagnostic counters, which steer nothing, left out — plus
-//! ring, wire and clock), and checks on every transition:
+//! [`Machine::control_state`], an `Eq + Hash` value that leaves out the diagnostic counters,
+//! which steer nothing, and the machine's caches — plus ring, wire and clock), and checks on
+//! every transition:
 //!
 //! 1. no panic (`catch_unwind` around the step: a panic is a violation with its trace);
 //! 2. every transmitted frame: indices in range and distinct, 0x0920 written only by FPWR of
@@ -337,27 +338,26 @@ impl World {
 
     /// 128-bit fingerprint of the state (machine control state, ring, wire, clock, flags).
     pub fn fingerprint(&self) -> u128 {
-        let text = format!(
-            "{:?}|{:?}|{:?}|{:?}|{:?}|{}|{}|{:?}|{}|{}|{}",
+        let key = (
             self.m.control_state(),
-            self.line,
-            self.clocks,
-            self.al,
-            self.known_al,
+            &self.line,
+            &self.clocks,
+            &self.al,
+            &self.known_al,
             self.al_moved,
             self.now,
-            self.wire,
+            &self.wire,
             self.live,
             self.lie,
-            self.dead
+            self.dead,
         );
-        let mut a = DefaultHasher::new();
-        0u8.hash(&mut a);
-        text.hash(&mut a);
-        let mut b = DefaultHasher::new();
-        1u8.hash(&mut b);
-        text.hash(&mut b);
-        (u128::from(a.finish()) << 64) | u128::from(b.finish())
+        let half = |salt: u8| {
+            let mut h = DefaultHasher::new();
+            salt.hash(&mut h);
+            key.hash(&mut h);
+            h.finish()
+        };
+        (u128::from(half(0)) << 64) | u128::from(half(1))
     }
 
     /// The ring processes a frame: modelled answers, truthful AL status.
@@ -439,7 +439,7 @@ impl World {
         faithful: bool,
     ) -> Result<(), ModelViolation> {
         let awaiting = self.m.is_awaiting_reply();
-        let before = format!("{:?}", self.m.control_state());
+        let before = self.m.clone();
         let foreign_before = self.m.stats().foreign_frames;
         self.m.handle_frame(SystemTime(self.now), bytes);
         let used = self.m.stats().foreign_frames == foreign_before;
@@ -447,7 +447,7 @@ impl World {
         if used && !answerable {
             return Err(ModelViolation::StaleAccepted(a));
         }
-        if !used && format!("{:?}", self.m.control_state()) != before {
+        if !used && self.m.control_state() != before.control_state() {
             return Err(ModelViolation::ForeignFrameUsed(a));
         }
         if answerable && faithful && !used {

@@ -2,7 +2,7 @@
 //! comes from (a citation, or "ecdc choice" with the reason).
 
 /// What the static drift compensation reads between bursts to decide convergence (REQ-DC-104).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DriftCheck {
     /// FPRD 0x092C of every DC slave: exact per-slave values, one datagram per slave.
     PerSlave,
@@ -14,7 +14,7 @@ pub enum DriftCheck {
 }
 
 /// Which datagram distributes the reference clock's time (static bursts and every cycle).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DriftCommand {
     /// FRMW to the reference's station address (SOEM, IgH, ethercrab): independent of
     /// positions.
@@ -24,7 +24,7 @@ pub enum DriftCommand {
 }
 
 /// Static drift compensation (ARMW/FRMW bursts with a convergence gate), REQ-DC-104.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct DriftConfig {
     /// FRMW frames per burst between two 0x092C checks. ecdc choice: 20. Convergence is bound
     /// by the ESCs' loop slew (time), not by the number of samples: on the default simulate
@@ -96,7 +96,7 @@ impl Default for DriftConfig {
 }
 
 /// SYNC0/SYNC1 programming for the DC slaves (REQ-DC-105).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SyncConfig {
     /// AssignActivate word from the ESI, written as 2 bytes to 0x0980 (low byte 0x0980 cyclic
     /// unit control, high byte 0x0981 activation). 0x0300 = SYNC0 only, 0x0700 = SYNC0 + SYNC1.
@@ -130,7 +130,7 @@ impl Default for SyncConfig {
 }
 
 /// Cyclic monitoring and lock detection (REQ-DC-106).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct MonitorConfig {
     /// Cycle period when the machine paces itself (`poll_transmit`); an embedding master that
     /// calls `poll_transmit_into` sets its own cadence. ecdc choice: 1 ms, the usual DC cycle.
@@ -182,7 +182,7 @@ impl Default for MonitorConfig {
 
 /// Complete machine configuration. `Config::default()` is a sane setup for a line or tree of
 /// ESCs; every field is documented with its source.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Config {
     /// Station address of the first slave (position 0); slave `i` gets `station_base + i`.
     /// 0x1001 is the customary first configured address (SOEM, IgH).
@@ -301,7 +301,7 @@ impl Default for Config {
 }
 
 /// Why a [`Config`] was rejected by [`crate::dc::Machine::new`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ConfigError {
     /// `index_count` < 2 × MAX_INFLIGHT.
     TooFewIndices,
@@ -362,7 +362,7 @@ impl Config {
 }
 
 /// Which slaves the bring-up measures t_Diff on (REQ-DC-120).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TdiffMode {
     /// Nothing is measured: per-slave overrides, [`TdiffConfig::types`] or
     /// [`Config::t_diff_ns`] are used.
@@ -378,7 +378,7 @@ pub enum TdiffMode {
 }
 
 /// A user-supplied t_Diff for every ESC of one type and revision.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TdiffType {
     /// 0x0000 (type, low byte) and 0x0001 (revision, high byte) as one little-endian word.
     pub esc_type: u16,
@@ -387,7 +387,7 @@ pub struct TdiffType {
 }
 
 /// t_Diff measurement settings (REQ-DC-120..126).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TdiffConfig {
     /// What is measured. Default [`TdiffMode::PerSlave`].
     pub mode: TdiffMode,

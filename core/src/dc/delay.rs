@@ -156,7 +156,7 @@ impl std::error::Error for DelayError {}
 ///
 /// Internally an exact fraction per slave (`sum / weight`, weight = 2 × rounds) so averaging
 /// several latch rounds rounds only once.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Delays<const N: usize> {
     sum: [Option<i64>; N],
     weight: i64,

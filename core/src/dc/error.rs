@@ -7,7 +7,7 @@ use crate::wire::Command;
 
 /// A fault seen by the machine. Each variant carries what a user needs to find the cause.
 #[non_exhaustive]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Error {
     /// A reply came back with the wrong working counter.
     Wkc {

@@ -7,7 +7,7 @@ use crate::dc::holdover::{HoldoverCause, ResumeCheck};
 /// Something the caller may want to know or act on. Events are queued in order; when the queue
 /// is full the oldest event is dropped and counted in `Stats::events_dropped`.
 #[non_exhaustive]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Event {
     /// The network was counted and addressed.
     SlavesFound {
@@ -141,6 +141,32 @@ impl EventQueue {
         self.len = self.len.saturating_sub(1);
         e
     }
+
+    /// The waiting events, oldest first.
+    fn waiting(&self) -> impl Iterator<Item = &Event> + '_ {
+        (0..self.len).filter_map(move |k| {
+            let at = self.head.wrapping_add(k) % EVENT_QUEUE_LEN;
+            self.buf.get(at).and_then(Option::as_ref)
+        })
+    }
+}
+
+/// Queues are equal when the same events wait in the same order, wherever their rings start.
+impl PartialEq for EventQueue {
+    fn eq(&self, other: &Self) -> bool {
+        self.len == other.len && self.waiting().eq(other.waiting())
+    }
+}
+
+impl Eq for EventQueue {}
+
+impl core::hash::Hash for EventQueue {
+    fn hash<H: core::hash::Hasher>(&self, state: &mut H) {
+        self.len.hash(state);
+        for e in self.waiting() {
+            e.hash(state);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -162,5 +188,21 @@ mod tests {
         }
         assert_eq!(n, EVENT_QUEUE_LEN);
         assert_eq!(q.pop(), None);
+    }
+
+    #[test]
+    fn queues_compare_by_waiting_events_not_ring_position() {
+        let e = |b| Event::LockLost { bound_ns: b };
+        let (mut a, mut b) = (EventQueue::new(), EventQueue::new());
+        a.push(e(9));
+        a.pop();
+        a.push(e(1));
+        b.push(e(1));
+        assert_eq!(a, b);
+        b.push(e(2));
+        assert_ne!(a, b);
+        a.push(e(3));
+        assert_ne!(a, b, "same length, other event");
+        assert_ne!(EventQueue::new(), b);
     }
 }

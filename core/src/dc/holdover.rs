@@ -31,7 +31,7 @@ use crate::dc::event::Event;
 use crate::dc::machine::Machine;
 
 /// Why a hold-over began.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HoldoverCause {
     /// `max_lost_cycles` cycles in a row came back incomplete or not at all (wire silence, a
     /// stopped peer, a burst of loss).
@@ -42,7 +42,7 @@ pub enum HoldoverCause {
 }
 
 /// What the resume check saw when it passed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ResumeCheck {
     /// Slaves answering BRD 0x0130 (equal to the bring-up's count).
     pub slaves: u16,
@@ -53,7 +53,7 @@ pub struct ResumeCheck {
 }
 
 /// Why the resume check after a hold-over failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ResumeFailure {
     /// BRD 0x0130 (or BRD 0x092C) counted a different number of slaves.
     SlaveCount {
@@ -90,7 +90,7 @@ pub enum ResumeFailure {
 }
 
 /// The hold-over sub-state of `Cyclic` and its own data.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub(crate) struct Holdover {
     /// Master time the silence is counted from: one period after the last complete cycle's
     /// transmission (or, before any, the first cycle's transmission).

@@ -15,7 +15,7 @@ use crate::time::SystemTime;
 use crate::wire::{EthernetFrame, FrameBuilder};
 
 /// Counters for diagnostics. Every field only grows (saturating), except `lock_frames`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Stats {
     /// Transmissions (own frames, or appends into a caller's frame).
     pub frames_sent: u64,
@@ -223,7 +223,7 @@ impl<const N: usize> Machine<N> {
             monitor,
             tdiff,
             restart_streak,
-            scratch: _,
+            scratch,
         } = self;
         *c = cfg;
         *state = State::Idle;
@@ -254,9 +254,12 @@ impl<const N: usize> Machine<N> {
         *drift_bound_sum = 0;
         *sync_start = 0;
         *cyc = CyclicState::IDLE;
-        monitor.invalidate();
+        monitor.clear();
         tdiff.forget();
         *restart_streak = 0;
+        // The working tables' other contents are overwritten before they are read.
+        scratch.topo.clear();
+        scratch.round.clear();
         Ok(())
     }
 
@@ -397,21 +400,6 @@ impl<const N: usize> Machine<N> {
     pub fn is_awaiting_reply(&self) -> bool {
         self.busy
     }
-    /// A copy of the machine without its diagnostic counters: [`Stats`] and the frame count at
-    /// the last start (read only to report `Stats::lock_frames` and `Event::Locked::frames`)
-    /// are zeroed, and an empty event queue is rewound. Two machines whose control states are
-    /// equal react identically to every input, up to those counters. For explicit-state model
-    /// checkers (`proofs/src/model.rs` hashes its `Debug` form).
-    pub fn control_state(&self) -> Self {
-        let mut m = self.clone();
-        m.stats = Stats::default();
-        m.frames_at_start = 0;
-        if m.events.clone().pop().is_none() {
-            m.events = EventQueue::new();
-        }
-        m
-    }
-
     // ----- output ---------------------------------------------------------------------------
 
     /// Next event, if any.

@@ -16,6 +16,8 @@ mod activation;
 mod adjust;
 mod bridge;
 pub mod config;
+#[cfg(any(test, feature = "verification"))]
+pub mod control;
 mod cyclic;
 mod cyclic_fast;
 mod discovery;
@@ -41,6 +43,8 @@ pub use config::{
     Config, ConfigError, DriftCheck, DriftCommand, DriftConfig, MonitorConfig, SyncConfig,
     TdiffConfig, TdiffMode, TdiffType,
 };
+#[cfg(any(test, feature = "verification"))]
+pub use control::ControlState;
 pub use error::Error;
 pub use event::Event;
 pub use holdover::{HoldoverCause, ResumeCheck, ResumeFailure};

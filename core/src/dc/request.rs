@@ -16,7 +16,7 @@ pub const MAX_INFLIGHT: usize = 32;
 
 /// Payload of a request: zeros (reads, the latch trigger) or the first `len` bytes of a
 /// little-endian integer (writes of exactly the register's width).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Payload {
     /// `len` zero bytes.
     Zero,
@@ -25,7 +25,7 @@ pub enum Payload {
 }
 
 /// One datagram the machine wants to send.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Op {
     /// Command.
     pub command: Command,
@@ -115,7 +115,7 @@ impl Op {
 }
 
 /// What a reply belongs to, inside the current step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Tag {
     /// Item number of the current request step.
     Item(u16),
@@ -137,7 +137,7 @@ pub enum Tag {
 /// `repr(C)` in header order: the first 8 bytes are the datagram's first 8 header bytes
 /// (command, index, ADP = station, ADO = register, length) as sent without the M bit, so
 /// [`Pending::key`] is one load and a reply's header compares with it in one go.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[repr(C)]
 pub struct Pending {
     /// Command sent.
@@ -230,7 +230,7 @@ impl Pending {
 /// only then scans; counters make `is_empty`/`has_room` O(1). Indexes in flight are distinct
 /// (`Config::index_count` ≥ 2 × [`MAX_INFLIGHT`]), so at most one entry matches a reply and
 /// the order of the search never changes the result.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub(crate) struct Inflight {
     pub(crate) entries: [Option<Pending>; MAX_INFLIGHT],
     /// Slots `used..` are `None`.

@@ -4,9 +4,7 @@
 //! `Machine<N>` needs a stack independent of `N` (issue #15: a bring-up of 1024 slaves within
 //! 64 KiB of stack). Nothing here carries state from one computation to the next, except the
 //! last latch round's topology and delays, which the step that follows reads.
-//!
-//! Its `Debug` form is empty, as `MonitorList`'s, so that two machines equal but for their
-//! working tables print alike (the model checker hashes that form).
+//! Only those two belong to the machine's control state (`dc/control.rs`).
 
 use crate::dc::delay::{DelayScratch, Delays};
 use crate::dc::port::{Port, PortSet};
@@ -51,6 +49,10 @@ impl<const N: usize> Scratch<N> {
 
 impl<const N: usize> core::fmt::Debug for Scratch<N> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str("_")
+        // Per-slave tables of N entries, mostly leftovers of the last computation.
+        f.debug_struct("Scratch")
+            .field("topo", &self.topo)
+            .field("round", &self.round)
+            .finish_non_exhaustive()
     }
 }

@@ -3,7 +3,7 @@
 //! (the per-slave report of a failed convergence gate).
 
 /// DC capability from ESC features 0x0008 and the system-time probe.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum DcKind {
     /// No DC unit (0x0008 bit 2 clear): only adds wire delay.
     #[default]
@@ -35,7 +35,7 @@ impl DcKind {
 }
 
 /// One slave, by position (auto-increment order = processing order).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct SlaveInfo {
     /// Station address assigned (0x0010).
     pub station: u16,

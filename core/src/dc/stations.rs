@@ -8,7 +8,7 @@ use crate::wire::register::reg;
 use crate::wire::{Address, Command};
 
 /// How the bring-up gets each slave's configured station address (0x0010).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Stations {
     /// APWR 0x0010 of position `i` with `Config::station_base + i` (REQ-DC-100).
     #[default]

@@ -54,7 +54,7 @@ const DL_CONTROL: u16 = 0x0100;
 const LOOP_CLOSED: u16 = 0b11;
 
 /// Where the `t_Diff` used for a slave came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum TdiffSource {
     /// [`crate::dc::Config::t_diff_ns`]: nothing was measured or configured for this slave
     /// (with the default 0: no t_Diff at all). Also the value before the step ran.
@@ -97,7 +97,7 @@ impl core::fmt::Display for TdiffSource {
 }
 
 /// Why a wanted measurement was not used.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TdiffFallback {
     /// A slave reported SAFE-OP, OP or an unknown AL state, so no port was closed (REQ-DC-123).
     Running,
@@ -110,7 +110,7 @@ pub enum TdiffFallback {
 }
 
 /// How one slave takes part in the measurement, decided from the first all-open latch.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub(crate) enum Plan {
     /// Not measured.
     #[default]
@@ -132,7 +132,7 @@ pub(crate) enum Plan {
 }
 
 /// Which latch the step is in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub(crate) enum Phase {
     /// The read before the first trigger (stale-latch reference).
     #[default]
@@ -144,7 +144,7 @@ pub(crate) enum Phase {
 }
 
 /// One typed work item of a t_Diff request step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub(crate) enum Work {
     /// FPRD 0x0000 (type, revision) of a slave.
     Ident(u16),
@@ -163,7 +163,7 @@ pub(crate) enum Work {
 }
 
 /// The t_Diff phase's data (REQ-DC-120..126).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub(crate) struct Tdiff<const N: usize> {
     pub(crate) phase: Phase,
     /// A slave is in SAFE-OP/OP (or an unknown state): no port is closed.

@@ -187,7 +187,7 @@ impl core::fmt::Display for TopologyError {
 impl std::error::Error for TopologyError {}
 
 /// The reconstructed tree for up to `N` slaves (REQ-DC-012).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Topology<const N: usize> {
     nodes: [Node; N],
     len: u16,
@@ -209,6 +209,12 @@ impl<const N: usize> Topology<N> {
             nodes: [Node::EMPTY; N],
             len: 0,
         }
+    }
+
+    /// Makes `self` equal to [`Topology::new`] in place (no temporary of size `N`).
+    pub(crate) fn clear(&mut self) {
+        self.nodes.fill(Node::EMPTY);
+        self.len = 0;
     }
 
     /// [`build`](Self::build) into `self`, with `stack` as the depth-first walk's working

@@ -14,7 +14,7 @@ pub const CARRY_X_MAX: i64 = 1 << 62;
 
 /// Fractional remainder in [0, 1), Q32. The type itself is the invariant: a `u32` cannot hold
 /// anything outside [0, 2^32).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Carry {
     r: u32,
 }

@@ -21,14 +21,14 @@ pub const DELTA_MAX_NS: i64 = 1 << 40;
 pub const COUNT_HZ_MAX: u64 = 1 << 34;
 
 /// Why a compensator configuration was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum CounterError {
     /// f_slave·Npll must be in [1, COUNT_HZ_MAX].
     CountRate,
 }
 
 /// Per-period counter compensation with carried remainder.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct CounterCompensator {
     count_hz: u64,
     carry: Carry,

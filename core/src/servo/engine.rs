@@ -25,7 +25,7 @@ use super::pi::{hold, pi_step, PiLimits};
 use crate::num::wrapping_diff;
 
 /// Engine configuration (validated by [`Servo::new`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ServoConfig {
     /// Nominal sample interval h₀, ns (> 0). Samples are accepted when the local interval since
     /// the previous one is in [h₀/2, 4·h₀] (REQ-SERVO-070).
@@ -65,7 +65,7 @@ pub struct ServoConfig {
 }
 
 /// Why a configuration was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ConfigError {
     /// interval_ns must be > 0.
     Interval,
@@ -82,7 +82,7 @@ pub enum ConfigError {
 }
 
 /// Servo mode. A settled loop is Tracking with `locked == true`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Mode {
     /// No sample yet.
     Init,
@@ -95,7 +95,7 @@ pub enum Mode {
 }
 
 /// What the engine did with one input.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Verdict {
     /// Used by the PI.
     Accepted,
@@ -114,7 +114,7 @@ pub enum Verdict {
 }
 
 /// One input per interval.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Input {
     /// A measurement: local time of the sample (ns, wrapping) and the error θ (ns).
     Sample {
@@ -128,7 +128,7 @@ pub enum Input {
 }
 
 /// Engine output for one input.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Output {
     /// Retard command, Q32 ns per interval, |·| ≤ y_max (REQ-SERVO-012).
     pub command_q32: i64,
@@ -152,7 +152,7 @@ pub struct Output {
 }
 
 /// Event counters (diagnostics, ptp4l-style summaries).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Counters {
     /// Inputs seen.
     pub inputs: u64,
@@ -173,7 +173,7 @@ pub struct Counters {
 }
 
 /// The servo engine state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Servo {
     cfg: ServoConfig,
     mode: Mode,

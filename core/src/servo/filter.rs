@@ -24,7 +24,7 @@ const M_Q16: i64 = FILTER_X_MAX << FILTER_FRAC;
 
 /// Two-pole offset filter state (REQ-SERVO-030). Primes on the first sample so a large initial
 /// offset does not ring through as a start-up transient from zero.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct OffsetFilter {
     u: i64,
     y: i64,

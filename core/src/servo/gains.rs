@@ -25,7 +25,7 @@ pub const MARGIN: i64 = ONE >> 10;
 
 /// A closed-loop pole on the real axis in [0, 1), as a Q32 fraction (`u32`, so p < 1 holds by
 /// construction). p = 0 is dead-beat; p → 1 is an ever slower, quieter loop.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Pole(u32);
 
 impl Pole {
@@ -54,7 +54,7 @@ impl Pole {
 }
 
 /// Why a gain set was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GainError {
     /// A pole was given at or beyond 1.0.
     PoleOutsideUnitInterval,
@@ -67,7 +67,7 @@ pub enum GainError {
 }
 
 /// Admissible per-sample PI gains (normalised: the P and I gains per sample, dimensionless).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PiGains {
     kp: i64,
     ki: i64,

@@ -11,7 +11,7 @@
 pub const GATE_WINDOW: usize = 16;
 
 /// Gate configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct GateConfig {
     /// κ·1.4826 in Q8 (κ = 5 → 1898). 0 disables the gate.
     pub kappa_q8: u32,
@@ -36,7 +36,7 @@ impl GateConfig {
 }
 
 /// What the gate decided about one sample.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GateVerdict {
     /// Inside the threshold (or the gate is not armed): use it.
     Accept,
@@ -47,7 +47,7 @@ pub enum GateVerdict {
 }
 
 /// Gate state: a ring of recent accepted errors plus the current rejection run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Gate {
     buf: [i64; GATE_WINDOW],
     /// The same `len` entries as `buf`, kept in ascending order by [`Gate::push`] (entries

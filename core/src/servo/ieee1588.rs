@@ -13,7 +13,7 @@ use crate::num::wrapping_diff;
 
 /// Why a measurement was refused. A refused measurement is a lost sample for the servo
 /// (holdover), never a wrong value.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PtpError {
     /// (t2 − t1) + (t4 − t3) < 0: timestamps inconsistent (a path cannot be negative).
     NegativeDelay,
@@ -26,7 +26,7 @@ pub enum PtpError {
 }
 
 /// One two-way timestamp exchange, ns.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Exchange {
     /// Sync egress at the master (Tm1).
     pub t1: u64,
@@ -103,7 +103,7 @@ pub fn compound_ppb(a: i64, b: i64) -> i64 {
 /// master and slave elapsed time over n adjustment periods). A timestamp error of e ns at
 /// either end of the baseline moves the ratio by about e/(n·h₀), so longer baselines shrink it
 /// as 1/n. The PTP servo runs it before its offset loop ([`super::ptp`], REQ-SERVO-124).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RateEstimator {
     periods: u32,
     anchor: Option<(u64, u64)>,

@@ -6,7 +6,7 @@
 //! cannot make the flag chatter.
 
 /// Lock thresholds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LockConfig {
     /// |θ| below this counts toward lock, ns.
     pub low_ns: u64,
@@ -17,7 +17,7 @@ pub struct LockConfig {
 }
 
 /// Why a lock configuration was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LockError {
     /// Need low ≤ high and count ≥ 1.
     Thresholds,
@@ -34,7 +34,7 @@ impl LockConfig {
 }
 
 /// Lock state.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct LockDetector {
     below: u16,
     locked: bool,

@@ -51,7 +51,7 @@ use crate::num::{fold, fold_near, low32, wrapping_diff};
 pub const PERIOD_MAX_NS: u32 = 1 << 29;
 
 /// Master-loop configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MasterConfig {
     /// Cycle period P, ns, in [1000, PERIOD_MAX_NS].
     pub period_ns: u32,
@@ -117,7 +117,7 @@ impl MasterConfig {
 }
 
 /// One cycle's input.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum MasterInput {
     /// The FRMW came back.
     Sample {
@@ -133,7 +133,7 @@ pub enum MasterInput {
 }
 
 /// One cycle's output.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MasterOutput {
     /// Add to the next wake-up deadline, ns (positive = wake later).
     pub deadline_correction_ns: i64,
@@ -146,7 +146,7 @@ pub struct MasterOutput {
 }
 
 /// Master-follows-reference servo state.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MasterServo {
     period: u32,
     target: i64,

@@ -42,14 +42,14 @@ pub const THETA_MAX: i64 = 1 << THETA_BITS;
 pub const LIMIT_MAX_NS: i64 = 1 << 28;
 
 /// Output and integrator clamps, in Q32 ns per interval.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PiLimits {
     y_max: i64,
     i_max: i64,
 }
 
 /// Why a limit pair was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LimitError {
     /// y_max must be in (0, LIMIT_MAX_NS·2^32].
     OutputLimit,
@@ -94,7 +94,7 @@ impl PiLimits {
 }
 
 /// Result of one PI step.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PiStep {
     /// Command y in Q32 ns per interval; |y| ≤ y_max.
     pub y: i64,

@@ -24,7 +24,7 @@ use super::ieee1588::{compound_ppb, offset_and_delay, Exchange, RateEstimator};
 use super::pi::{PiLimits, LIMIT_MAX_NS};
 
 /// PTP servo configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PtpConfig {
     /// Engine configuration (interval = sync interval; its `limits` are replaced by `max_ppb`).
     pub servo: ServoConfig,
@@ -45,7 +45,7 @@ pub struct PtpConfig {
 }
 
 /// Output per exchange.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PtpOutput {
     /// Frequency adjustment to apply, ppb, |·| ≤ max_ppb.
     pub freq_ppb: i64,
@@ -66,7 +66,7 @@ pub struct PtpOutput {
 }
 
 /// IEEE 1588 slave-clock servo.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PtpServo {
     servo: Servo,
     interval_ns: u32,

@@ -17,7 +17,7 @@
 use crate::num::wrapping_diff;
 
 /// Configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RefFollowConfig {
     /// Cycle period, ns (> 0).
     pub period_ns: u32,
@@ -32,7 +32,7 @@ pub struct RefFollowConfig {
 }
 
 /// Why a write was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum RefError {
     /// period_ns or every was 0.
     Config,
@@ -45,7 +45,7 @@ pub enum RefError {
 
 /// One write to perform this cycle: FPWR of `len` bytes of `value` (little-endian) to 0x0910
 /// of the reference clock.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RefWrite {
     /// System time to write (only the low 32 bits matter when `len == 4`).
     pub value: u64,
@@ -64,7 +64,7 @@ impl RefWrite {
 }
 
 /// Schedule and value computation for reference-follows-master.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RefFollower {
     cfg: RefFollowConfig,
     cycle: u64,

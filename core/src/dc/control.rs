@@ -1,0 +1,172 @@
+//! The machine's control state, for explicit-state model checkers and differential tests
+//! (feature `verification`): what decides how the machine reacts to its next input, compared
+//! and hashed field by field.
+//!
+//! Two machines whose control states are equal react identically to every input, up to the
+//! diagnostic counters this leaves out. Each field of [`Machine`] is named below, so a new field
+//! does not compile until it is either part of the control state or said not to be:
+//!
+//! - left out, because nothing reads them to decide anything: [`Stats`](crate::dc::Stats) and
+//!   the frame count at the last start (read only to report `Stats::lock_frames` and
+//!   `Event::Locked::frames`);
+//! - left out, because it is a cache rebuilt from the slave table whenever it might not match
+//!   it: the round robin's list (`dc/monitor.rs`);
+//! - of the working tables (`dc/scratch.rs`) only what one step leaves for the next: the
+//!   latest latch round's topology and delays;
+//! - the event queue by the events waiting in it, in order, not by where its ring starts.
+
+use core::hash::{Hash, Hasher};
+
+use crate::dc::machine::Machine;
+
+/// A borrowed view of a machine's control state; `Eq` and `Hash` compare only it.
+#[derive(Clone, Copy)]
+pub struct ControlState<'m, const N: usize> {
+    m: &'m Machine<N>,
+}
+
+impl<const N: usize> Machine<N> {
+    /// The machine's control state (see [`ControlState`]).
+    pub fn control_state(&self) -> ControlState<'_, N> {
+        ControlState { m: self }
+    }
+}
+
+impl<'m, const N: usize> ControlState<'m, N> {
+    /// The fields that make up the control state, as one comparable and hashable value.
+    fn fields(self) -> impl PartialEq + Hash + 'm {
+        let Machine {
+            cfg,
+            state,
+            slaves,
+            count,
+            reference,
+            sys_count,
+            inflight,
+            busy,
+            cursor,
+            chunk_start,
+            tries,
+            step_error,
+            events,
+            stats: _,
+            next_index,
+            wake_at,
+            last_sent,
+            frames_at_start: _,
+            latch_round,
+            delays,
+            t_diff,
+            latch_time,
+            domain_shift,
+            drift_frames,
+            drift_ok,
+            drift_bound,
+            drift_bound_sum,
+            sync_start,
+            cyc,
+            monitor: _,
+            tdiff,
+            restart_streak,
+            scratch,
+        } = self.m;
+        (
+            (
+                cfg, state, slaves, count, reference, sys_count, inflight, busy,
+            ),
+            (
+                cursor,
+                chunk_start,
+                tries,
+                step_error,
+                events,
+                next_index,
+                wake_at,
+            ),
+            (
+                last_sent,
+                latch_round,
+                delays,
+                t_diff,
+                latch_time,
+                domain_shift,
+            ),
+            (
+                drift_frames,
+                drift_ok,
+                drift_bound,
+                drift_bound_sum,
+                sync_start,
+                cyc,
+            ),
+            (tdiff, restart_streak, &scratch.topo, &scratch.round),
+        )
+    }
+}
+
+impl<const N: usize> PartialEq for ControlState<'_, N> {
+    fn eq(&self, other: &Self) -> bool {
+        self.fields() == other.fields()
+    }
+}
+
+impl<const N: usize> Eq for ControlState<'_, N> {}
+
+/// The machine's `Debug` form (which shows every field, counters included).
+impl<const N: usize> core::fmt::Debug for ControlState<'_, N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        core::fmt::Debug::fmt(self.m, f)
+    }
+}
+
+impl<const N: usize> Hash for ControlState<'_, N> {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        self.fields().hash(state);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use core::hash::{Hash, Hasher};
+    use std::collections::hash_map::DefaultHasher;
+
+    use crate::dc::{Config, Machine};
+
+    fn hash_of(m: &Machine<4>) -> u64 {
+        let mut h = DefaultHasher::new();
+        m.control_state().hash(&mut h);
+        h.finish()
+    }
+
+    #[test]
+    fn counters_caches_and_working_tables_are_not_control_state() {
+        let a = Machine::<4>::new(Config::default()).unwrap();
+        let mut b = a.clone();
+        b.stats.frames_sent = 7;
+        b.frames_at_start = 3;
+        b.monitor.invalidate();
+        if let Some(s) = b.scratch.subtree.get_mut(0) {
+            *s = 5;
+        }
+        assert_eq!(a.control_state(), b.control_state());
+        assert_eq!(hash_of(&a), hash_of(&b));
+    }
+
+    #[test]
+    fn every_kind_of_control_field_counts() {
+        let a = Machine::<4>::new(Config::default()).unwrap();
+        let changes: [fn(&mut Machine<4>); 5] = [
+            |m| m.cursor = 1,
+            |m| m.cfg.retries = m.cfg.retries.wrapping_add(1),
+            |m| m.cyc.locked = true,
+            |m| m.push_event(crate::dc::Event::Restarting),
+            |m| m.slaves[1].station = 0x1234,
+        ];
+        for (k, change) in changes.iter().enumerate() {
+            let mut b = a.clone();
+            change(&mut b);
+            assert_ne!(a.control_state(), b.control_state(), "change {k}");
+            assert_ne!(hash_of(&a), hash_of(&b), "change {k}");
+        }
+    }
+}
