@@ -773,6 +773,11 @@ pub struct Report {
 /// by fingerprint: every state within `depth` actions of some seed is visited once, every
 /// transition out of it and every visited state is checked. Deterministic (one thread, fixed
 /// action order, fixed hash keys).
+///
+/// Memory: a state is checked when it is first reached, while its world is at hand; the
+/// frontier keeps only how to reach it (seed and actions) and the next level replays that
+/// path. The worlds of a level never coexist, so the depth is bounded by time and by the
+/// fingerprint sets (16 bytes a state), not by a level's worlds (kilobytes each).
 pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexample>> {
     let mut seen: HashSet<u128> = HashSet::new();
     // Liveness memo: fingerprints known to reach `Cyclic`, or a split of domains, without faults.
@@ -786,27 +791,38 @@ pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexamp
             continuation,
         })
     };
-    let mut level: Vec<(World, usize, Vec<Action>)> = Vec::new();
+    // The checks of a state, when it is first reached.
+    let mut visit = |w: &World, r: &mut Report| -> Result<(), (ModelViolation, usize)> {
+        r.states += 1;
+        let st = w.m.state();
+        r.cyclic_states += u64::from(st == State::Cyclic);
+        if let Some(i) = State::ALL.iter().position(|s| *s == st) {
+            r.machine_states |= 1 << i;
+        }
+        match liveness(w, &mut live_ok)? {
+            Liveness::Live => r.liveness_checked += 1,
+            Liveness::Exempt => r.split_domains += 1,
+        }
+        Ok(())
+    };
+    let mut level: Vec<(usize, Vec<Action>)> = Vec::new();
     for (si, seed) in seeds.iter().enumerate() {
         if seen.insert(seed.fingerprint()) {
-            level.push((seed.clone(), si, Vec::new()));
+            visit(seed, &mut r).map_err(|v| fail(v, si, &[]))?;
+            level.push((si, Vec::new()));
         }
     }
-    for d in 0..=depth {
+    r.depth = 0;
+    for d in 0..depth {
+        if level.is_empty() {
+            break;
+        }
         let mut next = Vec::new();
-        for (w, si, trace) in &level {
-            r.states += 1;
-            let st = w.m.state();
-            r.cyclic_states += u64::from(st == State::Cyclic);
-            if let Some(i) = State::ALL.iter().position(|s| *s == st) {
-                r.machine_states |= 1 << i;
-            }
-            match liveness(w, &mut live_ok).map_err(|v| fail(v, *si, trace))? {
-                Liveness::Live => r.liveness_checked += 1,
-                Liveness::Exempt => r.split_domains += 1,
-            }
-            if d == depth {
-                continue;
+        let mut reached = false;
+        for (si, trace) in &level {
+            let mut w = seeds[*si].clone();
+            for (n, a) in trace.iter().enumerate() {
+                guarded(|| w.step(*a)).map_err(|v| fail((v, 0), *si, &trace[..=n]))?;
             }
             for a in Action::all(w.line.k) {
                 let mut w2 = w.clone();
@@ -823,15 +839,19 @@ pub fn explore(seeds: &[World], depth: usize) -> Result<Report, Box<Counterexamp
                 r.offset_writes += u64::from(w2.out.offset_writes - writes);
                 r.al_races += u64::from(w2.out.al_races - races);
                 if seen.insert(w2.fingerprint()) {
-                    next.push((w2, *si, t));
+                    visit(&w2, &mut r).map_err(|v| fail(v, *si, &t))?;
+                    reached = true;
+                    if d + 1 < depth {
+                        next.push((*si, t));
+                    }
                 }
             }
         }
-        r.depth = d;
-        level = next;
-        if level.is_empty() {
+        if !reached {
             break;
         }
+        r.depth = d + 1;
+        level = next;
     }
     Ok(r)
 }

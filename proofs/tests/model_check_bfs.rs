@@ -7,7 +7,9 @@
 //! with our index, tick, jump to deadline, slave reset, 32-bit port-time wrap, reset, start,
 //! re-measure) is visited once and checked: no panic, frame properties (index range, 0x0920
 //! only to INIT/PREOP/BOOT stations, widths), index matching, deadline, bounded liveness.
-//! `#[ignore]`d: run by `.ci/layers/30-model-check.sh` in release mode.
+//! `#[ignore]`d: run by `.ci/layers/30-model-check.sh` in release mode, at the depths below;
+//! `P6_DEPTH=D` searches every configuration to depth D instead (`scripts/p6-deep.sh`, whose
+//! results are committed: deeper searches take longer than CI's budget).
 //!
 //! verifies: P6, REQ-DC-103, REQ-DC-110, REQ-DC-113
 
@@ -27,6 +29,10 @@ fn run(name: &str, k: u16, al: [u16; 4], depth: usize) -> Report {
 
 /// As `run`, with the slaves in bit set `bits32` on a 32-bit system time.
 fn run_mixed(name: &str, k: u16, al: [u16; 4], bits32: u8, depth: usize) -> Report {
+    let depth = match std::env::var("P6_DEPTH") {
+        Ok(d) => d.parse().expect("P6_DEPTH: a depth"),
+        Err(_) => depth,
+    };
     let t = Instant::now();
     let s = seeds(k, al, bits32);
     let r = match explore(&s, depth) {
