@@ -212,6 +212,8 @@ pub enum ModelViolation {
     /// The machine reported `Error::Internal` (one of its consistency guards fired) in this
     /// state.
     Internal(State),
+    /// An internal invariant of the machine broke (`Machine::invariant_violation`).
+    Invariant(&'static str),
     /// The machine reported lock on a reply produced while some slave's system time was
     /// more than the lock threshold away from the reference's.
     LockedApart,
@@ -676,6 +678,9 @@ impl World {
             .find(|e| matches!(e, Event::Error(Error::Internal { .. })))
         {
             return Err(ModelViolation::Internal(*state));
+        }
+        if let Some(broken) = self.m.invariant_violation() {
+            return Err(ModelViolation::Invariant(broken));
         }
         // Lock is reported only on a reply whose clocks agreed (within the lock threshold).
         if self.used_agree == Some(false)

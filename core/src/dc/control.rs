@@ -30,6 +30,26 @@ impl<const N: usize> Machine<N> {
     pub fn control_state(&self) -> ControlState<'_, N> {
         ControlState { m: self }
     }
+
+    /// The first broken internal invariant of the timer table (`dc/timer.rs`), if any: the
+    /// restart timer is armed exactly in `RestartWait`, the cycle timer exactly in `Cyclic`,
+    /// and a reply is awaited only in a request step or in `Cyclic`. For model checkers, which
+    /// check it after every input.
+    pub fn invariant_violation(&self) -> Option<&'static str> {
+        use crate::dc::timer::Timer;
+        use crate::dc::State;
+        let st = self.state;
+        if self.timers.is_set(Timer::Restart) != (st == State::RestartWait) {
+            return Some("restart timer armed outside RestartWait, or not in it");
+        }
+        if self.timers.is_set(Timer::Cycle) != (st == State::Cyclic) {
+            return Some("cycle timer armed outside Cyclic, or not in it");
+        }
+        if self.timers.is_set(Timer::Reply) && !(st == State::Cyclic || st.is_request_step()) {
+            return Some("a reply awaited outside a request step and Cyclic");
+        }
+        None
+    }
 }
 
 impl<'m, const N: usize> ControlState<'m, N> {
@@ -43,7 +63,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             reference,
             sys_count,
             inflight,
-            busy,
+            timers,
             cursor,
             chunk_start,
             tries,
@@ -51,7 +71,6 @@ impl<'m, const N: usize> ControlState<'m, N> {
             events,
             stats: _,
             next_index,
-            wake_at,
             last_sent,
             frames_at_start: _,
             latch_round,
@@ -72,17 +91,9 @@ impl<'m, const N: usize> ControlState<'m, N> {
         } = self.m;
         (
             (
-                cfg, state, slaves, count, reference, sys_count, inflight, busy,
+                cfg, state, slaves, count, reference, sys_count, inflight, timers,
             ),
-            (
-                cursor,
-                chunk_start,
-                tries,
-                step_error,
-                events,
-                next_index,
-                wake_at,
-            ),
+            (cursor, chunk_start, tries, step_error, events, next_index),
             (
                 last_sent,
                 latch_round,

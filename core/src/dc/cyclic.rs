@@ -12,6 +12,7 @@ use crate::dc::machine::Machine;
 use crate::dc::request::{le, Op, Pending, Tag};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
+use crate::dc::timer::Timer;
 use crate::time::SystemTime;
 use crate::wire::register::{reg, SystemTimeDifference};
 use crate::wire::FrameBuilder;
@@ -35,7 +36,6 @@ pub(crate) enum Remeasure {
 /// Per-cycle bookkeeping.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub(crate) struct CyclicState {
-    pub(crate) next_due: u64,
     pub(crate) cycles: u32,
     pub(crate) rr: u16,
     pub(crate) lost_streak: u16,
@@ -75,7 +75,6 @@ pub(crate) struct CyclicState {
 impl CyclicState {
     /// Nothing cyclic yet (the `Default`), usable in a `const` context.
     pub(crate) const IDLE: CyclicState = CyclicState {
-        next_due: 0,
         cycles: 0,
         rr: 0,
         lost_streak: 0,
@@ -109,6 +108,8 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn cyclic_enter(&mut self) {
         self.cyc = CyclicState::default();
         self.monitor.invalidate();
+        // The first cycle is due at once.
+        self.timers.set(Timer::Cycle, SystemTime(0));
     }
 
     pub(crate) fn fill_cyclic(
@@ -117,7 +118,7 @@ impl<const N: usize> Machine<N> {
         b: &mut FrameBuilder<'_>,
         into_caller: bool,
     ) -> bool {
-        if !into_caller && now < self.cyc.next_due {
+        if !into_caller && !self.timers.expired(Timer::Cycle, SystemTime(now)) {
             return false;
         }
         let period = self.cfg.monitor.cycle_ns;
@@ -130,7 +131,7 @@ impl<const N: usize> Machine<N> {
         {
             self.holdover_start(self.silence_since(), HoldoverCause::Stall);
         }
-        if self.busy {
+        if self.is_awaiting_reply() {
             // The previous cycle's datagrams never came back.
             self.cyclic_lost(now);
             if self.state != State::Cyclic {
@@ -140,12 +141,15 @@ impl<const N: usize> Machine<N> {
         if self.holdover_expired(now) {
             return false;
         }
-        let next = self.cyc.next_due.saturating_add(period);
-        self.cyc.next_due = if next <= now {
+        // The next cycle one period after this one's due time, or after now if that passed.
+        let due = self.timers.get(Timer::Cycle).map_or(0, |t| t.0);
+        let next = due.saturating_add(period);
+        let next = if next <= now {
             now.saturating_add(period)
         } else {
             next
         };
+        self.timers.set(Timer::Cycle, SystemTime(next));
         let before = b.datagram_count();
         self.inflight.clear();
         self.cyc.frmw_wkc = None;
@@ -162,10 +166,10 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         self.fill_remeasure(now, b);
-        self.busy = true;
         self.cyc.sent_at = now;
         let timeout = self.cfg.response_timeout_ns.min(period);
-        self.inflight.deadline = now.saturating_add(timeout);
+        self.timers
+            .set(Timer::Reply, SystemTime(now.saturating_add(timeout)));
         self.cyc.cycles = self.cyc.cycles.saturating_add(1);
         self.stats.cycles = self.stats.cycles.saturating_add(1);
         self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
@@ -449,7 +453,7 @@ impl<const N: usize> Machine<N> {
     /// The cycle in flight is lost: coast, or give up after `max_lost_cycles`.
     pub(crate) fn cyclic_lost(&mut self, now: u64) {
         self.inflight.clear();
-        self.busy = false;
+        self.timers.stop(Timer::Reply);
         self.stats.lost_cycles = self.stats.lost_cycles.saturating_add(1);
         self.cyc.lost_streak = self.cyc.lost_streak.saturating_add(1);
         // A lost re-measurement step is resent (a lost trigger restarts the measurement).
@@ -526,6 +530,7 @@ mod tests {
         cfg.drift_command = cmd;
         let mut m = Machine::<48>::new(cfg).unwrap();
         m.state = State::Cyclic;
+        m.timers.set(Timer::Cycle, SystemTime(0));
         m.count = n;
         m.sys_count = 0;
         for (i, s) in m.slaves.iter_mut().enumerate().take(usize::from(n)) {
@@ -602,7 +607,7 @@ mod tests {
             }
             let mut buf = std::vec![0u8; 1514];
             let len = m.poll_transmit(SystemTime(T), &mut buf).unwrap();
-            assert!(m.busy);
+            assert!(m.is_awaiting_reply());
             let mut reply = buf[..len].to_vec();
             // As the slaves return it: processed-by-slave bit, data and working counters.
             reply[6] |= 0x02;
@@ -653,7 +658,7 @@ mod tests {
                 b.handle_frame_with(SystemTime(T + 1), v, false);
                 assert_eq!(format!("{a:?}"), format!("{b:?}"));
                 // Once a reply is taken the table is no longer as filled: the path declines.
-                if a.busy && a.stats.foreign_frames == m.stats.foreign_frames {
+                if a.is_awaiting_reply() && a.stats.foreign_frames == m.stats.foreign_frames {
                     let before = format!("{a:?}");
                     let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
                     let f = eth.ecat_frame_unvalidated().unwrap();

@@ -230,7 +230,6 @@ impl<const N: usize> Machine<N> {
 
     /// Master time at which the running re-initialisation pause ends (`RestartWait` only).
     pub fn restart_at(&self) -> Option<crate::time::SystemTime> {
-        (self.state == crate::dc::State::RestartWait)
-            .then_some(crate::time::SystemTime(self.wake_at))
+        self.timers.get(crate::dc::timer::Timer::Restart)
     }
 }

@@ -11,6 +11,7 @@ use crate::dc::scratch::Scratch;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::tdiff::Tdiff;
+use crate::dc::timer::{earliest, Timer, TimerTable};
 use crate::time::SystemTime;
 use crate::wire::{EthernetFrame, FrameBuilder};
 
@@ -100,7 +101,9 @@ pub struct Machine<const N: usize> {
     /// Slaves with a system time: the expected FRMW working counter.
     pub(crate) sys_count: u16,
     pub(crate) inflight: Inflight,
-    pub(crate) busy: bool,
+    /// Every deadline (`dc/timer.rs`); `Timer::Reply` is armed exactly while a frame is
+    /// awaited.
+    pub(crate) timers: TimerTable,
     pub(crate) cursor: u16,
     pub(crate) chunk_start: u16,
     pub(crate) tries: u8,
@@ -108,7 +111,6 @@ pub struct Machine<const N: usize> {
     pub(crate) events: EventQueue,
     pub(crate) stats: Stats,
     pub(crate) next_index: u8,
-    pub(crate) wake_at: u64,
     /// Master time of the last transmission of a request step.
     pub(crate) last_sent: u64,
     pub(crate) frames_at_start: u64,
@@ -198,7 +200,7 @@ impl<const N: usize> Machine<N> {
             reference,
             sys_count,
             inflight,
-            busy,
+            timers,
             cursor,
             chunk_start,
             tries,
@@ -206,7 +208,6 @@ impl<const N: usize> Machine<N> {
             events,
             stats,
             next_index,
-            wake_at,
             last_sent,
             frames_at_start,
             latch_round,
@@ -232,7 +233,7 @@ impl<const N: usize> Machine<N> {
         *reference = 0;
         *sys_count = 0;
         *inflight = Inflight::new();
-        *busy = false;
+        *timers = TimerTable::new();
         *cursor = 0;
         *chunk_start = 0;
         *tries = 0;
@@ -240,7 +241,6 @@ impl<const N: usize> Machine<N> {
         *events = EventQueue::new();
         *stats = Stats::ZERO;
         *next_index = cfg.index_first;
-        *wake_at = 0;
         *last_sent = 0;
         *frames_at_start = 0;
         *latch_round = 0;
@@ -273,7 +273,7 @@ impl<const N: usize> Machine<N> {
             reference: 0,
             sys_count: 0,
             inflight: Inflight::new(),
-            busy: false,
+            timers: TimerTable::new(),
             cursor: 0,
             chunk_start: 0,
             tries: 0,
@@ -281,7 +281,6 @@ impl<const N: usize> Machine<N> {
             events: EventQueue::new(),
             stats: Stats::ZERO,
             next_index: cfg.index_first,
-            wake_at: 0,
             last_sent: 0,
             frames_at_start: 0,
             latch_round: 0,
@@ -315,7 +314,7 @@ impl<const N: usize> Machine<N> {
     /// Stops everything and returns to `Idle`; replies still in flight will be ignored.
     pub fn reset(&mut self) {
         self.inflight.clear();
-        self.busy = false;
+        self.timers.stop(Timer::Reply);
         self.enter(State::Idle);
     }
 
@@ -398,7 +397,7 @@ impl<const N: usize> Machine<N> {
     /// Whether a transmitted frame's datagrams are still awaited (until all came back, the
     /// deadline passed, or `reset`/`start`). Only replies to that frame can be used.
     pub fn is_awaiting_reply(&self) -> bool {
-        self.busy
+        self.timers.is_set(Timer::Reply)
     }
     // ----- output ---------------------------------------------------------------------------
 
@@ -408,29 +407,30 @@ impl<const N: usize> Machine<N> {
         self.events.pop()
     }
 
-    /// When `handle_timeout` should be called next (a reply deadline, the next cycle, the end
-    /// of a restart pause). `None` when nothing is scheduled.
+    /// When `handle_timeout` (or, for a paced drift burst, `poll_transmit`) should be called
+    /// next: the earliest armed timer (a reply deadline, the next cycle, the end of a restart
+    /// pause; `dc/timer.rs`), or the end of the pause before a burst's last FRMW while nothing
+    /// is in flight. `None` when nothing is scheduled.
     #[must_use]
     pub fn poll_timeout(&self) -> Option<SystemTime> {
-        let mut t: Option<u64> = None;
-        let mut min = |v: u64| t = Some(t.map_or(v, |x| x.min(v)));
-        if self.busy {
-            min(self.inflight.deadline);
+        let next = self.timers.next();
+        let gate = self.pace_until();
+        if self.state.is_request_step() && !self.is_awaiting_reply() && gate > self.last_sent {
+            let gate = SystemTime(gate);
+            return Some(next.map_or(gate, |t| earliest(t, gate)));
         }
-        match self.state {
-            State::RestartWait => min(self.wake_at),
-            State::Cyclic => min(self.cyc.next_due),
-            s if s.is_request_step() && !self.busy && self.pace_until() > self.last_sent => {
-                min(self.pace_until())
-            }
-            _ => {}
-        }
-        t.map(SystemTime)
+        next
     }
 
     /// Writes the next frame of the machine into `buf` (Ethernet frame, padded to 60 bytes) and
     /// returns its length, or `None` when nothing is to be sent now (waiting for a reply, for
     /// the next cycle, or idle). In `Cyclic` a frame is produced once per `monitor.cycle_ns`.
+    ///
+    /// It first handles the timers that expired by `now`, exactly as
+    /// [`handle_timeout`](Self::handle_timeout) would (a lost reply is a loss, an ended
+    /// restart pause starts the bring-up), because what to send depends on them: a caller
+    /// that polls only transmissions still sees every deadline act, and one that also calls
+    /// `handle_timeout` changes nothing by it.
     #[must_use]
     pub fn poll_transmit(&mut self, now: SystemTime, buf: &mut [u8]) -> Option<usize> {
         self.handle_timeout(now);
@@ -449,7 +449,7 @@ impl<const N: usize> Machine<N> {
             Err(_) => {
                 // Cannot happen for a builder that accepted the datagrams; treat as a loss.
                 self.inflight.clear();
-                self.busy = false;
+                self.timers.stop(Timer::Reply);
                 None
             }
         }
@@ -458,7 +458,8 @@ impl<const N: usize> Machine<N> {
     /// Appends the machine's datagrams for this moment into a frame the caller is building
     /// (for example its process-data frame). In `Cyclic` this always appends the cycle's FRMW
     /// and monitoring datagrams: the caller's cadence *is* the cycle. Returns whether anything
-    /// was appended; datagrams that do not fit are left for the next call.
+    /// was appended; datagrams that do not fit are left for the next call. Expired timers are
+    /// handled first, as in [`poll_transmit`](Self::poll_transmit).
     pub fn poll_transmit_into(&mut self, now: SystemTime, builder: &mut FrameBuilder<'_>) -> bool {
         self.handle_timeout(now);
         self.fill(now.0, builder, true)
@@ -468,14 +469,15 @@ impl<const N: usize> Machine<N> {
 
     /// Handles an expiry of the time returned by `poll_timeout`; harmless when nothing expired.
     pub fn handle_timeout(&mut self, now: SystemTime) {
+        let at = now;
         let now = now.0;
-        if self.busy && now >= self.inflight.deadline {
+        if self.timers.expired(Timer::Reply, at) {
             self.stats.timeouts = self.stats.timeouts.saturating_add(1);
             if self.state == State::Cyclic {
                 self.cyclic_lost(now);
             } else {
                 self.inflight.clear();
-                self.busy = false;
+                self.timers.stop(Timer::Reply);
                 let e = self
                     .step_error
                     .take()
@@ -483,7 +485,7 @@ impl<const N: usize> Machine<N> {
                 self.retry_or_fail(now, e);
             }
         }
-        if self.state == State::RestartWait && now >= self.wake_at {
+        if self.timers.expired(Timer::Restart, at) {
             self.frames_at_start = self.stats.frames_sent;
             self.enter(State::CountSlaves);
         }
@@ -510,7 +512,7 @@ impl<const N: usize> Machine<N> {
         }
         // In `Cyclic`, a reply frame laid out exactly as sent takes one validating, matching
         // pass (same result as the general path below, which handles everything else).
-        if fast && self.state == State::Cyclic && self.busy {
+        if fast && self.state == State::Cyclic && self.is_awaiting_reply() {
             if let Some(frame) = eth.ecat_frame_unvalidated() {
                 if self.cyclic_fast(now, frame.into_inner()) {
                     return self.replies_done(now);
@@ -548,8 +550,8 @@ impl<const N: usize> Machine<N> {
     /// reply is outstanding.
     #[inline]
     fn replies_done(&mut self, now: u64) {
-        if self.busy && self.inflight.is_empty() {
-            self.busy = false;
+        if self.is_awaiting_reply() && self.inflight.is_empty() {
+            self.timers.stop(Timer::Reply);
             if self.state == State::Cyclic {
                 self.cyclic_complete(now);
             } else if self.state.is_request_step() {
@@ -580,10 +582,17 @@ impl<const N: usize> Machine<N> {
         } else {
             self.push_event(Event::Error(Error::Internal { state: self.state }));
             self.inflight.clear();
-            self.busy = false;
+            self.timers.stop(Timer::Reply);
             State::Failed
         };
         self.state = to;
+        // The state-bound timers run only in their state (`dc/timer.rs`).
+        if to != State::RestartWait {
+            self.timers.stop(Timer::Restart);
+        }
+        if to != State::Cyclic {
+            self.timers.stop(Timer::Cycle);
+        }
         self.cursor = 0;
         self.chunk_start = 0;
         self.tries = 0;
@@ -595,13 +604,16 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn fault(&mut self, now: u64, e: Error) {
         self.push_event(Event::Error(e));
         self.inflight.clear();
-        self.busy = false;
+        self.timers.stop(Timer::Reply);
         self.cyc = CyclicState::default();
         if self.cfg.auto_restart {
             self.stats.restarts = self.stats.restarts.saturating_add(1);
-            self.wake_at = now.saturating_add(self.restart_delay());
+            let wake = SystemTime(now.saturating_add(self.restart_delay()));
             self.restart_streak = self.restart_streak.saturating_add(1);
             self.enter(State::RestartWait);
+            if self.state == State::RestartWait {
+                self.timers.set(Timer::Restart, wake);
+            }
             self.push_event(Event::Restarting);
         } else {
             self.enter(State::Failed);
@@ -667,7 +679,7 @@ impl<const N: usize> Machine<N> {
         if self.state == State::Cyclic {
             return self.fill_cyclic(now, b, into_caller);
         }
-        if !self.state.is_request_step() || self.busy {
+        if !self.state.is_request_step() || self.is_awaiting_reply() {
             return false;
         }
         // Skip items with nothing to send; finish steps that have nothing (left) to send.
@@ -723,9 +735,9 @@ impl<const N: usize> Machine<N> {
             self.cursor = self.chunk_start;
             return false;
         }
-        self.busy = true;
         self.last_sent = now;
-        self.inflight.deadline = now.saturating_add(self.cfg.response_timeout_ns);
+        let due = now.saturating_add(self.cfg.response_timeout_ns);
+        self.timers.set(Timer::Reply, SystemTime(due));
         self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
         true
     }

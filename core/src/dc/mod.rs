@@ -38,6 +38,7 @@ mod steps;
 pub mod tdiff;
 #[cfg(test)]
 mod tests;
+mod timer;
 
 pub use config::{
     Config, ConfigError, DriftCheck, DriftCommand, DriftConfig, MonitorConfig, SyncConfig,

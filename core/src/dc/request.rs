@@ -239,7 +239,6 @@ pub(crate) struct Inflight {
     live: u8,
     /// Slot tried first by the next `take_match`.
     hint: u8,
-    pub(crate) deadline: u64,
 }
 
 /// `MAX_INFLIGHT` as the counters' type.
@@ -253,7 +252,6 @@ impl Inflight {
             used: 0,
             live: 0,
             hint: 0,
-            deadline: 0,
         }
     }
     #[inline]
