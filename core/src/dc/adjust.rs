@@ -142,8 +142,8 @@ impl<const N: usize> Machine<N> {
                 Ok(State::ResetLoops)
             }
             State::ResetLoops => {
-                self.drift_frames = 0;
-                self.drift_ok = 0;
+                self.drift_gate.frames = 0;
+                self.drift_gate.passed = 0;
                 Ok(State::DriftBurst)
             }
             _ => Ok(self.state),

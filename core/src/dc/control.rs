@@ -78,10 +78,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             t_diff,
             latch_time,
             domain_shift,
-            drift_frames,
-            drift_ok,
-            drift_bound,
-            drift_bound_sum,
+            drift_gate,
             sync_start,
             cyc,
             monitor: _,
@@ -102,14 +99,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
                 latch_time,
                 domain_shift,
             ),
-            (
-                drift_frames,
-                drift_ok,
-                drift_bound,
-                drift_bound_sum,
-                sync_start,
-                cyc,
-            ),
+            (drift_gate, sync_start, cyc),
             (tdiff, restart_streak, &scratch.topo, &scratch.round),
         )
     }

@@ -15,13 +15,36 @@ use crate::dc::state::State;
 use crate::wire::register::{reg, SystemTimeDifference};
 use crate::wire::{FrameBuilder, DATAGRAM_OVERHEAD};
 
+/// The convergence gate's running data (REQ-DC-104).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) struct DriftGate {
+    /// FRMW samples sent since the drift compensation began (bounded by `max_frames`).
+    pub(crate) frames: u32,
+    /// Checks passed in a row.
+    pub(crate) passed: u8,
+    /// The BRD 0x092C upper bound read in the current check.
+    pub(crate) bound: Option<u32>,
+    /// Sum of the BRD 0x092C bounds over the current passing streak.
+    pub(crate) bound_sum: u64,
+}
+
+impl DriftGate {
+    /// Before any drift compensation.
+    pub(crate) const IDLE: DriftGate = DriftGate {
+        frames: 0,
+        passed: 0,
+        bound: None,
+        bound_sum: 0,
+    };
+}
+
 impl<const N: usize> Machine<N> {
     /// Frames of the current burst: `burst_frames` back to back while the gate has not passed
     /// yet; once a check passed, single paused frames, so the remaining `consecutive − 1` checks
     /// watch the loops at the cyclic sample rate they will run at (a loop held tight by
     /// back-to-back samples can drift off once samples come only every cycle).
     pub(crate) fn burst_len(&self) -> u16 {
-        if self.drift_ok > 0 {
+        if self.drift_gate.passed > 0 {
             1
         } else {
             self.cfg.drift.burst_frames
@@ -51,14 +74,14 @@ impl<const N: usize> Machine<N> {
     }
 
     /// Closes a `DriftCheck` frame that is not the check's last with an FRMW to the reference:
-    /// a loop sample in every slave (counted in `drift_frames`), so a check that needs many
+    /// a loop sample in every slave (counted in `DriftGate::frames`), so a check that needs many
     /// frames does not starve the loops. Last in the frame, so each slave's 0x092C read earlier
     /// in the same frame still shows the Δt accumulated since the previous sample, not the
     /// fresh one; a check of one frame (short networks) has none and reads exactly the Δt of
     /// the check pause.
     pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
         if self.state == State::DriftCheck && self.push_op(b, self.frmw_op(now), Tag::Frmw) {
-            self.drift_frames = self.drift_frames.saturating_add(1);
+            self.drift_gate.frames = self.drift_gate.frames.saturating_add(1);
         }
     }
 
@@ -109,7 +132,7 @@ impl<const N: usize> Machine<N> {
                         })?;
                 let d = SystemTimeDifference::from_raw(raw);
                 if i == 0 {
-                    self.drift_bound = Some(d.magnitude());
+                    self.drift_gate.bound = Some(d.magnitude());
                 } else if let Some(s) = self.slave_mut(i.saturating_sub(1)) {
                     s.last_diff_ns = Some(i64::from(d.to_ns()));
                 }
@@ -136,7 +159,7 @@ impl<const N: usize> Machine<N> {
         let d = self.cfg.drift;
         let per_slave = d.check != DriftCheck::Broadcast;
         let by_bound = d.check != DriftCheck::PerSlave;
-        let fresh = self.drift_ok == 0;
+        let fresh = self.drift_gate.passed == 0;
         let limit = d.spike_ns;
         let mut over = 0u16;
         let mut worst = (0u16, 0u32);
@@ -151,7 +174,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        let bound = self.drift_bound.unwrap_or(u32::MAX);
+        let bound = self.drift_gate.bound.unwrap_or(u32::MAX);
         let bound_ok = !by_bound || bound <= limit;
         if by_bound && bound > worst.1 && worst.1 <= limit {
             worst = (0, bound);
@@ -171,18 +194,18 @@ impl<const N: usize> Machine<N> {
                 s.diff_sum = signed;
             }
         }
-        self.drift_bound_sum = if keep {
-            self.drift_bound_sum.saturating_add(u64::from(bound))
+        self.drift_gate.bound_sum = if keep {
+            self.drift_gate.bound_sum.saturating_add(u64::from(bound))
         } else {
             u64::from(bound)
         };
-        self.drift_ok = if passed {
-            self.drift_ok.saturating_add(1)
+        self.drift_gate.passed = if passed {
+            self.drift_gate.passed.saturating_add(1)
         } else {
             0
         };
-        if self.drift_ok >= d.consecutive {
-            let k = u64::from(self.drift_ok);
+        if self.drift_gate.passed >= d.consecutive {
+            let k = u64::from(self.drift_gate.passed);
             let budget = u64::from(d.threshold_ns).saturating_mul(k);
             let scatter = u64::from(d.scatter_ns).saturating_mul(k);
             let means_ok = if per_slave {
@@ -191,7 +214,7 @@ impl<const N: usize> Machine<N> {
                     .filter(|s| s.dc.has_system_time())
                     .all(|s| s.diff_sum.unsigned_abs() <= budget && s.diff_abs_sum <= scatter)
             } else {
-                self.drift_bound_sum <= budget
+                self.drift_gate.bound_sum <= budget
             };
             if means_ok {
                 let max_diff_ns = if by_bound {
@@ -200,7 +223,7 @@ impl<const N: usize> Machine<N> {
                     worst.1
                 };
                 self.push_event(Event::DriftConverged {
-                    frames: self.drift_frames,
+                    frames: self.drift_gate.frames,
                     max_diff_ns,
                 });
                 return Ok(if self.cfg.sync.is_some() {
@@ -210,11 +233,11 @@ impl<const N: usize> Machine<N> {
                 });
             }
             // Readings stayed in bounds but some mean did not settle: a new streak.
-            self.drift_ok = 0;
+            self.drift_gate.passed = 0;
         }
-        if self.drift_frames >= d.max_frames {
+        if self.drift_gate.frames >= d.max_frames {
             return Err(Error::NotConverged {
-                frames: self.drift_frames,
+                frames: self.drift_gate.frames,
                 slaves_over: over.max(u16::from(!bound_ok)),
                 worst_station: worst.0,
                 worst_diff_ns: worst.1,
@@ -283,12 +306,12 @@ mod tests {
         let mut m = in_check::<4>(2, DriftCheck::PerSlave);
         // A reading above the spike bound (400) does not open a streak.
         assert_eq!(judge(&mut m, &[401, 10]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
+        assert_eq!(m.drift_gate.passed, 0);
         // Noisy readings open and continue one ...
         assert_eq!(judge(&mut m, &[150, -80]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 1);
+        assert_eq!(m.drift_gate.passed, 1);
         assert_eq!(judge(&mut m, &[-180, 20]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 2);
+        assert_eq!(m.drift_gate.passed, 2);
         // ... and after K = 3 checks: slave 1's signed mean (150 − 180 + 90) / 3 = 20, its
         // mean |Δ| 140 ≤ 200; slave 2's −10 and 40. Converged (SYNC configured: the
         // reference time is read next).
@@ -309,16 +332,16 @@ mod tests {
         assert_eq!(judge(&mut m, &[10, 100]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, 120]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, 110]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
+        assert_eq!(m.drift_gate.passed, 0);
         // Slave 1 swings ±300 around zero: signed mean 100 / 3, mean |Δ| 300 > 200.
         assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[-300, 0]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
+        assert_eq!(m.drift_gate.passed, 0);
         // A spike in the middle of a good streak restarts it.
         assert_eq!(judge(&mut m, &[10, 10]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, -450]), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
+        assert_eq!(m.drift_gate.passed, 0);
         assert!(m.poll_event().is_none());
     }
 
@@ -327,14 +350,14 @@ mod tests {
         let mut m = in_check::<4>(2, DriftCheck::Broadcast);
         for (bound, ok) in [(100, 1), (190, 2)] {
             // Every bound within the spike bound (400) counts.
-            m.drift_bound = Some(bound);
+            m.drift_gate.bound = Some(bound);
             assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
-            assert_eq!(m.drift_ok, ok);
+            assert_eq!(m.drift_gate.passed, ok);
         }
         // Mean of 100, 190, 20 = 103 > 100: starts over.
-        m.drift_bound = Some(20);
+        m.drift_gate.bound = Some(20);
         assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
-        assert_eq!(m.drift_ok, 0);
+        assert_eq!(m.drift_gate.passed, 0);
     }
 
     /// Commands of the datagrams in a frame, in order.
@@ -356,7 +379,7 @@ mod tests {
         assert_eq!(first.first(), Some(&Command::Brd));
         assert_eq!(first.last(), Some(&Command::Frmw));
         assert_eq!(first.iter().filter(|c| **c == Command::Fprd).count(), 30);
-        assert_eq!(m.drift_frames, 1);
+        assert_eq!(m.drift_gate.frames, 1);
         // Answer it (WKC 1 per FPRD, 40 for BRD and FRMW), then the rest goes out without FRMW.
         let mut reply = buf[..n].to_vec();
         {
@@ -378,6 +401,6 @@ mod tests {
         let second = commands(&buf[..n]);
         assert_eq!(second.len(), 10);
         assert!(second.iter().all(|c| *c == Command::Fprd));
-        assert_eq!(m.drift_frames, 1);
+        assert_eq!(m.drift_gate.frames, 1);
     }
 }

@@ -3,6 +3,7 @@
 use crate::dc::config::{Config, ConfigError};
 use crate::dc::cyclic::CyclicState;
 use crate::dc::delay::Delays;
+use crate::dc::drift::DriftGate;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
 use crate::dc::monitor::MonitorList;
@@ -126,11 +127,8 @@ pub struct Machine<const N: usize> {
     /// Running DC domain's time minus the master's clock at the latch, ns (REQ-DC-131); 0 when
     /// no slave was found running.
     pub(crate) domain_shift: i64,
-    pub(crate) drift_frames: u32,
-    pub(crate) drift_ok: u8,
-    pub(crate) drift_bound: Option<u32>,
-    /// Sum of the BRD 0x092C bounds over the current passing streak (REQ-DC-104).
-    pub(crate) drift_bound_sum: u64,
+    /// The static drift compensation's convergence gate (`dc/drift.rs`).
+    pub(crate) drift_gate: DriftGate,
     pub(crate) sync_start: u64,
     pub(crate) cyc: CyclicState,
     /// The round robin's slave list (a cache of `slaves`, see `dc/monitor.rs`).
@@ -215,10 +213,7 @@ impl<const N: usize> Machine<N> {
             t_diff,
             latch_time,
             domain_shift,
-            drift_frames,
-            drift_ok,
-            drift_bound,
-            drift_bound_sum,
+            drift_gate,
             sync_start,
             cyc,
             monitor,
@@ -248,10 +243,7 @@ impl<const N: usize> Machine<N> {
         t_diff.fill(None);
         *latch_time = 0;
         *domain_shift = 0;
-        *drift_frames = 0;
-        *drift_ok = 0;
-        *drift_bound = None;
-        *drift_bound_sum = 0;
+        *drift_gate = DriftGate::IDLE;
         *sync_start = 0;
         *cyc = CyclicState::IDLE;
         monitor.clear();
@@ -288,10 +280,7 @@ impl<const N: usize> Machine<N> {
             t_diff: [None; N],
             latch_time: 0,
             domain_shift: 0,
-            drift_frames: 0,
-            drift_ok: 0,
-            drift_bound: None,
-            drift_bound_sum: 0,
+            drift_gate: DriftGate::IDLE,
             sync_start: 0,
             cyc: CyclicState::IDLE,
             monitor: MonitorList::new(),

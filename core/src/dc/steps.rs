@@ -119,7 +119,7 @@ impl<const N: usize> Machine<N> {
         }
         if self.state == State::DriftBurst {
             // One FRMW per burst frame: one loop sample in every slave.
-            self.drift_frames = self.drift_frames.saturating_add(1);
+            self.drift_gate.frames = self.drift_gate.frames.saturating_add(1);
         }
         let _ = i;
     }
@@ -175,13 +175,13 @@ impl<const N: usize> Machine<N> {
                 self.reference = 0;
                 self.sync_start = 0;
                 self.latch_round = 0;
-                self.drift_frames = 0;
-                self.drift_ok = 0;
-                self.drift_bound = None;
+                self.drift_gate.frames = 0;
+                self.drift_gate.passed = 0;
+                self.drift_gate.bound = None;
                 self.domain_shift = 0;
                 self.tdiff_reset();
             }
-            State::DriftCheck => self.drift_bound = None,
+            State::DriftCheck => self.drift_gate.bound = None,
             State::Cyclic => self.cyclic_enter(),
             _ => {}
         }
