@@ -64,10 +64,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             sys_count,
             inflight,
             timers,
-            cursor,
-            chunk_start,
-            tries,
-            step_error,
+            step,
             events,
             stats: _,
             next_index,
@@ -90,7 +87,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             (
                 cfg, state, slaves, count, reference, sys_count, inflight, timers,
             ),
-            (cursor, chunk_start, tries, step_error, events, next_index),
+            (step, events, next_index),
             (
                 last_sent,
                 latch_round,
@@ -157,7 +154,7 @@ mod tests {
     fn every_kind_of_control_field_counts() {
         let a = Machine::<4>::new(Config::default()).unwrap();
         let changes: [fn(&mut Machine<4>); 5] = [
-            |m| m.cursor = 1,
+            |m| m.step.cursor = 1,
             |m| m.cfg.retries = m.cfg.retries.wrapping_add(1),
             |m| m.cyc.locked = true,
             |m| m.push_event(crate::dc::Event::Restarting),

@@ -55,7 +55,7 @@ impl<const N: usize> Machine<N> {
     /// burst waits `check_pause_ns` after the previous frame (REQ-DC-104).
     pub(crate) fn pace_until(&self) -> u64 {
         let last_of_burst = self.burst_len().saturating_sub(1);
-        if self.state == State::DriftBurst && self.cursor == last_of_burst {
+        if self.state == State::DriftBurst && self.step.cursor == last_of_burst {
             self.last_sent.saturating_add(self.cfg.drift.check_pause_ns)
         } else {
             0

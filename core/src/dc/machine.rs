@@ -64,6 +64,30 @@ impl Stats {
     };
 }
 
+/// Where a request step stands: its items are numbered `0..item_count`, sent in frames of
+/// consecutive items and answered before the next frame goes out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) struct StepProgress {
+    /// The next item to send.
+    pub(crate) cursor: u16,
+    /// The first item of the frame in flight (a retry sends from there again).
+    pub(crate) chunk_start: u16,
+    /// Retries of the step so far (`Config::retries`).
+    pub(crate) tries: u8,
+    /// An error found in a reply, reported if the step then times out instead of completing.
+    pub(crate) error: Option<Error>,
+}
+
+impl StepProgress {
+    /// A step not started.
+    pub(crate) const START: StepProgress = StepProgress {
+        cursor: 0,
+        chunk_start: 0,
+        tries: 0,
+        error: None,
+    };
+}
+
 /// One item of a request step.
 pub(crate) enum Item {
     /// Send this datagram.
@@ -105,10 +129,8 @@ pub struct Machine<const N: usize> {
     /// Every deadline (`dc/timer.rs`); `Timer::Reply` is armed exactly while a frame is
     /// awaited.
     pub(crate) timers: TimerTable,
-    pub(crate) cursor: u16,
-    pub(crate) chunk_start: u16,
-    pub(crate) tries: u8,
-    pub(crate) step_error: Option<Error>,
+    /// Where the current request step stands (its items, retries, deferred error).
+    pub(crate) step: StepProgress,
     pub(crate) events: EventQueue,
     pub(crate) stats: Stats,
     pub(crate) next_index: u8,
@@ -199,10 +221,7 @@ impl<const N: usize> Machine<N> {
             sys_count,
             inflight,
             timers,
-            cursor,
-            chunk_start,
-            tries,
-            step_error,
+            step,
             events,
             stats,
             next_index,
@@ -229,10 +248,7 @@ impl<const N: usize> Machine<N> {
         *sys_count = 0;
         *inflight = Inflight::new();
         *timers = TimerTable::new();
-        *cursor = 0;
-        *chunk_start = 0;
-        *tries = 0;
-        *step_error = None;
+        *step = StepProgress::START;
         *events = EventQueue::new();
         *stats = Stats::ZERO;
         *next_index = cfg.index_first;
@@ -266,10 +282,7 @@ impl<const N: usize> Machine<N> {
             sys_count: 0,
             inflight: Inflight::new(),
             timers: TimerTable::new(),
-            cursor: 0,
-            chunk_start: 0,
-            tries: 0,
-            step_error: None,
+            step: StepProgress::START,
             events: EventQueue::new(),
             stats: Stats::ZERO,
             next_index: cfg.index_first,
@@ -468,7 +481,8 @@ impl<const N: usize> Machine<N> {
                 self.inflight.clear();
                 self.timers.stop(Timer::Reply);
                 let e = self
-                    .step_error
+                    .step
+                    .error
                     .take()
                     .unwrap_or(Error::Timeout { state: self.state });
                 self.retry_or_fail(now, e);
@@ -582,10 +596,7 @@ impl<const N: usize> Machine<N> {
         if to != State::Cyclic {
             self.timers.stop(Timer::Cycle);
         }
-        self.cursor = 0;
-        self.chunk_start = 0;
-        self.tries = 0;
-        self.step_error = None;
+        self.step = StepProgress::START;
         self.on_enter(to);
     }
 
@@ -621,19 +632,19 @@ impl<const N: usize> Machine<N> {
     }
 
     fn retry_or_fail(&mut self, now: u64, e: Error) {
-        if self.tries < self.cfg.retries && e.is_retryable() {
+        if self.step.tries < self.cfg.retries && e.is_retryable() {
             self.stats.retries = self.stats.retries.saturating_add(1);
-            let tries = self.tries.saturating_add(1);
+            let tries = self.step.tries.saturating_add(1);
             if matches!(self.state, State::LatchTrigger | State::LatchReadAfter) {
                 // The trigger may or may not have latched: measure the whole round again.
                 self.enter(State::LatchReadBefore);
             } else if let Some(s) = self.tdiff_retry_state() {
                 self.enter(s);
             } else {
-                self.cursor = self.chunk_start;
-                self.step_error = None;
+                self.step.cursor = self.step.chunk_start;
+                self.step.error = None;
             }
-            self.tries = tries;
+            self.step.tries = tries;
         } else {
             self.fault(now, e);
         }
@@ -679,10 +690,11 @@ impl<const N: usize> Machine<N> {
                 return self.state == State::Cyclic && self.fill_cyclic(now, b, into_caller);
             }
             let count = self.item_count();
-            while self.cursor < count && matches!(self.item(now, self.cursor), Item::Skip) {
-                self.cursor = self.cursor.saturating_add(1);
+            while self.step.cursor < count && matches!(self.item(now, self.step.cursor), Item::Skip)
+            {
+                self.step.cursor = self.step.cursor.saturating_add(1);
             }
-            if self.cursor < count {
+            if self.step.cursor < count {
                 break;
             }
             self.step_done(now);
@@ -694,34 +706,34 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         let before = b.datagram_count();
-        self.chunk_start = self.cursor;
+        self.step.chunk_start = self.step.cursor;
         self.inflight.clear();
         let count = self.item_count();
         let max = self.max_per_frame();
         let mut sent = 0usize;
-        while self.cursor < count && sent < max {
-            match self.item(now, self.cursor) {
-                Item::Skip => self.cursor = self.cursor.saturating_add(1),
+        while self.step.cursor < count && sent < max {
+            match self.item(now, self.step.cursor) {
+                Item::Skip => self.step.cursor = self.step.cursor.saturating_add(1),
                 Item::Send(op) => {
                     if !self.drift_check_room(now, b, op)
-                        || !self.push_op(b, op, Tag::Item(self.cursor))
+                        || !self.push_op(b, op, Tag::Item(self.step.cursor))
                     {
                         break;
                     }
-                    self.before_send(now, self.cursor);
+                    self.before_send(now, self.step.cursor);
                     sent = sent.saturating_add(1);
-                    self.cursor = self.cursor.saturating_add(1);
+                    self.step.cursor = self.step.cursor.saturating_add(1);
                 }
             }
         }
-        if sent > 0 && self.cursor < count {
+        if sent > 0 && self.step.cursor < count {
             self.drift_check_epilogue(now, b);
         }
         if self.inflight.is_empty() {
             if before == 0 {
                 self.push_event(Event::Error(Error::BufferTooSmall));
             }
-            self.cursor = self.chunk_start;
+            self.step.cursor = self.step.chunk_start;
             return false;
         }
         self.last_sent = now;
@@ -740,12 +752,12 @@ impl<const N: usize> Machine<N> {
         match p.tag {
             Tag::Item(i) if self.state.is_request_step() => {
                 if let Err(e) = self.on_item(now, i, p, wkc, data) {
-                    self.step_error.get_or_insert(e);
+                    self.step.error.get_or_insert(e);
                 }
             }
             Tag::Frmw if self.state == State::DriftCheck => {
                 if let Err(e) = self.check_frmw(p, wkc) {
-                    self.step_error.get_or_insert(e);
+                    self.step.error.get_or_insert(e);
                 }
             }
             _ if self.state == State::Cyclic => self.on_cyclic_reply(now, p, wkc, data),
@@ -754,15 +766,15 @@ impl<const N: usize> Machine<N> {
     }
 
     fn step_complete(&mut self, now: u64) {
-        if let Some(e) = self.step_error.take() {
+        if let Some(e) = self.step.error.take() {
             return self.retry_or_fail(now, e);
         }
-        self.tries = 0;
+        self.step.tries = 0;
         let count = self.item_count();
-        while self.cursor < count && matches!(self.item(now, self.cursor), Item::Skip) {
-            self.cursor = self.cursor.saturating_add(1);
+        while self.step.cursor < count && matches!(self.item(now, self.step.cursor), Item::Skip) {
+            self.step.cursor = self.step.cursor.saturating_add(1);
         }
-        if self.cursor >= count {
+        if self.step.cursor >= count {
             self.step_done(now);
         }
     }

@@ -45,10 +45,10 @@ impl<const N: usize> Machine<N> {
             State::DriftBurst => 1,
             // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two:
             // a frame from the AL half ends with its last AL read.
-            State::ReadAlStatus if self.cursor < self.count => self
+            State::ReadAlStatus if self.step.cursor < self.count => self
                 .slaves()
                 .iter()
-                .skip(usize::from(self.cursor))
+                .skip(usize::from(self.step.cursor))
                 .filter(|s| s.dc.has_system_time())
                 .count()
                 .max(1),
