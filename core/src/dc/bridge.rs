@@ -71,20 +71,20 @@ impl<const N: usize> Machine<N> {
     }
 
     /// REQ-DC-101, REQ-DC-019: adds the latest latch round of the bring-up measurement to the
-    /// exact sum of its rounds (`self.delays`, restarted at round 0) with
+    /// exact sum of its rounds (`self.latch.sum`, restarted at round 0) with
     /// [`Delays::accumulate`](delay::Delays::accumulate), so the mean over the K rounds is
     /// rounded once, not once per round. This round's topology stays in `scratch.topo` (its
     /// entry ports are needed for the offsets). A failed sum is dropped, so the next round
     /// starts a new one.
     pub(crate) fn add_latch_round(&mut self) -> Result<(), Error> {
         self.latch_round_delays()?;
-        if self.latch_round > 0 && self.delays.has_rounds() {
-            if let Err(e) = self.delays.accumulate(&self.scratch.round) {
-                self.delays.clear();
+        if self.latch.round > 0 && self.latch.sum.has_rounds() {
+            if let Err(e) = self.latch.sum.accumulate(&self.scratch.round) {
+                self.latch.sum.clear();
                 return Err(self.delay_error(e));
             }
         } else {
-            self.delays.copy_from(&self.scratch.round);
+            self.latch.sum.copy_from(&self.scratch.round);
         }
         Ok(())
     }
@@ -157,7 +157,7 @@ impl<const N: usize> Machine<N> {
     /// REQ-DC-112: no offset is derived from an implausible EPU time ([`epu_plausible`]).
     pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
         let topo = &self.scratch.topo;
-        let master = SystemTime(self.latch_time);
+        let master = SystemTime(self.latch.trigger_time);
         let count = usize::from(self.count);
         for (i, s) in self.slaves.iter_mut().enumerate().take(count) {
             let Some(width) = clock_width(s.dc) else {
@@ -208,7 +208,7 @@ impl<const N: usize> Machine<N> {
                 register: reg::SYSTEM_TIME_OFFSET,
             });
         };
-        let master = SystemTime(self.latch_time);
+        let master = SystemTime(self.latch.trigger_time);
         let at_latch = a
             .entry_local
             .wrapping_add(read)
@@ -349,7 +349,7 @@ mod tests {
             s.dl_status = dl;
             s.times_before = [1, 1, 1, 1];
         }
-        m.latch_time = M;
+        m.latch.trigger_time = M;
         m
     }
 
@@ -436,7 +436,7 @@ mod tests {
             assert_eq!(finish_round(&mut m), Ok(next));
         }
         assert_eq!(m.slaves[1].delay_ns, 604);
-        assert!(!m.delays.has_rounds(), "the sum is consumed");
+        assert!(!m.latch.sum.has_rounds(), "the sum is consumed");
     }
 
     /// REQ-DC-050, REQ-DC-105: a start that would lie 2^31 ns or more ahead of the reference's
@@ -543,7 +543,7 @@ mod tests {
             let domain = master - behind;
             let off0 = u64::from(low32(domain.wrapping_sub(entry0)));
             let mut m = running_reference(DcKind::Bits32, off0, entry0, entry1, 300);
-            m.latch_time = master;
+            m.latch.trigger_time = master;
             m.anchor_on_running_domain().unwrap();
             assert_eq!(m.domain_shift, -(behind as i64));
             assert_eq!(entry1.wrapping_add(m.slaves[1].offset), domain + 300);

@@ -2,10 +2,10 @@
 
 use crate::dc::config::{Config, ConfigError};
 use crate::dc::cyclic::CyclicState;
-use crate::dc::delay::Delays;
 use crate::dc::drift::DriftGate;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
+use crate::dc::measure::LatchRounds;
 use crate::dc::monitor::MonitorList;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::scratch::Scratch;
@@ -137,15 +137,11 @@ pub struct Machine<const N: usize> {
     /// Master time of the last transmission of a request step.
     pub(crate) last_sent: u64,
     pub(crate) frames_at_start: u64,
-    pub(crate) latch_round: u8,
-    /// Exact sum of the bring-up's latch rounds so far (REQ-DC-019); cleared (no rounds) when
-    /// they are done.
-    pub(crate) delays: Delays<N>,
+    /// The delay measurement's rounds (`dc/measure.rs`).
+    pub(crate) latch: LatchRounds<N>,
     /// Per-slave `t_Diff` overrides by auto-increment position (REQ-DC-015); `None` uses
     /// `Config::t_diff_ns`.
     pub(crate) t_diff: [Option<i32>; N],
-    /// Master time sampled just before sending the latch trigger (REQ-DC-102).
-    pub(crate) latch_time: u64,
     /// Running DC domain's time minus the master's clock at the latch, ns (REQ-DC-131); 0 when
     /// no slave was found running.
     pub(crate) domain_shift: i64,
@@ -227,10 +223,8 @@ impl<const N: usize> Machine<N> {
             next_index,
             last_sent,
             frames_at_start,
-            latch_round,
-            delays,
+            latch,
             t_diff,
-            latch_time,
             domain_shift,
             drift_gate,
             sync_start,
@@ -254,10 +248,8 @@ impl<const N: usize> Machine<N> {
         *next_index = cfg.index_first;
         *last_sent = 0;
         *frames_at_start = 0;
-        *latch_round = 0;
-        delays.clear();
+        latch.clear();
         t_diff.fill(None);
-        *latch_time = 0;
         *domain_shift = 0;
         *drift_gate = DriftGate::IDLE;
         *sync_start = 0;
@@ -288,10 +280,8 @@ impl<const N: usize> Machine<N> {
             next_index: cfg.index_first,
             last_sent: 0,
             frames_at_start: 0,
-            latch_round: 0,
-            delays: Delays::new(),
+            latch: LatchRounds::new(),
             t_diff: [None; N],
-            latch_time: 0,
             domain_shift: 0,
             drift_gate: DriftGate::IDLE,
             sync_start: 0,

@@ -5,6 +5,7 @@
 //! latched only if its time changed across the trigger (stale-latch detection, Lambert's IgH
 //! patch).
 
+use crate::dc::delay::Delays;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
@@ -14,6 +15,35 @@ use crate::wire::register::reg;
 
 /// Bytes of one full latch read: 0x0900..0x091F (4 port times, system time, EPU time).
 const LATCH_BLOCK: u16 = 32;
+
+/// The bring-up's delay measurement rounds.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(crate) struct LatchRounds<const N: usize> {
+    /// Rounds completed in this bring-up.
+    pub(crate) round: u8,
+    /// Exact sum of the rounds so far (REQ-DC-019); cleared (no rounds) when they are done.
+    pub(crate) sum: Delays<N>,
+    /// Master time sampled just before sending the latch trigger (REQ-DC-102).
+    pub(crate) trigger_time: u64,
+}
+
+impl<const N: usize> LatchRounds<N> {
+    /// No round measured.
+    pub(crate) const fn new() -> Self {
+        LatchRounds {
+            round: 0,
+            sum: Delays::new(),
+            trigger_time: 0,
+        }
+    }
+
+    /// Back to [`LatchRounds::new`], in place (no temporary of size `N`).
+    pub(crate) fn clear(&mut self) {
+        self.round = 0;
+        self.sum.clear();
+        self.trigger_time = 0;
+    }
+}
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn measure_item(&self, i: u16) -> Item {
@@ -97,8 +127,8 @@ impl<const N: usize> Machine<N> {
             State::LatchTrigger => Ok(State::LatchReadAfter),
             State::LatchReadAfter => {
                 self.add_latch_round()?;
-                self.latch_round = self.latch_round.saturating_add(1);
-                if self.latch_round < self.cfg.latch_rounds {
+                self.latch.round = self.latch.round.saturating_add(1);
+                if self.latch.round < self.cfg.latch_rounds {
                     return Ok(State::LatchReadBefore);
                 }
                 self.finish_delays()?;
@@ -113,7 +143,7 @@ impl<const N: usize> Machine<N> {
     fn finish_delays(&mut self) -> Result<(), Error> {
         // The sum is used once: dropped whatever the outcome.
         let applied = self.apply_delays();
-        self.delays.clear();
+        self.latch.sum.clear();
         let max_seen = applied?;
         self.compute_offsets()?;
         self.push_event(Event::DelaysMeasured {
@@ -125,7 +155,7 @@ impl<const N: usize> Machine<N> {
     /// The 0x0928 value of every slave with a system time from the sum of the rounds; the
     /// largest one.
     fn apply_delays(&mut self) -> Result<u32, Error> {
-        let delays = &self.delays;
+        let delays = &self.latch.sum;
         if !delays.has_rounds() {
             return Err(Error::Measurement { station: 0 });
         }

@@ -115,7 +115,7 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn before_send(&mut self, now: u64, i: u16) {
         if self.state == State::LatchTrigger {
             // REQ-DC-102: master time sampled *before* the latching BWR leaves.
-            self.latch_time = now;
+            self.latch.trigger_time = now;
         }
         if self.state == State::DriftBurst {
             // One FRMW per burst frame: one loop sample in every slave.
@@ -174,7 +174,7 @@ impl<const N: usize> Machine<N> {
                 self.sys_count = 0;
                 self.reference = 0;
                 self.sync_start = 0;
-                self.latch_round = 0;
+                self.latch.round = 0;
                 self.drift_gate.frames = 0;
                 self.drift_gate.passed = 0;
                 self.drift_gate.bound = None;

@@ -357,7 +357,7 @@ fn running_offsets_read_after_al_states_and_anchor_the_others() {
     m.count = 3;
     m.reference = 0;
     m.sys_count = 2;
-    m.latch_time = T0;
+    m.latch.trigger_time = T0;
     for (i, dc) in [DcKind::Bits64, DcKind::None, DcKind::Bits64]
         .into_iter()
         .enumerate()
