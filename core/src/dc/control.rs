@@ -67,7 +67,6 @@ impl<'m, const N: usize> ControlState<'m, N> {
             step,
             events,
             stats: _,
-            next_index,
             last_sent,
             frames_at_start: _,
             latch,
@@ -85,7 +84,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             (
                 cfg, state, slaves, count, reference, sys_count, inflight, timers,
             ),
-            (step, events, next_index),
+            (step, events),
             (last_sent, latch, t_diff, domain_shift),
             (drift_gate, sync_start, cyc),
             (tdiff, restart_streak, &scratch.topo, &scratch.round),

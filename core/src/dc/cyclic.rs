@@ -545,7 +545,7 @@ mod tests {
             }
         }
         m.cyc.rr = rr;
-        m.next_index = next;
+        m.inflight.next_index = next;
         m
     }
 

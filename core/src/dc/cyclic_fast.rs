@@ -44,7 +44,7 @@ impl<const N: usize> Machine<N> {
         }
         // Indexes as `alloc_index` hands them out, one per datagram in send order.
         let (first, range) = (self.cfg.index_first, self.cfg.index_count);
-        let mut next = self.next_index;
+        let mut next = self.inflight.next_index;
         let mut alloc = || {
             let i = next;
             next = index_after(i, first, range);
@@ -199,7 +199,7 @@ impl<const N: usize> Machine<N> {
             None => ok = false,
         }
         self.cyc.rr = new_rr;
-        self.next_index = next;
+        self.inflight.next_index = next;
         ok &= self.inflight.mark_filled(n);
         // Unreachable by construction: `rest` was exactly `total` bytes, the sum of the pieces
         // written above, and `n` fits the table (checked before `append_block`). Should the

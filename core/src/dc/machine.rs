@@ -133,7 +133,6 @@ pub struct Machine<const N: usize> {
     pub(crate) step: StepProgress,
     pub(crate) events: EventQueue,
     pub(crate) stats: Stats,
-    pub(crate) next_index: u8,
     /// Master time of the last transmission of a request step.
     pub(crate) last_sent: u64,
     pub(crate) frames_at_start: u64,
@@ -220,7 +219,6 @@ impl<const N: usize> Machine<N> {
             step,
             events,
             stats,
-            next_index,
             last_sent,
             frames_at_start,
             latch,
@@ -240,12 +238,11 @@ impl<const N: usize> Machine<N> {
         *count = 0;
         *reference = 0;
         *sys_count = 0;
-        *inflight = Inflight::new();
+        *inflight = Inflight::new(cfg.index_first);
         *timers = TimerTable::new();
         *step = StepProgress::START;
         *events = EventQueue::new();
         *stats = Stats::ZERO;
-        *next_index = cfg.index_first;
         *last_sent = 0;
         *frames_at_start = 0;
         latch.clear();
@@ -272,12 +269,11 @@ impl<const N: usize> Machine<N> {
             count: 0,
             reference: 0,
             sys_count: 0,
-            inflight: Inflight::new(),
+            inflight: Inflight::new(cfg.index_first),
             timers: TimerTable::new(),
             step: StepProgress::START,
             events: EventQueue::new(),
             stats: Stats::ZERO,
-            next_index: cfg.index_first,
             last_sent: 0,
             frames_at_start: 0,
             latch: LatchRounds::new(),
@@ -641,8 +637,8 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn alloc_index(&mut self) -> u8 {
-        let i = self.next_index;
-        self.next_index = index_after(i, self.cfg.index_first, self.cfg.index_count);
+        let i = self.inflight.next_index;
+        self.inflight.next_index = index_after(i, self.cfg.index_first, self.cfg.index_count);
         i
     }
 

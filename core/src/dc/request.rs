@@ -239,6 +239,9 @@ pub(crate) struct Inflight {
     live: u8,
     /// Slot tried first by the next `take_match`.
     hint: u8,
+    /// The index the next datagram gets (`Config::index_first` + k, cycling through
+    /// `Config::index_count` values); `clear` keeps it, so indexes keep cycling across frames.
+    pub(crate) next_index: u8,
 }
 
 /// `MAX_INFLIGHT` as the counters' type.
@@ -246,12 +249,14 @@ const MAX_INFLIGHT_U8: u8 = 32;
 const _: () = assert!(MAX_INFLIGHT_U8 as usize == MAX_INFLIGHT);
 
 impl Inflight {
-    pub(crate) const fn new() -> Self {
+    /// An empty table whose first datagram gets index `first`.
+    pub(crate) const fn new(first: u8) -> Self {
         Inflight {
             entries: [None; MAX_INFLIGHT],
             used: 0,
             live: 0,
             hint: 0,
+            next_index: first,
         }
     }
     #[inline]
@@ -418,7 +423,7 @@ mod tests {
     /// order, a reply matched once only, and reuse of freed slots once all 32 were used.
     #[test]
     fn inflight_table() {
-        let mut t = Inflight::new();
+        let mut t = Inflight::new(0x80);
         assert!(t.is_empty() && t.has_room());
         let ps: Vec<Pending> = (0..MAX_INFLIGHT as u16)
             .map(|i| pending(0x80 + i as u8, 0x1000 + i))
