@@ -28,22 +28,28 @@ for t in $tests; do
     status=passed
     [ "$rc" = 0 ] || { status="FAILED (exit $rc)"; fail=1; grep -m3 'panicked\|violated' "$log"; }
     echo "[p6-deep] $t depth $DEPTH: $status, $wall, $((${rss:-0} / 1024)) MB: $line"
-    rows+=("| \`$t\` | $DEPTH | $status | $line | $wall | $((${rss:-0} / 1024)) |")
+    rows+=("| \`$t\` | $DEPTH | $status | $line | $wall | $((${rss:-0} / 1024)) | \`$commit$dirty\`, $(date -u +%Y-%m-%d) |")
     rm -f "$log"
 done
+# Rows of configurations not run now are kept from the previous file (each row says its
+# commit and day).
+for t in p6_bfs_one_slave_op p6_bfs_two_slaves_init p6_bfs_three_slaves_mixed_widths p6_bfs_four_slaves_mixed; do
+    case " $tests " in *" $t "*) continue ;; esac
+    [ -f "$out" ] && old=$(grep "^| \`$t\` |" "$out") && rows+=("$old")
+done
 {
-    echo "# P6 search to depth $DEPTH"
+    echo "# P6 search beyond the depth CI runs"
     echo
-    echo "Produced by \`scripts/p6-deep.sh $DEPTH\` on $(nproc) shared vCPUs, $(date -u +%Y-%m-%d),"
-    echo "code of commit \`$commit$dirty\` (+dirty: uncommitted changes under core/ or proofs/),"
+    echo "Produced by \`scripts/p6-deep.sh $DEPTH [TEST...]\` on $(nproc) shared vCPUs; each row gives the"
+    echo "code's commit (+dirty: uncommitted changes under core/ or proofs/) and the day it ran,"
     echo "\`model-check\` profile (optimised, debug assertions and overflow checks on). Each row is"
     echo "one configuration of proofs/tests/model_check_bfs.rs searched breadth-first from every"
-    echo "state of its fault-free bring-up to depth $DEPTH, with every check of the CI search on"
+    echo "state of its fault-free bring-up to the depth given, with every check of the CI search on"
     echo "every state and transition (docs/verification.md, P6). Peak memory is the test"
     echo "process's maximum resident set."
     echo
-    echo "| test | depth | result | search | wall | peak RSS MB |"
-    echo "|---|---:|---|---|---:|---:|"
+    echo "| test | depth | result | search | wall | peak RSS MB | commit, day |"
+    echo "|---|---:|---|---|---:|---:|---|"
     printf '%s\n' "${rows[@]}"
 } >"$out"
 echo "wrote $out"
