@@ -452,8 +452,7 @@ impl<const N: usize> Machine<N> {
 
     /// The cycle in flight is lost: coast, or give up after `max_lost_cycles`.
     pub(crate) fn cyclic_lost(&mut self, now: u64) {
-        self.inflight.clear();
-        self.timers.stop(Timer::Reply);
+        self.stop_awaiting();
         self.stats.lost_cycles = self.stats.lost_cycles.saturating_add(1);
         self.cyc.lost_streak = self.cyc.lost_streak.saturating_add(1);
         // A lost re-measurement step is resent (a lost trigger restarts the measurement).

@@ -301,8 +301,7 @@ impl<const N: usize> Machine<N> {
 
     /// Stops everything and returns to `Idle`; replies still in flight will be ignored.
     pub fn reset(&mut self) {
-        self.inflight.clear();
-        self.timers.stop(Timer::Reply);
+        self.stop_awaiting();
         self.enter(State::Idle);
     }
 
@@ -387,6 +386,13 @@ impl<const N: usize> Machine<N> {
     pub fn is_awaiting_reply(&self) -> bool {
         self.timers.is_set(Timer::Reply)
     }
+
+    /// Gives up the frame in flight: its datagrams are forgotten (a late reply is foreign)
+    /// and the reply timer stops.
+    pub(crate) fn stop_awaiting(&mut self) {
+        self.inflight.clear();
+        self.timers.stop(Timer::Reply);
+    }
     // ----- output ---------------------------------------------------------------------------
 
     /// Next event, if any.
@@ -436,8 +442,7 @@ impl<const N: usize> Machine<N> {
             Ok(n) => Some(n),
             Err(_) => {
                 // Cannot happen for a builder that accepted the datagrams; treat as a loss.
-                self.inflight.clear();
-                self.timers.stop(Timer::Reply);
+                self.stop_awaiting();
                 None
             }
         }
@@ -464,8 +469,7 @@ impl<const N: usize> Machine<N> {
             if self.state == State::Cyclic {
                 self.cyclic_lost(now);
             } else {
-                self.inflight.clear();
-                self.timers.stop(Timer::Reply);
+                self.stop_awaiting();
                 let e = self
                     .step
                     .error
@@ -570,8 +574,7 @@ impl<const N: usize> Machine<N> {
             to
         } else {
             self.push_event(Event::Error(Error::Internal { state: self.state }));
-            self.inflight.clear();
-            self.timers.stop(Timer::Reply);
+            self.stop_awaiting();
             State::Failed
         };
         self.state = to;
@@ -589,8 +592,7 @@ impl<const N: usize> Machine<N> {
     /// Reports a fault and stops or schedules a re-initialisation (REQ-DC-111).
     pub(crate) fn fault(&mut self, now: u64, e: Error) {
         self.push_event(Event::Error(e));
-        self.inflight.clear();
-        self.timers.stop(Timer::Reply);
+        self.stop_awaiting();
         self.cyc = CyclicState::default();
         if self.cfg.auto_restart {
             self.stats.restarts = self.stats.restarts.saturating_add(1);
