@@ -14,7 +14,7 @@ use crate::wire::register::reg;
 impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
         match self.state {
-            State::ReadAlStatus if i < self.count => match self.slave(i) {
+            State::ReadAlStatus if i < self.line.count => match self.slave(i) {
                 Some(s) if s.dc.has_system_time() => {
                     Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
                 }
@@ -22,7 +22,7 @@ impl<const N: usize> Machine<N> {
             },
             // REQ-DC-131: the offset of every slave whose offset stays, after every AL status
             // of the step is in (`max_per_frame` keeps the two halves in separate frames).
-            State::ReadAlStatus => match self.slave(i.saturating_sub(self.count)) {
+            State::ReadAlStatus => match self.slave(i.saturating_sub(self.line.count)) {
                 Some(s) if s.dc.has_system_time() && s.al_status.is_some() => {
                     if s.may_step_offset() {
                         Item::Skip
@@ -84,12 +84,12 @@ impl<const N: usize> Machine<N> {
     ) -> Result<(), Error> {
         self.expect_wkc(p, 1, wkc)?;
         match self.state {
-            State::ReadAlStatus if i >= self.count => {
+            State::ReadAlStatus if i >= self.line.count => {
                 let v = le(data, usize::from(p.len)).ok_or(Error::OutOfRange {
                     station: p.station,
                     register: p.register,
                 })?;
-                if let Some(s) = self.slave_mut(i.saturating_sub(self.count)) {
+                if let Some(s) = self.slave_mut(i.saturating_sub(self.line.count)) {
                     s.running_offset = Some(v);
                 }
             }
@@ -119,7 +119,7 @@ impl<const N: usize> Machine<N> {
         match self.state {
             State::ReadAlStatus => {
                 self.anchor_on_running_domain()?;
-                for s in self.slaves.iter_mut() {
+                for s in self.line.slaves.iter_mut() {
                     s.offset_written = false;
                     s.sync_programmed = false;
                 }

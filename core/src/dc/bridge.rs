@@ -25,8 +25,9 @@ impl<const N: usize> Machine<N> {
     /// link); it is treated as closed. A latching slave with no changed port at all was not
     /// reached, and the round is rejected.
     fn latch_round_delays(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.count);
+        let count = usize::from(self.line.count);
         for (s, out) in self
+            .line
             .slaves
             .iter()
             .zip(self.scratch.samples.iter_mut())
@@ -64,7 +65,7 @@ impl<const N: usize> Machine<N> {
         built.map_err(|e| self.topology_error(e))?;
         let sc = &mut self.scratch;
         let samples = sc.samples.get(..count).unwrap_or(&[]);
-        let reference = usize::from(self.reference);
+        let reference = usize::from(self.line.reference);
         let computed =
             delay::compute_in_place(samples, &sc.topo, reference, &mut sc.delay, &mut sc.round);
         computed.map_err(|e| self.delay_error(e))
@@ -96,10 +97,11 @@ impl<const N: usize> Machine<N> {
         self.latch_round_delays()?;
         let delays = &self.scratch.round;
         for (i, s) in self
+            .line
             .slaves
             .iter_mut()
             .enumerate()
-            .take(usize::from(self.count))
+            .take(usize::from(self.line.count))
         {
             if !s.dc.has_system_time() {
                 continue;
@@ -158,8 +160,8 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
         let topo = &self.scratch.topo;
         let master = SystemTime(self.latch.trigger_time);
-        let count = usize::from(self.count);
-        for (i, s) in self.slaves.iter_mut().enumerate().take(count) {
+        let count = usize::from(self.line.count);
+        for (i, s) in self.line.slaves.iter_mut().enumerate().take(count) {
             let Some(width) = clock_width(s.dc) else {
                 continue;
             };
@@ -191,15 +193,15 @@ impl<const N: usize> Machine<N> {
     /// slave then gets [`offset::initial_offset`] of `m`, as [`Self::compute_offsets`] gives it
     /// of the master's time. No running slave: nothing changes.
     pub(crate) fn anchor_on_running_domain(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.count);
-        let slaves = self.slaves.get(..count).unwrap_or(&[]);
+        let count = usize::from(self.line.count);
+        let slaves = self.line.slaves.get(..count).unwrap_or(&[]);
         let running = |s: &&SlaveInfo| s.running_offset.is_some() && !s.may_step_offset();
-        let anchor = match self.slave(self.reference).filter(running) {
+        let anchor = match self.slave(self.line.reference).filter(running) {
             Some(r) => Some(*r),
             None => slaves.iter().find(running).copied(),
         };
         let Some(a) = anchor else {
-            self.domain_shift = 0;
+            self.line.domain_shift = 0;
             return Ok(());
         };
         let (Some(width), Some(read)) = (clock_width(a.dc), a.running_offset) else {
@@ -218,11 +220,11 @@ impl<const N: usize> Machine<N> {
         if shift.unsigned_abs() > MAX_DOMAIN_SHIFT_NS {
             // REQ-DC-112: not a drifted domain but a 0x0920 that was never set by a master of
             // this epoch (or garbage): nothing is derived from it.
-            self.domain_shift = 0;
+            self.line.domain_shift = 0;
             return Ok(());
         }
-        self.domain_shift = shift;
-        for s in self.slaves.iter_mut().take(count) {
+        self.line.domain_shift = shift;
+        for s in self.line.slaves.iter_mut().take(count) {
             let Some(width) = clock_width(s.dc) else {
                 continue;
             };
@@ -255,7 +257,7 @@ impl<const N: usize> Machine<N> {
     ) -> Option<u64> {
         let width = clock_width(r.dc)?;
         // REQ-DC-131: the domain runs `domain_shift` away from the master's clock.
-        let expected = SystemTime(now).wrapping_add_signed(self.domain_shift);
+        let expected = SystemTime(now).wrapping_add_signed(self.line.domain_shift);
         let t_ref = sync::reference_now(raw, width, expected);
         if r.offset_written
             && t_ref.wrapping_since(expected).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
@@ -338,12 +340,12 @@ mod tests {
     /// end on port 0. `times_before` differ from every value used after the trigger.
     fn pair(dl_0: u16) -> Machine<4> {
         let mut m = Machine::<4>::new(Config::default()).unwrap();
-        m.count = 2;
-        m.reference = 0;
-        m.sys_count = 2;
+        m.line.count = 2;
+        m.line.reference = 0;
+        m.line.sys_count = 2;
         let dl_1 = open(0) | closed(1) | closed(2) | closed(3);
         for (i, dl) in [dl_0, dl_1].into_iter().enumerate() {
-            let s = &mut m.slaves[i];
+            let s = &mut m.line.slaves[i];
             s.station = 0x1001 + i as u16;
             s.dc = DcKind::Bits64;
             s.dl_status = dl;
@@ -375,18 +377,18 @@ mod tests {
             let t0 = t3 + x; // back from slave 1 into port 0, then the EPU
             let epu_0 = 0x5_0000_0000u64 + u64::from(t0);
             let epu_1 = 0x9_0000_0000u64 + 50_000;
-            m.slaves[0].times_after = [t0, 1, 1, t3];
-            m.slaves[0].epu_time = epu_0;
-            m.slaves[1].times_after = [50_000, 1, 1, 1];
-            m.slaves[1].epu_time = epu_1;
+            m.line.slaves[0].times_after = [t0, 1, 1, t3];
+            m.line.slaves[0].epu_time = epu_0;
+            m.line.slaves[1].times_after = [50_000, 1, 1, 1];
+            m.line.slaves[1].epu_time = epu_1;
             assert_eq!(finish_round(&mut m), Ok(State::ReadAlStatus), "x = {x}");
             let delay = x / 2; // slave 1 is a line end: half the excursion behind port 0
-            assert_eq!(m.slaves[0].delay_ns, 0);
-            assert_eq!(m.slaves[1].delay_ns, delay);
+            assert_eq!(m.line.slaves[0].delay_ns, 0);
+            assert_eq!(m.line.slaves[1].delay_ns, delay);
             let entry_0 = epu_0 - u64::from(x);
-            assert_eq!(entry_0.wrapping_add(m.slaves[0].offset), M, "x = {x}");
+            assert_eq!(entry_0.wrapping_add(m.line.slaves[0].offset), M, "x = {x}");
             assert_eq!(
-                epu_1.wrapping_add(m.slaves[1].offset),
+                epu_1.wrapping_add(m.line.slaves[1].offset),
                 M + u64::from(delay),
                 "x = {x}"
             );
@@ -400,10 +402,10 @@ mod tests {
     fn garbage_epu_rejected_when_entered_on_port_3() {
         let mut m = pair(open(0) | closed(1) | closed(2) | open(3));
         m.cfg.latch_rounds = 1;
-        m.slaves[0].times_after = [12_000, 1, 1, 10_000];
-        m.slaves[0].epu_time = 0x5_0000_0000 + 10_000; // the entry stamp, not port 0's
-        m.slaves[1].times_after = [50_000, 1, 1, 1];
-        m.slaves[1].epu_time = 50_000;
+        m.line.slaves[0].times_after = [12_000, 1, 1, 10_000];
+        m.line.slaves[0].epu_time = 0x5_0000_0000 + 10_000; // the entry stamp, not port 0's
+        m.line.slaves[1].times_after = [50_000, 1, 1, 1];
+        m.line.slaves[1].epu_time = 50_000;
         assert_eq!(
             finish_round(&mut m),
             Err(Error::OutOfRange {
@@ -411,7 +413,7 @@ mod tests {
                 register: reg::RECEIVE_TIME_EPU
             })
         );
-        assert_eq!(m.slaves[0].offset, 0);
+        assert_eq!(m.line.slaves[0].offset, 0);
     }
 
     /// REQ-DC-019: K rounds are averaged from their exact doubled sums, rounded once. Round
@@ -424,10 +426,10 @@ mod tests {
         m.cfg.latch_rounds = 4;
         for (k, x) in [1_209u32, 1_209, 1_208, 1_208].into_iter().enumerate() {
             let t0 = 10_000 + 100_000 * k as u32;
-            m.slaves[0].times_after = [t0, t0 + x, 1, 1];
-            m.slaves[0].epu_time = u64::from(t0);
-            m.slaves[1].times_after = [50_000 + 100_000 * k as u32, 1, 1, 1];
-            m.slaves[1].epu_time = u64::from(m.slaves[1].times_after[0]);
+            m.line.slaves[0].times_after = [t0, t0 + x, 1, 1];
+            m.line.slaves[0].epu_time = u64::from(t0);
+            m.line.slaves[1].times_after = [50_000 + 100_000 * k as u32, 1, 1, 1];
+            m.line.slaves[1].epu_time = u64::from(m.line.slaves[1].times_after[0]);
             let next = if k < 3 {
                 State::LatchReadBefore
             } else {
@@ -435,7 +437,7 @@ mod tests {
             };
             assert_eq!(finish_round(&mut m), Ok(next));
         }
-        assert_eq!(m.slaves[1].delay_ns, 604);
+        assert_eq!(m.line.slaves[1].delay_ns, 604);
         assert!(!m.latch.sum.has_rounds(), "the sum is consumed");
     }
 
@@ -492,13 +494,13 @@ mod tests {
         delay: u32,
     ) -> Machine<4> {
         let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
-        m.slaves[0].dc = dc0;
-        m.slaves[0].al_status = Some(0x08);
-        m.slaves[0].running_offset = Some(off0);
-        m.slaves[0].entry_local = entry0;
-        m.slaves[1].al_status = Some(0x01);
-        m.slaves[1].entry_local = entry1;
-        m.slaves[1].delay_ns = delay;
+        m.line.slaves[0].dc = dc0;
+        m.line.slaves[0].al_status = Some(0x08);
+        m.line.slaves[0].running_offset = Some(off0);
+        m.line.slaves[0].entry_local = entry0;
+        m.line.slaves[1].al_status = Some(0x01);
+        m.line.slaves[1].entry_local = entry1;
+        m.line.slaves[1].delay_ns = delay;
         m
     }
 
@@ -514,20 +516,23 @@ mod tests {
         let off0 = (M + ahead).wrapping_sub(entry0);
         let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
         m.anchor_on_running_domain().unwrap();
-        assert_eq!(m.domain_shift, ahead as i64);
-        assert_eq!(entry1.wrapping_add(m.slaves[1].offset), M + ahead + 700);
+        assert_eq!(m.line.domain_shift, ahead as i64);
+        assert_eq!(
+            entry1.wrapping_add(m.line.slaves[1].offset),
+            M + ahead + 700
+        );
         // No running slave: the offsets stay those of the master's time.
         let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
-        m.slaves[0].al_status = Some(0x02);
-        m.slaves[1].offset = 5;
+        m.line.slaves[0].al_status = Some(0x02);
+        m.line.slaves[1].offset = 5;
         m.anchor_on_running_domain().unwrap();
-        assert_eq!((m.domain_shift, m.slaves[1].offset), (0, 5));
+        assert_eq!((m.line.domain_shift, m.line.slaves[1].offset), (0, 5));
         // A running slave whose 0x0920 was never set (its system time is its local time) is
         // not a domain to join.
         let mut m = running_reference(DcKind::Bits64, 0, entry0, entry1, 700);
-        m.slaves[1].offset = 5;
+        m.line.slaves[1].offset = 5;
         m.anchor_on_running_domain().unwrap();
-        assert_eq!((m.domain_shift, m.slaves[1].offset), (0, 5));
+        assert_eq!((m.line.domain_shift, m.line.slaves[1].offset), (0, 5));
     }
 
     /// REQ-DC-131, REQ-DC-051: a 32-bit running reference's time is widened around the
@@ -545,8 +550,8 @@ mod tests {
             let mut m = running_reference(DcKind::Bits32, off0, entry0, entry1, 300);
             m.latch.trigger_time = master;
             m.anchor_on_running_domain().unwrap();
-            assert_eq!(m.domain_shift, -(behind as i64));
-            assert_eq!(entry1.wrapping_add(m.slaves[1].offset), domain + 300);
+            assert_eq!(m.line.domain_shift, -(behind as i64));
+            assert_eq!(entry1.wrapping_add(m.line.slaves[1].offset), domain + 300);
         }
     }
 
@@ -565,7 +570,7 @@ mod tests {
         let sync = SyncConfig::default();
         let ahead = 1_500_000_000u64;
         assert_eq!(m.compute_sync_start(M, M + ahead, &r, &sync), None);
-        m.domain_shift = ahead as i64;
+        m.line.domain_shift = ahead as i64;
         let start = m.compute_sync_start(M, M + ahead, &r, &sync).unwrap();
         assert!(start > M + ahead && start < M + ahead + (1 << 31));
         assert_eq!(m.compute_sync_start(M, M, &r, &sync), None);

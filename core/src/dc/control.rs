@@ -58,10 +58,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
         let Machine {
             cfg,
             state,
-            slaves,
-            count,
-            reference,
-            sys_count,
+            line,
             inflight,
             timers,
             step,
@@ -70,10 +67,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             last_sent,
             frames_at_start: _,
             latch,
-            t_diff,
-            domain_shift,
             drift_gate,
-            sync_start,
             cyc,
             monitor: _,
             tdiff,
@@ -81,12 +75,10 @@ impl<'m, const N: usize> ControlState<'m, N> {
             scratch,
         } = self.m;
         (
-            (
-                cfg, state, slaves, count, reference, sys_count, inflight, timers,
-            ),
+            (cfg, state, line, inflight, timers),
             (step, events),
-            (last_sent, latch, t_diff, domain_shift),
-            (drift_gate, sync_start, cyc),
+            (last_sent, latch),
+            (drift_gate, cyc),
             (tdiff, restart_streak, &scratch.topo, &scratch.round),
         )
     }
@@ -148,7 +140,7 @@ mod tests {
             |m| m.cfg.retries = m.cfg.retries.wrapping_add(1),
             |m| m.cyc.locked = true,
             |m| m.push_event(crate::dc::Event::Restarting),
-            |m| m.slaves[1].station = 0x1234,
+            |m| m.line.slaves[1].station = 0x1234,
         ];
         for (k, change) in changes.iter().enumerate() {
             let mut b = a.clone();

@@ -181,7 +181,7 @@ impl<const N: usize> Machine<N> {
     #[inline]
     fn rr_step(&mut self) -> u16 {
         let pos = self.rr_start();
-        self.cyc.rr = rr_after(pos, self.count);
+        self.cyc.rr = rr_after(pos, self.line.count);
         pos
     }
 
@@ -189,10 +189,10 @@ impl<const N: usize> Machine<N> {
     /// the slaves) the cursor modulo the count; 0 without slaves.
     #[inline]
     pub(crate) fn rr_start(&self) -> u16 {
-        if self.cyc.rr < self.count {
+        if self.cyc.rr < self.line.count {
             self.cyc.rr
         } else {
-            self.cyc.rr.checked_rem(self.count).unwrap_or(0)
+            self.cyc.rr.checked_rem(self.line.count).unwrap_or(0)
         }
     }
 
@@ -201,7 +201,7 @@ impl<const N: usize> Machine<N> {
     /// used up (or the position is beyond the table).
     #[inline]
     pub(crate) fn rr_next_monitored(&mut self, scanned: &mut u16) -> Option<(u16, u16)> {
-        while *scanned < self.count {
+        while *scanned < self.line.count {
             let pos = self.rr_step();
             *scanned = scanned.saturating_add(1);
             let (station, has_time) = self
@@ -264,7 +264,7 @@ impl<const N: usize> Machine<N> {
     #[inline(always)]
     pub(crate) fn on_frmw_reply(&mut self, now: u64, len: u16, wkc: u16, data: &[u8]) {
         self.cyc.frmw_wkc = Some(wkc);
-        if wkc == self.sys_count {
+        if wkc == self.line.sys_count {
             if let Some(v) = le(data, usize::from(len)) {
                 let t = if len == 8 {
                     v
@@ -282,7 +282,7 @@ impl<const N: usize> Machine<N> {
     #[inline(always)]
     pub(crate) fn on_bound_reply(&mut self, wkc: u16, data: &[u8]) {
         self.cyc.bound_wkc = Some(wkc);
-        if wkc == self.sys_count {
+        if wkc == self.line.sys_count {
             if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
                 let bound = SystemTimeDifference::from_raw(raw).magnitude();
                 self.cyc.bound_ns = Some(bound);
@@ -316,8 +316,8 @@ impl<const N: usize> Machine<N> {
     #[inline(always)]
     pub(crate) fn on_diff_reply(&mut self, pos: u16, station: u16, wkc: u16, raw: [u8; 4]) {
         diff_reply(
-            &mut self.slaves,
-            self.count,
+            &mut self.line.slaves,
+            self.line.count,
             &mut self.cyc,
             pos,
             station,
@@ -340,10 +340,13 @@ impl<const N: usize> Machine<N> {
         // Every slave counts the BRD of 0x0130, every slave with a system time the BRD of
         // 0x092C: either count changing means slaves appeared or disappeared.
         let topo = match (self.cyc.topo_wkc, self.cyc.bound_wkc) {
-            (Some(w), _) if w != self.count => Some(w),
-            (_, Some(w)) if w != self.sys_count => {
-                Some(self.count.saturating_sub(self.sys_count).saturating_add(w))
-            }
+            (Some(w), _) if w != self.line.count => Some(w),
+            (_, Some(w)) if w != self.line.sys_count => Some(
+                self.line
+                    .count
+                    .saturating_sub(self.line.sys_count)
+                    .saturating_add(w),
+            ),
             _ => None,
         };
         match topo {
@@ -353,7 +356,7 @@ impl<const N: usize> Machine<N> {
                 return self.fault(
                     now,
                     Error::TopologyChanged {
-                        expected: self.count,
+                        expected: self.line.count,
                         found,
                     },
                 );
@@ -364,7 +367,7 @@ impl<const N: usize> Machine<N> {
                     return self.fault(
                         now,
                         Error::TopologyChanged {
-                            expected: self.count,
+                            expected: self.line.count,
                             found,
                         },
                     );
@@ -375,17 +378,17 @@ impl<const N: usize> Machine<N> {
         // A reset or lost reference no longer reads the FRMW; slaves behind a break no longer
         // write it.
         match self.cyc.frmw_wkc {
-            Some(w) if w != self.sys_count => {
+            Some(w) if w != self.line.sys_count => {
                 self.cyc.wkc_streak = self.cyc.wkc_streak.saturating_add(1);
                 if self.cyc.wkc_streak >= max_wkc {
-                    let station = self.slave(self.reference).map_or(0, |s| s.station);
+                    let station = self.slave(self.line.reference).map_or(0, |s| s.station);
                     return self.fault(
                         now,
                         Error::Wkc {
                             command: self.frmw_op(now).command,
                             station,
                             register: reg::SYSTEM_TIME,
-                            expected: self.sys_count,
+                            expected: self.line.sys_count,
                             actual: w,
                         },
                     );
@@ -530,9 +533,9 @@ mod tests {
         let mut m = Machine::<48>::new(cfg).unwrap();
         m.state = State::Cyclic;
         m.timers.set(Timer::Cycle, SystemTime(0));
-        m.count = n;
-        m.sys_count = 0;
-        for (i, s) in m.slaves.iter_mut().enumerate().take(usize::from(n)) {
+        m.line.count = n;
+        m.line.sys_count = 0;
+        for (i, s) in m.line.slaves.iter_mut().enumerate().take(usize::from(n)) {
             s.station = 0x1001 + i as u16 * 0x0101;
             s.dc = match i % 3 {
                 1 => DcKind::None,
@@ -540,7 +543,7 @@ mod tests {
                 _ => DcKind::Bits64,
             };
             if s.dc.has_system_time() {
-                m.sys_count += 1;
+                m.line.sys_count += 1;
             }
         }
         m.cyc.rr = rr;
@@ -567,7 +570,7 @@ mod tests {
                                     for caller in [false, true] {
                                         let mut m = cyclic_machine(n, per_cycle, rr, cmd, next);
                                         if reference < n {
-                                            m.reference = reference;
+                                            m.line.reference = reference;
                                         }
                                         if compare(&m, size, caller) {
                                             taken += 1;
@@ -598,7 +601,7 @@ mod tests {
         for ((n, per_cycle), remeasure) in shapes.into_iter().flat_map(|s| [(s, false), (s, true)])
         {
             let mut m = cyclic_machine(n, per_cycle, 0, DriftCommand::Frmw, 0x80);
-            m.reference = 0;
+            m.line.reference = 0;
             if remeasure {
                 // Re-measurement reads ride behind the cycle's own datagrams: the table is
                 // no longer the cycle's block, so the pattern walk applies.
@@ -616,7 +619,7 @@ mod tests {
                 for (k, mut d) in f.iter_mut().map(Result::unwrap).enumerate() {
                     let fill = 0x10u8.wrapping_add(k as u8);
                     d.data_mut().iter_mut().for_each(|b| *b = fill);
-                    d.set_wkc(if k < 2 { m.sys_count } else { 1 });
+                    d.set_wkc(if k < 2 { m.line.sys_count } else { 1 });
                 }
             }
             let mut variants = std::vec![reply.clone()];

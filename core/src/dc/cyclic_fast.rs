@@ -55,12 +55,12 @@ impl<const N: usize> Machine<N> {
         // from the first at or after the cursor, `k` of them, wrapping; the cursor then stands
         // after the last read once `budget` were found, or where it started when fewer than
         // `budget` exist (the scan went all the way round).
-        let count = self.count;
+        let count = self.line.count;
         let start = self.rr_start();
         let Some((fixed_slots, rr_slots)) = self.inflight.entries.split_at_mut_checked(3) else {
             return false;
         };
-        let (list, j) = self.monitor.get(&self.slaves, count, start);
+        let (list, j) = self.monitor.get(&self.line.slaves, count, start);
         let budget = usize::from(self.cfg.monitor.slaves_per_cycle);
         let (before, after) = list.split_at(j.min(list.len()));
         let k = budget.min(list.len());
@@ -295,8 +295,7 @@ impl<const N: usize> Machine<N> {
         self.on_topology_reply(wkc, data);
         let Machine {
             inflight,
-            slaves,
-            count,
+            line,
             cyc,
             ..
         } = self;
@@ -309,8 +308,8 @@ impl<const N: usize> Machine<N> {
             ) {
                 if let (Tag::CycDiff(pos), Some(raw)) = (p.tag, data.first_chunk::<4>()) {
                     diff_reply(
-                        slaves,
-                        *count,
+                        &mut line.slaves,
+                        line.count,
                         cyc,
                         pos,
                         p.station,

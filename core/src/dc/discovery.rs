@@ -58,8 +58,8 @@ impl<const N: usize> Machine<N> {
                         capacity: cap,
                     });
                 }
-                self.count = wkc;
-                for s in self.slaves.iter_mut() {
+                self.line.count = wkc;
+                for s in self.line.slaves.iter_mut() {
                     *s = SlaveInfo::default();
                 }
                 Ok(())
@@ -143,10 +143,10 @@ impl<const N: usize> Machine<N> {
                     }
                 }
                 let reference = reference.ok_or(Error::NoReferenceClock)?;
-                self.reference = reference;
-                self.sys_count = sys;
+                self.line.reference = reference;
+                self.line.sys_count = sys;
                 self.push_event(Event::SlavesFound {
-                    count: self.count,
+                    count: self.line.count,
                     dc: sys,
                 });
                 Ok(State::TdiffRead)

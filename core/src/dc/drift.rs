@@ -121,7 +121,7 @@ impl<const N: usize> Machine<N> {
             State::DriftBurst => self.check_frmw(p, wkc),
             State::DriftCheck => {
                 // BRD 0x092C: only ESCs with a system time have the register.
-                let expected = if i == 0 { self.sys_count } else { 1 };
+                let expected = if i == 0 { self.line.sys_count } else { 1 };
                 self.expect_wkc(p, expected, wkc)?;
                 let raw =
                     le(data, 4)
@@ -182,8 +182,8 @@ impl<const N: usize> Machine<N> {
         let passed = over == 0 && bound_ok;
         // Running sums of the streak: restarted by its first check, kept only while it lasts.
         let keep = passed && !fresh;
-        let count = usize::from(self.count);
-        for s in self.slaves.iter_mut().take(count) {
+        let count = usize::from(self.line.count);
+        for s in self.line.slaves.iter_mut().take(count) {
             let mag = u64::from(diff_magnitude(s.last_diff_ns));
             let signed = s.last_diff_ns.unwrap_or(i64::MAX);
             if keep {
@@ -277,9 +277,15 @@ mod tests {
             ..Config::default()
         };
         let mut m = Machine::<N>::new(cfg).unwrap();
-        m.count = slaves;
-        m.sys_count = slaves;
-        for (i, s) in m.slaves.iter_mut().take(usize::from(slaves)).enumerate() {
+        m.line.count = slaves;
+        m.line.sys_count = slaves;
+        for (i, s) in m
+            .line
+            .slaves
+            .iter_mut()
+            .take(usize::from(slaves))
+            .enumerate()
+        {
             s.station = 0x1000 + u16::try_from(i).unwrap();
             s.dc = DcKind::Bits64;
         }
@@ -289,7 +295,7 @@ mod tests {
 
     /// One completed check with these per-slave readings (ns); the state it leads to.
     fn judge(m: &mut Machine<4>, readings: &[i64]) -> State {
-        for (s, r) in m.slaves.iter_mut().zip(readings) {
+        for (s, r) in m.line.slaves.iter_mut().zip(readings) {
             s.last_diff_ns = Some(*r);
         }
         let next = m.drift_done().unwrap();

@@ -178,26 +178,27 @@ impl<const N: usize> Machine<N> {
     fn resume_result(&self, h: Holdover) -> Result<ResumeCheck, ResumeFailure> {
         let c = &self.cyc;
         let found = c.topo_wkc.unwrap_or(0);
-        if found != self.count {
+        if found != self.line.count {
             return Err(ResumeFailure::SlaveCount {
-                expected: self.count,
+                expected: self.line.count,
                 found,
             });
         }
         let frmw = c.frmw_wkc.unwrap_or(0);
-        if frmw != self.sys_count {
+        if frmw != self.line.sys_count {
             return Err(ResumeFailure::ReferenceWkc {
-                expected: self.sys_count,
+                expected: self.line.sys_count,
                 actual: frmw,
             });
         }
         let bound_wkc = c.bound_wkc.unwrap_or(0);
-        if bound_wkc != self.sys_count {
+        if bound_wkc != self.line.sys_count {
             return Err(ResumeFailure::SlaveCount {
-                expected: self.count,
+                expected: self.line.count,
                 found: self
+                    .line
                     .count
-                    .saturating_sub(self.sys_count)
+                    .saturating_sub(self.line.sys_count)
                     .saturating_add(bound_wkc),
             });
         }

@@ -5,6 +5,7 @@ use crate::dc::cyclic::CyclicState;
 use crate::dc::drift::DriftGate;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
+use crate::dc::line::Line;
 use crate::dc::measure::LatchRounds;
 use crate::dc::monitor::MonitorList;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
@@ -118,13 +119,8 @@ pub(crate) enum Item {
 pub struct Machine<const N: usize> {
     pub(crate) cfg: Config,
     pub(crate) state: State,
-    pub(crate) slaves: [SlaveInfo; N],
-    /// Slaves found (BRD working counter), ≤ N.
-    pub(crate) count: u16,
-    /// Position of the reference clock (first slave with a system time).
-    pub(crate) reference: u16,
-    /// Slaves with a system time: the expected FRMW working counter.
-    pub(crate) sys_count: u16,
+    /// The slave table and the line's facts (`dc/line.rs`).
+    pub(crate) line: Line<N>,
     pub(crate) inflight: Inflight,
     /// Every deadline (`dc/timer.rs`); `Timer::Reply` is armed exactly while a frame is
     /// awaited.
@@ -138,15 +134,8 @@ pub struct Machine<const N: usize> {
     pub(crate) frames_at_start: u64,
     /// The delay measurement's rounds (`dc/measure.rs`).
     pub(crate) latch: LatchRounds<N>,
-    /// Per-slave `t_Diff` overrides by auto-increment position (REQ-DC-015); `None` uses
-    /// `Config::t_diff_ns`.
-    pub(crate) t_diff: [Option<i32>; N],
-    /// Running DC domain's time minus the master's clock at the latch, ns (REQ-DC-131); 0 when
-    /// no slave was found running.
-    pub(crate) domain_shift: i64,
     /// The static drift compensation's convergence gate (`dc/drift.rs`).
     pub(crate) drift_gate: DriftGate,
-    pub(crate) sync_start: u64,
     pub(crate) cyc: CyclicState,
     /// The round robin's slave list (a cache of `slaves`, see `dc/monitor.rs`).
     pub(crate) monitor: MonitorList<N>,
@@ -210,10 +199,7 @@ impl<const N: usize> Machine<N> {
         let Machine {
             cfg: c,
             state,
-            slaves,
-            count,
-            reference,
-            sys_count,
+            line,
             inflight,
             timers,
             step,
@@ -222,10 +208,7 @@ impl<const N: usize> Machine<N> {
             last_sent,
             frames_at_start,
             latch,
-            t_diff,
-            domain_shift,
             drift_gate,
-            sync_start,
             cyc,
             monitor,
             tdiff,
@@ -234,10 +217,7 @@ impl<const N: usize> Machine<N> {
         } = self;
         *c = cfg;
         *state = State::Idle;
-        slaves.fill(SlaveInfo::EMPTY);
-        *count = 0;
-        *reference = 0;
-        *sys_count = 0;
+        line.clear();
         *inflight = Inflight::new(cfg.index_first);
         *timers = TimerTable::new();
         *step = StepProgress::START;
@@ -246,10 +226,7 @@ impl<const N: usize> Machine<N> {
         *last_sent = 0;
         *frames_at_start = 0;
         latch.clear();
-        t_diff.fill(None);
-        *domain_shift = 0;
         *drift_gate = DriftGate::IDLE;
-        *sync_start = 0;
         *cyc = CyclicState::IDLE;
         monitor.clear();
         tdiff.forget();
@@ -265,10 +242,7 @@ impl<const N: usize> Machine<N> {
         Machine {
             cfg,
             state: State::Idle,
-            slaves: [SlaveInfo::EMPTY; N],
-            count: 0,
-            reference: 0,
-            sys_count: 0,
+            line: Line::new(),
             inflight: Inflight::new(cfg.index_first),
             timers: TimerTable::new(),
             step: StepProgress::START,
@@ -277,10 +251,7 @@ impl<const N: usize> Machine<N> {
             last_sent: 0,
             frames_at_start: 0,
             latch: LatchRounds::new(),
-            t_diff: [None; N],
-            domain_shift: 0,
             drift_gate: DriftGate::IDLE,
-            sync_start: 0,
             cyc: CyclicState::IDLE,
             monitor: MonitorList::new(),
             tdiff: Tdiff::new(),
@@ -325,6 +296,7 @@ impl<const N: usize> Machine<N> {
         t_diff_ns: Option<i32>,
     ) -> Result<Option<i32>, ConfigError> {
         let slot = self
+            .line
             .t_diff
             .get_mut(usize::from(position))
             .ok_or(ConfigError::Capacity)?;
@@ -335,7 +307,8 @@ impl<const N: usize> Machine<N> {
     /// `Config::t_diff_ns`. The value a bring-up used (measured or configured) and its source
     /// are in [`SlaveInfo::t_diff_ns`] / [`SlaveInfo::t_diff_source`].
     pub fn slave_t_diff(&self, position: u16) -> i32 {
-        self.t_diff
+        self.line
+            .t_diff
             .get(usize::from(position))
             .copied()
             .flatten()
@@ -354,11 +327,14 @@ impl<const N: usize> Machine<N> {
     }
     /// The slaves found, in position order.
     pub fn slaves(&self) -> &[SlaveInfo] {
-        self.slaves.get(..usize::from(self.count)).unwrap_or(&[])
+        self.line
+            .slaves
+            .get(..usize::from(self.line.count))
+            .unwrap_or(&[])
     }
     /// Position of the reference clock, once chosen.
     pub fn reference(&self) -> Option<u16> {
-        (self.sys_count > 0).then_some(self.reference)
+        (self.line.sys_count > 0).then_some(self.line.reference)
     }
     /// Counters.
     pub fn stats(&self) -> &Stats {
@@ -379,7 +355,7 @@ impl<const N: usize> Machine<N> {
     }
     /// System time of the first SYNC0 pulse programmed in the last bring-up.
     pub fn sync_start(&self) -> Option<SystemTime> {
-        (self.sync_start != 0).then_some(SystemTime(self.sync_start))
+        (self.line.sync_start != 0).then_some(SystemTime(self.line.sync_start))
     }
     /// Whether a transmitted frame's datagrams are still awaited (until all came back, the
     /// deadline passed, or `reset`/`start`). Only replies to that frame can be used.
@@ -783,21 +759,23 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn slave(&self, pos: u16) -> Option<&SlaveInfo> {
-        self.slaves
+        self.line
+            .slaves
             .get(usize::from(pos))
-            .filter(|_| pos < self.count)
+            .filter(|_| pos < self.line.count)
     }
 
     pub(crate) fn slave_mut(&mut self, pos: u16) -> Option<&mut SlaveInfo> {
-        let count = self.count;
-        self.slaves
+        let count = self.line.count;
+        self.line
+            .slaves
             .get_mut(usize::from(pos))
             .filter(|_| pos < count)
     }
 
     /// Positions `0..count`, as u16.
     pub(crate) fn positions(&self) -> core::ops::Range<u16> {
-        0..self.count
+        0..self.line.count
     }
 }
 

@@ -81,7 +81,7 @@ impl<const N: usize> Machine<N> {
                 // Every slave with latches must have seen the write; slaves without DC may or
                 // may not count it, so the WKC lies between the two.
                 let latching = self.latching_count();
-                if wkc < latching || wkc > self.count {
+                if wkc < latching || wkc > self.line.count {
                     return Err(crate::dc::error::Error::Wkc {
                         command: p.command,
                         station: 0,
@@ -161,8 +161,14 @@ impl<const N: usize> Machine<N> {
         }
         let max_delay = self.cfg.max_delay_ns;
         let mut max_seen = 0u32;
-        let count = self.count;
-        for (i, s) in self.slaves.iter_mut().enumerate().take(usize::from(count)) {
+        let count = self.line.count;
+        for (i, s) in self
+            .line
+            .slaves
+            .iter_mut()
+            .enumerate()
+            .take(usize::from(count))
+        {
             if !s.dc.has_system_time() {
                 continue;
             }

@@ -25,6 +25,7 @@ mod drift;
 pub mod error;
 pub mod event;
 pub mod holdover;
+mod line;
 pub mod machine;
 mod measure;
 mod monitor;

@@ -39,7 +39,7 @@ impl<const N: usize> Machine<N> {
         match self.cyc.remeasure {
             Remeasure::Idle => 0,
             Remeasure::Trigger => 1,
-            _ => self.count,
+            _ => self.line.count,
         }
     }
 
@@ -82,7 +82,7 @@ impl<const N: usize> Machine<N> {
         match self.cyc.remeasure {
             Remeasure::Trigger => {
                 let latching = self.latching_count();
-                if wkc < latching || wkc > self.count {
+                if wkc < latching || wkc > self.line.count {
                     return Err(Error::Wkc {
                         command: p.command,
                         station: 0,
@@ -133,8 +133,8 @@ impl<const N: usize> Machine<N> {
             },
             Remeasure::Write => {
                 let mut max_change = 0u32;
-                let count = self.count;
-                for s in self.slaves.iter_mut().take(usize::from(count)) {
+                let count = self.line.count;
+                for s in self.line.slaves.iter_mut().take(usize::from(count)) {
                     max_change = max_change.max(s.delay_new.abs_diff(s.delay_ns));
                     s.delay_ns = s.delay_new;
                 }
@@ -153,13 +153,13 @@ impl<const N: usize> Machine<N> {
     #[cold]
     #[inline(never)]
     fn remeasure_compute(&mut self) -> Result<(), Error> {
-        for s in self.slaves.iter_mut() {
+        for s in self.line.slaves.iter_mut() {
             s.delay_sum = 0;
         }
         self.accumulate_round()?;
         let max = self.cfg.max_delay_ns;
-        let count = self.count;
-        for s in self.slaves.iter_mut().take(usize::from(count)) {
+        let count = self.line.count;
+        for s in self.line.slaves.iter_mut().take(usize::from(count)) {
             if !s.dc.has_system_time() {
                 s.delay_new = s.delay_ns;
                 continue;

@@ -11,7 +11,7 @@ use crate::dc::state::State;
 impl<const N: usize> Machine<N> {
     /// Number of items of the current step.
     pub(crate) fn item_count(&self) -> u16 {
-        let n = self.count;
+        let n = self.line.count;
         match self.state {
             State::CountSlaves => 1u16.saturating_add(u16::from(self.tdiff.recovering)),
             State::LatchTrigger | State::ReadReferenceTime => 1,
@@ -45,7 +45,7 @@ impl<const N: usize> Machine<N> {
             State::DriftBurst => 1,
             // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two:
             // a frame from the AL half ends with its last AL read.
-            State::ReadAlStatus if self.step.cursor < self.count => self
+            State::ReadAlStatus if self.step.cursor < self.line.count => self
                 .slaves()
                 .iter()
                 .skip(usize::from(self.step.cursor))
@@ -62,14 +62,14 @@ impl<const N: usize> Machine<N> {
     /// FRMW by station address or ARMW by position (`Config::drift_command`).
     pub(crate) fn frmw_op(&self, now: u64) -> Op {
         let (station, width) = self
-            .slave(self.reference)
+            .slave(self.line.reference)
             .map_or((0, 8), |s| (s.station, s.dc.time_width()));
         let reg = crate::wire::register::reg::SYSTEM_TIME;
         match self.cfg.drift_command {
             DriftCommand::Frmw => Op::frmw(station, reg, width, now),
             DriftCommand::Armw => Op {
                 command: crate::wire::Command::Armw,
-                address: crate::wire::Address::position(self.reference, reg),
+                address: crate::wire::Address::position(self.line.reference, reg),
                 len: width,
                 payload: crate::dc::request::Payload::Le(now),
             },
@@ -78,7 +78,7 @@ impl<const N: usize> Machine<N> {
 
     /// FRMW working counter: every slave with a system time reads or writes it once.
     pub(crate) fn check_frmw(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
-        self.expect_wkc(p, self.sys_count, wkc)
+        self.expect_wkc(p, self.line.sys_count, wkc)
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
@@ -170,15 +170,11 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn on_enter(&mut self, to: State) {
         match to {
             State::CountSlaves => {
-                self.count = 0;
-                self.sys_count = 0;
-                self.reference = 0;
-                self.sync_start = 0;
+                self.line.forget_found();
                 self.latch.round = 0;
                 self.drift_gate.frames = 0;
                 self.drift_gate.passed = 0;
                 self.drift_gate.bound = None;
-                self.domain_shift = 0;
                 self.tdiff_reset();
             }
             State::DriftCheck => self.drift_gate.bound = None,

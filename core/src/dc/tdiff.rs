@@ -302,14 +302,17 @@ impl<const N: usize> Machine<N> {
 
     /// The user's value for slave `i`, if any: a per-slave override, else a per-type entry.
     fn configured_t_diff(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
-        configured(&self.t_diff, self.tdiff_cfg(), i, s)
+        configured(&self.line.t_diff, self.tdiff_cfg(), i, s)
     }
 
     /// Number of items of the current t_Diff step.
     pub(crate) fn tdiff_count(&self) -> u16 {
         match self.state {
-            State::TdiffRead => self.count.saturating_mul(3),
-            State::TdiffLatch => self.count.saturating_add(u16::from(self.tdiff_chained())),
+            State::TdiffRead => self.line.count.saturating_mul(3),
+            State::TdiffLatch => self
+                .line
+                .count
+                .saturating_add(u16::from(self.tdiff_chained())),
             State::TdiffTrigger | State::TdiffClose | State::TdiffRestore => 1,
             _ => 0,
         }
@@ -329,7 +332,9 @@ impl<const N: usize> Machine<N> {
                         .then_some(Work::ReadDlControl(pos)),
                 }
             }
-            State::TdiffLatch if i == self.count => self.tdiff_chained().then_some(Work::Trigger),
+            State::TdiffLatch if i == self.line.count => {
+                self.tdiff_chained().then_some(Work::Trigger)
+            }
             State::TdiffLatch => {
                 let s = self.slave(i)?;
                 match self.tdiff.phase {
@@ -716,8 +721,9 @@ impl<const N: usize> Machine<N> {
     /// REQ-DC-121/122: from the first all-open latch, which slaves are measured and through
     /// which upstream port pair.
     fn tdiff_plan(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.count);
+        let count = usize::from(self.line.count);
         for ((s, out), (cur, prev)) in self
+            .line
             .slaves
             .iter()
             .zip(self.scratch.samples.iter_mut())
@@ -767,10 +773,11 @@ impl<const N: usize> Machine<N> {
         let plan = &mut self.tdiff.plan;
         plan.fill(Plan::Skip);
         for (b, slot) in (0u16..).zip(plan.iter_mut()).take(count) {
-            let Some(s) = self.slaves.get(usize::from(b)) else {
+            let Some(s) = self.line.slaves.get(usize::from(b)) else {
                 continue;
             };
-            if !s.dc.has_latches() || configured(&self.t_diff, &self.cfg.tdiff, b, s).is_some() {
+            if !s.dc.has_latches() || configured(&self.line.t_diff, &self.cfg.tdiff, b, s).is_some()
+            {
                 continue;
             }
             let Some(node) = topo.node(usize::from(b)) else {
@@ -847,7 +854,7 @@ impl<const N: usize> Machine<N> {
     fn tdiff_finish(&mut self) -> State {
         let cfg = *self.tdiff_cfg();
         let default = self.cfg.t_diff_ns;
-        let count = usize::from(self.count);
+        let count = usize::from(self.line.count);
         let mut measured = 0u16;
         let mut same_type = 0u16;
         let mut configured = 0u16;
@@ -889,12 +896,12 @@ impl<const N: usize> Machine<N> {
             else {
                 continue;
             };
-            let Some(s) = self.slaves.get(i) else {
+            let Some(s) = self.line.slaves.get(i) else {
                 continue;
             };
             let ty = s.esc_type;
             let from = (0u16..)
-                .zip(self.slaves.iter().zip(resolved.iter()))
+                .zip(self.line.slaves.iter().zip(resolved.iter()))
                 .take(count)
                 .find(|(_, (o, (_, src)))| {
                     o.esc_type == ty && matches!(src, TdiffSource::Measured | TdiffSource::Earlier)
@@ -911,12 +918,12 @@ impl<const N: usize> Machine<N> {
         {
             // A new measurement replaces what was kept (the slave count may have changed).
             self.tdiff.kept.fill(None);
-            self.tdiff.kept_count = self.count;
+            self.tdiff.kept_count = self.line.count;
             for ((slot, s), (v, src)) in self
                 .tdiff
                 .kept
                 .iter_mut()
-                .zip(self.slaves.iter())
+                .zip(self.line.slaves.iter())
                 .zip(resolved.iter())
                 .take(count)
             {
@@ -925,7 +932,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        for (s, (v, src)) in self.slaves.iter_mut().zip(resolved.iter()).take(count) {
+        for (s, (v, src)) in self.line.slaves.iter_mut().zip(resolved.iter()).take(count) {
             s.t_diff_ns = *v;
             s.t_diff_source = *src;
             match src {
@@ -952,7 +959,7 @@ impl<const N: usize> Machine<N> {
     /// measure (a slave runs), the network has the same slave count and the slave there has
     /// the same ESC type and revision.
     fn tdiff_earlier(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
-        if !self.tdiff.running || self.tdiff.kept_count != self.count {
+        if !self.tdiff.running || self.tdiff.kept_count != self.line.count {
             return None;
         }
         match self.tdiff.kept.get(usize::from(i)).copied().flatten() {

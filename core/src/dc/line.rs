@@ -1,0 +1,63 @@
+//! [`Line`]: what the machine knows of the line of slaves, shared by every phase of the
+//! bring-up and of cyclic operation: the slave table, the reference clock, the running domain
+//! the line joins, and the SYNC start the slaves were programmed with.
+//!
+//! Discovery fills the table and picks the reference; each later phase adds its results to the
+//! slaves' entries (delays, offsets, t_Diff). A new bring-up (`CountSlaves`) forgets all of it
+//! ([`Line::forget_found`]) except the per-slave t_Diff overrides, which are configuration and
+//! go only with [`crate::dc::Machine::configure`].
+
+use crate::dc::slave::SlaveInfo;
+
+/// The slave table and the facts of the line every phase reads.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(crate) struct Line<const N: usize> {
+    /// By auto-increment position; the first `count` entries are the slaves found.
+    pub(crate) slaves: [SlaveInfo; N],
+    /// Slaves found (BRD working counter), ≤ N.
+    pub(crate) count: u16,
+    /// Position of the reference clock (first slave with a system time).
+    pub(crate) reference: u16,
+    /// Slaves with a system time: the expected FRMW working counter.
+    pub(crate) sys_count: u16,
+    /// Per-slave `t_Diff` overrides by auto-increment position (REQ-DC-015); `None` uses
+    /// `Config::t_diff_ns`.
+    pub(crate) t_diff: [Option<i32>; N],
+    /// Running DC domain's time minus the master's clock at the latch, ns (REQ-DC-131); 0 when
+    /// no slave was found running.
+    pub(crate) domain_shift: i64,
+    /// System time of the first SYNC0 pulse programmed (0: none yet).
+    pub(crate) sync_start: u64,
+}
+
+impl<const N: usize> Line<N> {
+    /// Nothing found and no override.
+    pub(crate) const fn new() -> Self {
+        Line {
+            slaves: [SlaveInfo::EMPTY; N],
+            count: 0,
+            reference: 0,
+            sys_count: 0,
+            t_diff: [None; N],
+            domain_shift: 0,
+            sync_start: 0,
+        }
+    }
+
+    /// Back to [`new`](Self::new) in place (nothing of size `N` on the stack).
+    pub(crate) fn clear(&mut self) {
+        self.slaves.fill(SlaveInfo::EMPTY);
+        self.t_diff.fill(None);
+        self.forget_found();
+    }
+
+    /// A new bring-up starts: what the last one found no longer holds. The slave entries are
+    /// overwritten by discovery before anything reads them.
+    pub(crate) fn forget_found(&mut self) {
+        self.count = 0;
+        self.sys_count = 0;
+        self.reference = 0;
+        self.sync_start = 0;
+        self.domain_shift = 0;
+    }
+}
