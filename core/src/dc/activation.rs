@@ -22,11 +22,11 @@ fn sync_target(s: &SlaveInfo) -> bool {
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn activation_item(&self, i: u16) -> Item {
-        let Some(sync) = self.cfg.sync else {
+        let Some(sync) = self.sh.cfg.sync else {
             return Item::Skip;
         };
         match self.state {
-            State::ReadReferenceTime => match self.slave(self.line.reference) {
+            State::ReadReferenceTime => match self.slave(self.sh.line.reference) {
                 Some(r) => Item::Send(Op::fprd(r.station, reg::SYSTEM_TIME, r.dc.time_width())),
                 None => Item::Skip,
             },
@@ -42,7 +42,7 @@ impl<const N: usize> Machine<N> {
                         s.station,
                         reg::SYNC0_START_TIME,
                         s.dc.time_width(),
-                        self.line.sync_start,
+                        self.sh.line.sync_start,
                     ),
                     1 => Op::fpwr(
                         s.station,
@@ -88,9 +88,10 @@ impl<const N: usize> Machine<N> {
                     register: p.register,
                 };
                 let raw = le(data, usize::from(p.len)).ok_or(bad)?;
-                let r = self.slave(self.line.reference).copied().ok_or(bad)?;
-                let sync = self.cfg.sync.ok_or(bad)?;
-                self.line.sync_start = self.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
+                let r = self.slave(self.sh.line.reference).copied().ok_or(bad)?;
+                let sync = self.sh.cfg.sync.ok_or(bad)?;
+                self.sh.line.sync_start =
+                    self.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
             }
             State::ActivateSync => {
                 if let Some(s) = self.slave_mut(i) {
@@ -111,7 +112,7 @@ impl<const N: usize> Machine<N> {
                 let n = self.slaves().iter().filter(|s| s.sync_programmed).count();
                 let slaves = u16::try_from(n).unwrap_or(u16::MAX);
                 self.push_event(Event::SyncStarted {
-                    start: self.line.sync_start,
+                    start: self.sh.line.sync_start,
                     slaves,
                 });
                 Ok(State::Cyclic)

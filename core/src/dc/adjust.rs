@@ -14,7 +14,7 @@ use crate::wire::register::reg;
 impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
         match self.state {
-            State::ReadAlStatus if i < self.line.count => match self.slave(i) {
+            State::ReadAlStatus if i < self.sh.line.count => match self.slave(i) {
                 Some(s) if s.dc.has_system_time() => {
                     Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
                 }
@@ -22,7 +22,7 @@ impl<const N: usize> Machine<N> {
             },
             // REQ-DC-131: the offset of every slave whose offset stays, after every AL status
             // of the step is in (`max_per_frame` keeps the two halves in separate frames).
-            State::ReadAlStatus => match self.slave(i.saturating_sub(self.line.count)) {
+            State::ReadAlStatus => match self.slave(i.saturating_sub(self.sh.line.count)) {
                 Some(s) if s.dc.has_system_time() && s.al_status.is_some() => {
                     if s.may_step_offset() {
                         Item::Skip
@@ -57,7 +57,7 @@ impl<const N: usize> Machine<N> {
             State::ResetLoops => match self.slave(i / 2) {
                 Some(s) if s.offset_written => {
                     if i % 2 == 0 {
-                        let v = u64::from(self.cfg.filter_depths);
+                        let v = u64::from(self.sh.cfg.filter_depths);
                         Item::Send(Op::fpwr(
                             s.station,
                             reg::SYSTEM_TIME_DIFF_FILTER_DEPTH,
@@ -65,7 +65,7 @@ impl<const N: usize> Machine<N> {
                             v,
                         ))
                     } else {
-                        let v = u64::from(self.cfg.speed_counter_start);
+                        let v = u64::from(self.sh.cfg.speed_counter_start);
                         Item::Send(Op::fpwr(s.station, reg::SPEED_COUNTER_START, 2, v))
                     }
                 }
@@ -84,12 +84,12 @@ impl<const N: usize> Machine<N> {
     ) -> Result<(), Error> {
         self.expect_wkc(p, 1, wkc)?;
         match self.state {
-            State::ReadAlStatus if i >= self.line.count => {
+            State::ReadAlStatus if i >= self.sh.line.count => {
                 let v = le(data, usize::from(p.len)).ok_or(Error::OutOfRange {
                     station: p.station,
                     register: p.register,
                 })?;
-                if let Some(s) = self.slave_mut(i.saturating_sub(self.line.count)) {
+                if let Some(s) = self.slave_mut(i.saturating_sub(self.sh.line.count)) {
                     s.running_offset = Some(v);
                 }
             }
@@ -119,7 +119,7 @@ impl<const N: usize> Machine<N> {
         match self.state {
             State::ReadAlStatus => {
                 self.anchor_on_running_domain()?;
-                for s in self.line.slaves.iter_mut() {
+                for s in self.sh.line.slaves.iter_mut() {
                     s.offset_written = false;
                     s.sync_programmed = false;
                 }
@@ -142,8 +142,8 @@ impl<const N: usize> Machine<N> {
                 Ok(State::ResetLoops)
             }
             State::ResetLoops => {
-                self.drift_gate.frames = 0;
-                self.drift_gate.passed = 0;
+                self.sh.drift_gate.frames = 0;
+                self.sh.drift_gate.passed = 0;
                 Ok(State::DriftBurst)
             }
             _ => Ok(self.state),

@@ -25,12 +25,13 @@ impl<const N: usize> Machine<N> {
     /// link); it is treated as closed. A latching slave with no changed port at all was not
     /// reached, and the round is rejected.
     fn latch_round_delays(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.line.count);
+        let count = usize::from(self.sh.line.count);
         for (s, out) in self
+            .sh
             .line
             .slaves
             .iter()
-            .zip(self.scratch.samples.iter_mut())
+            .zip(self.sh.scratch.samples.iter_mut())
             .take(count)
         {
             let open = PortSet::from_dl_status(s.dl_status);
@@ -59,33 +60,33 @@ impl<const N: usize> Machine<N> {
                 t_diff: s.t_diff_ns, // REQ-DC-015, REQ-DC-126
             };
         }
-        let sc = &mut self.scratch;
+        let sc = &mut self.sh.scratch;
         let samples = sc.samples.get(..count).unwrap_or(&[]);
         let built = sc.topo.build_in_place(samples, &mut sc.stack);
         built.map_err(|e| self.topology_error(e))?;
-        let sc = &mut self.scratch;
+        let sc = &mut self.sh.scratch;
         let samples = sc.samples.get(..count).unwrap_or(&[]);
-        let reference = usize::from(self.line.reference);
+        let reference = usize::from(self.sh.line.reference);
         let computed =
             delay::compute_in_place(samples, &sc.topo, reference, &mut sc.delay, &mut sc.round);
         computed.map_err(|e| self.delay_error(e))
     }
 
     /// REQ-DC-101, REQ-DC-019: adds the latest latch round of the bring-up measurement to the
-    /// exact sum of its rounds (`self.latch.sum`, restarted at round 0) with
+    /// exact sum of its rounds (`self.sh.latch.sum`, restarted at round 0) with
     /// [`Delays::accumulate`](delay::Delays::accumulate), so the mean over the K rounds is
     /// rounded once, not once per round. This round's topology stays in `scratch.topo` (its
     /// entry ports are needed for the offsets). A failed sum is dropped, so the next round
     /// starts a new one.
     pub(crate) fn add_latch_round(&mut self) -> Result<(), Error> {
         self.latch_round_delays()?;
-        if self.latch.round > 0 && self.latch.sum.has_rounds() {
-            if let Err(e) = self.latch.sum.accumulate(&self.scratch.round) {
-                self.latch.sum.clear();
+        if self.sh.latch.round > 0 && self.sh.latch.sum.has_rounds() {
+            if let Err(e) = self.sh.latch.sum.accumulate(&self.sh.scratch.round) {
+                self.sh.latch.sum.clear();
                 return Err(self.delay_error(e));
             }
         } else {
-            self.latch.sum.copy_from(&self.scratch.round);
+            self.sh.latch.sum.copy_from(&self.sh.scratch.round);
         }
         Ok(())
     }
@@ -95,13 +96,14 @@ impl<const N: usize> Machine<N> {
     /// exactly by [`Self::add_latch_round`] instead.
     pub(crate) fn accumulate_round(&mut self) -> Result<(), Error> {
         self.latch_round_delays()?;
-        let delays = &self.scratch.round;
+        let delays = &self.sh.scratch.round;
         for (i, s) in self
+            .sh
             .line
             .slaves
             .iter_mut()
             .enumerate()
-            .take(usize::from(self.line.count))
+            .take(usize::from(self.sh.line.count))
         {
             if !s.dc.has_system_time() {
                 continue;
@@ -158,10 +160,10 @@ impl<const N: usize> Machine<N> {
     ///
     /// REQ-DC-112: no offset is derived from an implausible EPU time ([`epu_plausible`]).
     pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
-        let topo = &self.scratch.topo;
-        let master = SystemTime(self.latch.trigger_time);
-        let count = usize::from(self.line.count);
-        for (i, s) in self.line.slaves.iter_mut().enumerate().take(count) {
+        let topo = &self.sh.scratch.topo;
+        let master = SystemTime(self.sh.latch.trigger_time);
+        let count = usize::from(self.sh.line.count);
+        for (i, s) in self.sh.line.slaves.iter_mut().enumerate().take(count) {
             let Some(width) = clock_width(s.dc) else {
                 continue;
             };
@@ -193,15 +195,15 @@ impl<const N: usize> Machine<N> {
     /// slave then gets [`offset::initial_offset`] of `m`, as [`Self::compute_offsets`] gives it
     /// of the master's time. No running slave: nothing changes.
     pub(crate) fn anchor_on_running_domain(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.line.count);
-        let slaves = self.line.slaves.get(..count).unwrap_or(&[]);
+        let count = usize::from(self.sh.line.count);
+        let slaves = self.sh.line.slaves.get(..count).unwrap_or(&[]);
         let running = |s: &&SlaveInfo| s.running_offset.is_some() && !s.may_step_offset();
-        let anchor = match self.slave(self.line.reference).filter(running) {
+        let anchor = match self.slave(self.sh.line.reference).filter(running) {
             Some(r) => Some(*r),
             None => slaves.iter().find(running).copied(),
         };
         let Some(a) = anchor else {
-            self.line.domain_shift = 0;
+            self.sh.line.domain_shift = 0;
             return Ok(());
         };
         let (Some(width), Some(read)) = (clock_width(a.dc), a.running_offset) else {
@@ -210,7 +212,7 @@ impl<const N: usize> Machine<N> {
                 register: reg::SYSTEM_TIME_OFFSET,
             });
         };
-        let master = SystemTime(self.latch.trigger_time);
+        let master = SystemTime(self.sh.latch.trigger_time);
         let at_latch = a
             .entry_local
             .wrapping_add(read)
@@ -220,11 +222,11 @@ impl<const N: usize> Machine<N> {
         if shift.unsigned_abs() > MAX_DOMAIN_SHIFT_NS {
             // REQ-DC-112: not a drifted domain but a 0x0920 that was never set by a master of
             // this epoch (or garbage): nothing is derived from it.
-            self.line.domain_shift = 0;
+            self.sh.line.domain_shift = 0;
             return Ok(());
         }
-        self.line.domain_shift = shift;
-        for s in self.line.slaves.iter_mut().take(count) {
+        self.sh.line.domain_shift = shift;
+        for s in self.sh.line.slaves.iter_mut().take(count) {
             let Some(width) = clock_width(s.dc) else {
                 continue;
             };
@@ -257,7 +259,7 @@ impl<const N: usize> Machine<N> {
     ) -> Option<u64> {
         let width = clock_width(r.dc)?;
         // REQ-DC-131: the domain runs `domain_shift` away from the master's clock.
-        let expected = SystemTime(now).wrapping_add_signed(self.line.domain_shift);
+        let expected = SystemTime(now).wrapping_add_signed(self.sh.line.domain_shift);
         let t_ref = sync::reference_now(raw, width, expected);
         if r.offset_written
             && t_ref.wrapping_since(expected).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
@@ -340,18 +342,18 @@ mod tests {
     /// end on port 0. `times_before` differ from every value used after the trigger.
     fn pair(dl_0: u16) -> Machine<4> {
         let mut m = Machine::<4>::new(Config::default()).unwrap();
-        m.line.count = 2;
-        m.line.reference = 0;
-        m.line.sys_count = 2;
+        m.sh.line.count = 2;
+        m.sh.line.reference = 0;
+        m.sh.line.sys_count = 2;
         let dl_1 = open(0) | closed(1) | closed(2) | closed(3);
         for (i, dl) in [dl_0, dl_1].into_iter().enumerate() {
-            let s = &mut m.line.slaves[i];
+            let s = &mut m.sh.line.slaves[i];
             s.station = 0x1001 + i as u16;
             s.dc = DcKind::Bits64;
             s.dl_status = dl;
             s.times_before = [1, 1, 1, 1];
         }
-        m.latch.trigger_time = M;
+        m.sh.latch.trigger_time = M;
         m
     }
 
@@ -372,23 +374,27 @@ mod tests {
     fn offset_uses_entry_port_not_epu_when_entered_on_port_3() {
         for x in [800u32, 1_210, 250_000] {
             let mut m = pair(open(0) | closed(1) | closed(2) | open(3));
-            m.cfg.latch_rounds = 1;
+            m.sh.cfg.latch_rounds = 1;
             let t3 = 10_000u32;
             let t0 = t3 + x; // back from slave 1 into port 0, then the EPU
             let epu_0 = 0x5_0000_0000u64 + u64::from(t0);
             let epu_1 = 0x9_0000_0000u64 + 50_000;
-            m.line.slaves[0].times_after = [t0, 1, 1, t3];
-            m.line.slaves[0].epu_time = epu_0;
-            m.line.slaves[1].times_after = [50_000, 1, 1, 1];
-            m.line.slaves[1].epu_time = epu_1;
+            m.sh.line.slaves[0].times_after = [t0, 1, 1, t3];
+            m.sh.line.slaves[0].epu_time = epu_0;
+            m.sh.line.slaves[1].times_after = [50_000, 1, 1, 1];
+            m.sh.line.slaves[1].epu_time = epu_1;
             assert_eq!(finish_round(&mut m), Ok(State::ReadAlStatus), "x = {x}");
             let delay = x / 2; // slave 1 is a line end: half the excursion behind port 0
-            assert_eq!(m.line.slaves[0].delay_ns, 0);
-            assert_eq!(m.line.slaves[1].delay_ns, delay);
+            assert_eq!(m.sh.line.slaves[0].delay_ns, 0);
+            assert_eq!(m.sh.line.slaves[1].delay_ns, delay);
             let entry_0 = epu_0 - u64::from(x);
-            assert_eq!(entry_0.wrapping_add(m.line.slaves[0].offset), M, "x = {x}");
             assert_eq!(
-                epu_1.wrapping_add(m.line.slaves[1].offset),
+                entry_0.wrapping_add(m.sh.line.slaves[0].offset),
+                M,
+                "x = {x}"
+            );
+            assert_eq!(
+                epu_1.wrapping_add(m.sh.line.slaves[1].offset),
                 M + u64::from(delay),
                 "x = {x}"
             );
@@ -401,11 +407,11 @@ mod tests {
     #[test]
     fn garbage_epu_rejected_when_entered_on_port_3() {
         let mut m = pair(open(0) | closed(1) | closed(2) | open(3));
-        m.cfg.latch_rounds = 1;
-        m.line.slaves[0].times_after = [12_000, 1, 1, 10_000];
-        m.line.slaves[0].epu_time = 0x5_0000_0000 + 10_000; // the entry stamp, not port 0's
-        m.line.slaves[1].times_after = [50_000, 1, 1, 1];
-        m.line.slaves[1].epu_time = 50_000;
+        m.sh.cfg.latch_rounds = 1;
+        m.sh.line.slaves[0].times_after = [12_000, 1, 1, 10_000];
+        m.sh.line.slaves[0].epu_time = 0x5_0000_0000 + 10_000; // the entry stamp, not port 0's
+        m.sh.line.slaves[1].times_after = [50_000, 1, 1, 1];
+        m.sh.line.slaves[1].epu_time = 50_000;
         assert_eq!(
             finish_round(&mut m),
             Err(Error::OutOfRange {
@@ -413,7 +419,7 @@ mod tests {
                 register: reg::RECEIVE_TIME_EPU
             })
         );
-        assert_eq!(m.line.slaves[0].offset, 0);
+        assert_eq!(m.sh.line.slaves[0].offset, 0);
     }
 
     /// REQ-DC-019: K rounds are averaged from their exact doubled sums, rounded once. Round
@@ -423,13 +429,13 @@ mod tests {
     #[test]
     fn rounds_averaged_exactly() {
         let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
-        m.cfg.latch_rounds = 4;
+        m.sh.cfg.latch_rounds = 4;
         for (k, x) in [1_209u32, 1_209, 1_208, 1_208].into_iter().enumerate() {
             let t0 = 10_000 + 100_000 * k as u32;
-            m.line.slaves[0].times_after = [t0, t0 + x, 1, 1];
-            m.line.slaves[0].epu_time = u64::from(t0);
-            m.line.slaves[1].times_after = [50_000 + 100_000 * k as u32, 1, 1, 1];
-            m.line.slaves[1].epu_time = u64::from(m.line.slaves[1].times_after[0]);
+            m.sh.line.slaves[0].times_after = [t0, t0 + x, 1, 1];
+            m.sh.line.slaves[0].epu_time = u64::from(t0);
+            m.sh.line.slaves[1].times_after = [50_000 + 100_000 * k as u32, 1, 1, 1];
+            m.sh.line.slaves[1].epu_time = u64::from(m.sh.line.slaves[1].times_after[0]);
             let next = if k < 3 {
                 State::LatchReadBefore
             } else {
@@ -437,8 +443,8 @@ mod tests {
             };
             assert_eq!(finish_round(&mut m), Ok(next));
         }
-        assert_eq!(m.line.slaves[1].delay_ns, 604);
-        assert!(!m.latch.sum.has_rounds(), "the sum is consumed");
+        assert_eq!(m.sh.line.slaves[1].delay_ns, 604);
+        assert!(!m.sh.latch.sum.has_rounds(), "the sum is consumed");
     }
 
     /// REQ-DC-050, REQ-DC-105: a start that would lie 2^31 ns or more ahead of the reference's
@@ -494,13 +500,13 @@ mod tests {
         delay: u32,
     ) -> Machine<4> {
         let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
-        m.line.slaves[0].dc = dc0;
-        m.line.slaves[0].al_status = Some(0x08);
-        m.line.slaves[0].running_offset = Some(off0);
-        m.line.slaves[0].entry_local = entry0;
-        m.line.slaves[1].al_status = Some(0x01);
-        m.line.slaves[1].entry_local = entry1;
-        m.line.slaves[1].delay_ns = delay;
+        m.sh.line.slaves[0].dc = dc0;
+        m.sh.line.slaves[0].al_status = Some(0x08);
+        m.sh.line.slaves[0].running_offset = Some(off0);
+        m.sh.line.slaves[0].entry_local = entry0;
+        m.sh.line.slaves[1].al_status = Some(0x01);
+        m.sh.line.slaves[1].entry_local = entry1;
+        m.sh.line.slaves[1].delay_ns = delay;
         m
     }
 
@@ -516,23 +522,23 @@ mod tests {
         let off0 = (M + ahead).wrapping_sub(entry0);
         let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
         m.anchor_on_running_domain().unwrap();
-        assert_eq!(m.line.domain_shift, ahead as i64);
+        assert_eq!(m.sh.line.domain_shift, ahead as i64);
         assert_eq!(
-            entry1.wrapping_add(m.line.slaves[1].offset),
+            entry1.wrapping_add(m.sh.line.slaves[1].offset),
             M + ahead + 700
         );
         // No running slave: the offsets stay those of the master's time.
         let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
-        m.line.slaves[0].al_status = Some(0x02);
-        m.line.slaves[1].offset = 5;
+        m.sh.line.slaves[0].al_status = Some(0x02);
+        m.sh.line.slaves[1].offset = 5;
         m.anchor_on_running_domain().unwrap();
-        assert_eq!((m.line.domain_shift, m.line.slaves[1].offset), (0, 5));
+        assert_eq!((m.sh.line.domain_shift, m.sh.line.slaves[1].offset), (0, 5));
         // A running slave whose 0x0920 was never set (its system time is its local time) is
         // not a domain to join.
         let mut m = running_reference(DcKind::Bits64, 0, entry0, entry1, 700);
-        m.line.slaves[1].offset = 5;
+        m.sh.line.slaves[1].offset = 5;
         m.anchor_on_running_domain().unwrap();
-        assert_eq!((m.line.domain_shift, m.line.slaves[1].offset), (0, 5));
+        assert_eq!((m.sh.line.domain_shift, m.sh.line.slaves[1].offset), (0, 5));
     }
 
     /// REQ-DC-131, REQ-DC-051: a 32-bit running reference's time is widened around the
@@ -548,10 +554,13 @@ mod tests {
             let domain = master - behind;
             let off0 = u64::from(low32(domain.wrapping_sub(entry0)));
             let mut m = running_reference(DcKind::Bits32, off0, entry0, entry1, 300);
-            m.latch.trigger_time = master;
+            m.sh.latch.trigger_time = master;
             m.anchor_on_running_domain().unwrap();
-            assert_eq!(m.line.domain_shift, -(behind as i64));
-            assert_eq!(entry1.wrapping_add(m.line.slaves[1].offset), domain + 300);
+            assert_eq!(m.sh.line.domain_shift, -(behind as i64));
+            assert_eq!(
+                entry1.wrapping_add(m.sh.line.slaves[1].offset),
+                domain + 300
+            );
         }
     }
 
@@ -570,7 +579,7 @@ mod tests {
         let sync = SyncConfig::default();
         let ahead = 1_500_000_000u64;
         assert_eq!(m.compute_sync_start(M, M + ahead, &r, &sync), None);
-        m.line.domain_shift = ahead as i64;
+        m.sh.line.domain_shift = ahead as i64;
         let start = m.compute_sync_start(M, M + ahead, &r, &sync).unwrap();
         assert!(start > M + ahead && start < M + ahead + (1 << 31));
         assert_eq!(m.compute_sync_start(M, M, &r, &sync), None);

@@ -39,13 +39,13 @@ impl<const N: usize> Machine<N> {
         use crate::dc::timer::Timer;
         use crate::dc::State;
         let st = self.state;
-        if self.timers.is_set(Timer::Restart) != (st == State::RestartWait) {
+        if self.sh.timers.is_set(Timer::Restart) != (st == State::RestartWait) {
             return Some("restart timer armed outside RestartWait, or not in it");
         }
-        if self.timers.is_set(Timer::Cycle) != (st == State::Cyclic) {
+        if self.sh.timers.is_set(Timer::Cycle) != (st == State::Cyclic) {
             return Some("cycle timer armed outside Cyclic, or not in it");
         }
-        if self.timers.is_set(Timer::Reply) && !(st == State::Cyclic || st.is_request_step()) {
+        if self.sh.timers.is_set(Timer::Reply) && !(st == State::Cyclic || st.is_request_step()) {
             return Some("a reply awaited outside a request step and Cyclic");
         }
         None
@@ -55,9 +55,9 @@ impl<const N: usize> Machine<N> {
 impl<'m, const N: usize> ControlState<'m, N> {
     /// The fields that make up the control state, as one comparable and hashable value.
     fn fields(self) -> impl PartialEq + Hash + 'm {
-        let Machine {
+        let Machine { state, sh } = self.m;
+        let crate::dc::machine::Shared {
             cfg,
-            state,
             line,
             inflight,
             timers,
@@ -73,7 +73,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
             tdiff,
             restart_streak,
             scratch,
-        } = self.m;
+        } = sh;
         (
             (cfg, state, line, inflight, timers),
             (step, events),
@@ -122,10 +122,10 @@ mod tests {
     fn counters_caches_and_working_tables_are_not_control_state() {
         let a = Machine::<4>::new(Config::default()).unwrap();
         let mut b = a.clone();
-        b.stats.frames_sent = 7;
-        b.frames_at_start = 3;
-        b.monitor.invalidate();
-        if let Some(s) = b.scratch.subtree.get_mut(0) {
+        b.sh.stats.frames_sent = 7;
+        b.sh.frames_at_start = 3;
+        b.sh.monitor.invalidate();
+        if let Some(s) = b.sh.scratch.subtree.get_mut(0) {
             *s = 5;
         }
         assert_eq!(a.control_state(), b.control_state());
@@ -136,11 +136,11 @@ mod tests {
     fn every_kind_of_control_field_counts() {
         let a = Machine::<4>::new(Config::default()).unwrap();
         let changes: [fn(&mut Machine<4>); 5] = [
-            |m| m.step.cursor = 1,
-            |m| m.cfg.retries = m.cfg.retries.wrapping_add(1),
-            |m| m.cyc.locked = true,
+            |m| m.sh.step.cursor = 1,
+            |m| m.sh.cfg.retries = m.sh.cfg.retries.wrapping_add(1),
+            |m| m.sh.cyc.locked = true,
             |m| m.push_event(crate::dc::Event::Restarting),
-            |m| m.line.slaves[1].station = 0x1234,
+            |m| m.sh.line.slaves[1].station = 0x1234,
         ];
         for (k, change) in changes.iter().enumerate() {
             let mut b = a.clone();

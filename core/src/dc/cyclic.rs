@@ -106,10 +106,10 @@ impl CyclicState {
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn cyclic_enter(&mut self) {
-        self.cyc = CyclicState::default();
-        self.monitor.invalidate();
+        self.sh.cyc = CyclicState::default();
+        self.sh.monitor.invalidate();
         // The first cycle is due at once.
-        self.timers.set(Timer::Cycle, SystemTime(0));
+        self.sh.timers.set(Timer::Cycle, SystemTime(0));
     }
 
     pub(crate) fn fill_cyclic(
@@ -118,16 +118,16 @@ impl<const N: usize> Machine<N> {
         b: &mut FrameBuilder<'_>,
         into_caller: bool,
     ) -> bool {
-        if !into_caller && !self.timers.expired(Timer::Cycle, SystemTime(now)) {
+        if !into_caller && !self.sh.timers.expired(Timer::Cycle, SystemTime(now)) {
             return false;
         }
-        let period = self.cfg.monitor.cycle_ns;
+        let period = self.sh.cfg.monitor.cycle_ns;
         // No transmission for more than `max_lost_cycles` periods: the master stalled.
-        let stall = period.saturating_mul(u64::from(self.cfg.monitor.max_lost_cycles));
+        let stall = period.saturating_mul(u64::from(self.sh.cfg.monitor.max_lost_cycles));
         if self.holdover_enabled()
-            && self.cyc.holdover.is_none()
-            && self.cyc.cycles > 0
-            && now.saturating_sub(self.cyc.sent_at) > stall
+            && self.sh.cyc.holdover.is_none()
+            && self.sh.cyc.cycles > 0
+            && now.saturating_sub(self.sh.cyc.sent_at) > stall
         {
             self.holdover_start(self.silence_since(), HoldoverCause::Stall);
         }
@@ -142,22 +142,22 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         // The next cycle one period after this one's due time, or after now if that passed.
-        let due = self.timers.get(Timer::Cycle).map_or(0, |t| t.0);
+        let due = self.sh.timers.get(Timer::Cycle).map_or(0, |t| t.0);
         let next = due.saturating_add(period);
         let next = if next <= now {
             now.saturating_add(period)
         } else {
             next
         };
-        self.timers.set(Timer::Cycle, SystemTime(next));
+        self.sh.timers.set(Timer::Cycle, SystemTime(next));
         let before = b.datagram_count();
-        self.inflight.clear();
-        self.cyc.frmw_wkc = None;
-        self.cyc.bound_wkc = None;
-        self.cyc.topo_wkc = None;
-        self.cyc.lost_station = None;
-        self.cyc.al_status = None;
-        self.cyc.cycle_bound_ns = None;
+        self.sh.inflight.clear();
+        self.sh.cyc.frmw_wkc = None;
+        self.sh.cyc.bound_wkc = None;
+        self.sh.cyc.topo_wkc = None;
+        self.sh.cyc.lost_station = None;
+        self.sh.cyc.al_status = None;
+        self.sh.cyc.cycle_bound_ns = None;
         let frmw = self.frmw_op(now);
         if !self.push_cycle_block(b, frmw) && !self.push_cycle_each(b, frmw) {
             if before == 0 {
@@ -166,13 +166,14 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         self.fill_remeasure(now, b);
-        self.cyc.sent_at = now;
-        let timeout = self.cfg.response_timeout_ns.min(period);
-        self.timers
+        self.sh.cyc.sent_at = now;
+        let timeout = self.sh.cfg.response_timeout_ns.min(period);
+        self.sh
+            .timers
             .set(Timer::Reply, SystemTime(now.saturating_add(timeout)));
-        self.cyc.cycles = self.cyc.cycles.saturating_add(1);
-        self.stats.cycles = self.stats.cycles.saturating_add(1);
-        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        self.sh.cyc.cycles = self.sh.cyc.cycles.saturating_add(1);
+        self.sh.stats.cycles = self.sh.stats.cycles.saturating_add(1);
+        self.sh.stats.frames_sent = self.sh.stats.frames_sent.saturating_add(1);
         true
     }
 
@@ -181,7 +182,7 @@ impl<const N: usize> Machine<N> {
     #[inline]
     fn rr_step(&mut self) -> u16 {
         let pos = self.rr_start();
-        self.cyc.rr = rr_after(pos, self.line.count);
+        self.sh.cyc.rr = rr_after(pos, self.sh.line.count);
         pos
     }
 
@@ -189,10 +190,10 @@ impl<const N: usize> Machine<N> {
     /// the slaves) the cursor modulo the count; 0 without slaves.
     #[inline]
     pub(crate) fn rr_start(&self) -> u16 {
-        if self.cyc.rr < self.line.count {
-            self.cyc.rr
+        if self.sh.cyc.rr < self.sh.line.count {
+            self.sh.cyc.rr
         } else {
-            self.cyc.rr.checked_rem(self.line.count).unwrap_or(0)
+            self.sh.cyc.rr.checked_rem(self.sh.line.count).unwrap_or(0)
         }
     }
 
@@ -201,7 +202,7 @@ impl<const N: usize> Machine<N> {
     /// used up (or the position is beyond the table).
     #[inline]
     pub(crate) fn rr_next_monitored(&mut self, scanned: &mut u16) -> Option<(u16, u16)> {
-        while *scanned < self.line.count {
+        while *scanned < self.sh.line.count {
             let pos = self.rr_step();
             *scanned = scanned.saturating_add(1);
             let (station, has_time) = self
@@ -223,7 +224,7 @@ impl<const N: usize> Machine<N> {
         }
         let _ = self.push_op(b, Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4), Tag::CycBound);
         let _ = self.push_op(b, Op::brd(reg::AL_STATUS, 2), Tag::CycTopology);
-        let mut budget = self.cfg.monitor.slaves_per_cycle;
+        let mut budget = self.sh.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
         while budget > 0 {
             let Some((pos, station)) = self.rr_next_monitored(&mut scanned) else {
@@ -251,7 +252,7 @@ impl<const N: usize> Machine<N> {
                 if let Some(&raw) = data.first_chunk::<4>().filter(|_| data.len() == 4) {
                     self.on_diff_reply(pos, p.station, wkc, raw);
                 } else if wkc != 1 {
-                    self.cyc.lost_station.get_or_insert(p.station);
+                    self.sh.cyc.lost_station.get_or_insert(p.station);
                 }
             }
             Tag::CycRemeasure(i) => self.remeasure_reply(i, p, wkc, data),
@@ -263,8 +264,8 @@ impl<const N: usize> Machine<N> {
     /// around `now`), used only with the full working counter.
     #[inline(always)]
     pub(crate) fn on_frmw_reply(&mut self, now: u64, len: u16, wkc: u16, data: &[u8]) {
-        self.cyc.frmw_wkc = Some(wkc);
-        if wkc == self.line.sys_count {
+        self.sh.cyc.frmw_wkc = Some(wkc);
+        if wkc == self.sh.line.sys_count {
             if let Some(v) = le(data, usize::from(len)) {
                 let t = if len == 8 {
                     v
@@ -272,7 +273,7 @@ impl<const N: usize> Machine<N> {
                     let low = u32::try_from(v).unwrap_or(0);
                     SystemTime::extend_low32(low, SystemTime(now)).0
                 };
-                self.cyc.ref_time = Some(t);
+                self.sh.cyc.ref_time = Some(t);
             }
         }
     }
@@ -281,12 +282,12 @@ impl<const N: usize> Machine<N> {
     /// working counter.
     #[inline(always)]
     pub(crate) fn on_bound_reply(&mut self, wkc: u16, data: &[u8]) {
-        self.cyc.bound_wkc = Some(wkc);
-        if wkc == self.line.sys_count {
+        self.sh.cyc.bound_wkc = Some(wkc);
+        if wkc == self.sh.line.sys_count {
             if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
                 let bound = SystemTimeDifference::from_raw(raw).magnitude();
-                self.cyc.bound_ns = Some(bound);
-                self.cyc.cycle_bound_ns = Some(bound);
+                self.sh.cyc.bound_ns = Some(bound);
+                self.sh.cyc.cycle_bound_ns = Some(bound);
             }
         }
     }
@@ -295,9 +296,9 @@ impl<const N: usize> Machine<N> {
     /// of every AL status.
     #[inline(always)]
     pub(crate) fn on_topology_reply(&mut self, wkc: u16, data: &[u8]) {
-        self.cyc.topo_wkc = Some(wkc);
+        self.sh.cyc.topo_wkc = Some(wkc);
         if wkc > 0 {
-            self.cyc.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
+            self.sh.cyc.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
         }
     }
 
@@ -305,10 +306,13 @@ impl<const N: usize> Machine<N> {
     /// one (the first that did not come back or was not sent), or the first cycle's
     /// transmission before any completed.
     pub(crate) fn silence_since(&self) -> u64 {
-        if self.cyc.last_good != 0 {
-            self.cyc.last_good.saturating_add(self.cfg.monitor.cycle_ns)
+        if self.sh.cyc.last_good != 0 {
+            self.sh
+                .cyc
+                .last_good
+                .saturating_add(self.sh.cfg.monitor.cycle_ns)
         } else {
-            self.cyc.sent_at
+            self.sh.cyc.sent_at
         }
     }
 
@@ -316,9 +320,9 @@ impl<const N: usize> Machine<N> {
     #[inline(always)]
     pub(crate) fn on_diff_reply(&mut self, pos: u16, station: u16, wkc: u16, raw: [u8; 4]) {
         diff_reply(
-            &mut self.line.slaves,
-            self.line.count,
-            &mut self.cyc,
+            &mut self.sh.line.slaves,
+            self.sh.line.count,
+            &mut self.sh.cyc,
             pos,
             station,
             wkc,
@@ -328,23 +332,24 @@ impl<const N: usize> Machine<N> {
 
     /// All of this cycle's datagrams came back: evaluate faults, then lock.
     pub(crate) fn cyclic_complete(&mut self, now: u64) {
-        if let Some(h) = self.cyc.holdover {
+        if let Some(h) = self.sh.cyc.holdover {
             if self.holdover_expired(now) || !self.resume_check(now, h) {
                 return;
             }
         }
-        self.cyc.last_good = self.cyc.sent_at;
-        self.cyc.al_ok = self.cyc.al_status;
-        self.cyc.lost_streak = 0;
-        let max_wkc = self.cfg.monitor.max_wkc_errors;
+        self.sh.cyc.last_good = self.sh.cyc.sent_at;
+        self.sh.cyc.al_ok = self.sh.cyc.al_status;
+        self.sh.cyc.lost_streak = 0;
+        let max_wkc = self.sh.cfg.monitor.max_wkc_errors;
         // Every slave counts the BRD of 0x0130, every slave with a system time the BRD of
         // 0x092C: either count changing means slaves appeared or disappeared.
-        let topo = match (self.cyc.topo_wkc, self.cyc.bound_wkc) {
-            (Some(w), _) if w != self.line.count => Some(w),
-            (_, Some(w)) if w != self.line.sys_count => Some(
-                self.line
+        let topo = match (self.sh.cyc.topo_wkc, self.sh.cyc.bound_wkc) {
+            (Some(w), _) if w != self.sh.line.count => Some(w),
+            (_, Some(w)) if w != self.sh.line.sys_count => Some(
+                self.sh
+                    .line
                     .count
-                    .saturating_sub(self.line.sys_count)
+                    .saturating_sub(self.sh.line.sys_count)
                     .saturating_add(w),
             ),
             _ => None,
@@ -352,56 +357,56 @@ impl<const N: usize> Machine<N> {
         match topo {
             // A slave gone from its address in the same cycle as the count changed: the
             // topology changed, no need to wait for confirmation.
-            Some(found) if self.cyc.lost_station.is_some() => {
+            Some(found) if self.sh.cyc.lost_station.is_some() => {
                 return self.fault(
                     now,
                     Error::TopologyChanged {
-                        expected: self.line.count,
+                        expected: self.sh.line.count,
                         found,
                     },
                 );
             }
             Some(found) => {
-                self.cyc.topo_streak = self.cyc.topo_streak.saturating_add(1);
-                if self.cyc.topo_streak >= max_wkc {
+                self.sh.cyc.topo_streak = self.sh.cyc.topo_streak.saturating_add(1);
+                if self.sh.cyc.topo_streak >= max_wkc {
                     return self.fault(
                         now,
                         Error::TopologyChanged {
-                            expected: self.line.count,
+                            expected: self.sh.line.count,
                             found,
                         },
                     );
                 }
             }
-            None => self.cyc.topo_streak = 0,
+            None => self.sh.cyc.topo_streak = 0,
         }
         // A reset or lost reference no longer reads the FRMW; slaves behind a break no longer
         // write it.
-        match self.cyc.frmw_wkc {
-            Some(w) if w != self.line.sys_count => {
-                self.cyc.wkc_streak = self.cyc.wkc_streak.saturating_add(1);
-                if self.cyc.wkc_streak >= max_wkc {
-                    let station = self.slave(self.line.reference).map_or(0, |s| s.station);
+        match self.sh.cyc.frmw_wkc {
+            Some(w) if w != self.sh.line.sys_count => {
+                self.sh.cyc.wkc_streak = self.sh.cyc.wkc_streak.saturating_add(1);
+                if self.sh.cyc.wkc_streak >= max_wkc {
+                    let station = self.slave(self.sh.line.reference).map_or(0, |s| s.station);
                     return self.fault(
                         now,
                         Error::Wkc {
                             command: self.frmw_op(now).command,
                             station,
                             register: reg::SYSTEM_TIME,
-                            expected: self.line.sys_count,
+                            expected: self.sh.line.sys_count,
                             actual: w,
                         },
                     );
                 }
             }
-            _ => self.cyc.wkc_streak = 0,
+            _ => self.sh.cyc.wkc_streak = 0,
         }
-        if let Some(station) = self.cyc.lost_station {
+        if let Some(station) = self.sh.cyc.lost_station {
             // A power-cycled ESC has lost its station address; a broken link drops it too.
             return self.fault(now, Error::SlaveLost { station });
         }
-        if let Some(e) = self.cyc.rm_error.take() {
-            self.cyc.remeasure = crate::dc::cyclic::Remeasure::Idle;
+        if let Some(e) = self.sh.cyc.rm_error.take() {
+            self.sh.cyc.remeasure = crate::dc::cyclic::Remeasure::Idle;
             return self.fault(now, e);
         }
         self.remeasure_advance(now);
@@ -412,42 +417,46 @@ impl<const N: usize> Machine<N> {
     }
 
     fn update_lock(&mut self) {
-        let m = self.cfg.monitor;
-        let Some(bound) = self.cyc.bound_ns else {
+        let m = self.sh.cfg.monitor;
+        let Some(bound) = self.sh.cyc.bound_ns else {
             return;
         };
         if bound <= m.lock_ns {
-            self.cyc.good_streak = self.cyc.good_streak.saturating_add(1);
+            self.sh.cyc.good_streak = self.sh.cyc.good_streak.saturating_add(1);
         } else {
-            self.cyc.good_streak = 0;
+            self.sh.cyc.good_streak = 0;
         }
         if bound > m.unlock_ns {
-            self.cyc.bad_streak = self.cyc.bad_streak.saturating_add(1);
+            self.sh.cyc.bad_streak = self.sh.cyc.bad_streak.saturating_add(1);
         } else {
-            self.cyc.bad_streak = 0;
+            self.sh.cyc.bad_streak = 0;
         }
-        if !self.cyc.locked && self.cyc.good_streak >= m.lock_cycles {
-            self.cyc.locked = true;
-            self.restart_streak = 0;
-            let frames = self.stats.frames_sent.saturating_sub(self.frames_at_start);
-            self.stats.lock_frames = Some(frames);
+        if !self.sh.cyc.locked && self.sh.cyc.good_streak >= m.lock_cycles {
+            self.sh.cyc.locked = true;
+            self.sh.restart_streak = 0;
+            let frames = self
+                .sh
+                .stats
+                .frames_sent
+                .saturating_sub(self.sh.frames_at_start);
+            self.sh.stats.lock_frames = Some(frames);
             self.push_event(Event::Locked {
                 frames,
                 bound_ns: bound,
             });
-        } else if self.cyc.locked && self.cyc.bad_streak >= m.unlock_cycles {
-            self.cyc.locked = false;
-            self.cyc.not_locked_reported = false;
-            self.cyc.cycles = 0;
+        } else if self.sh.cyc.locked && self.sh.cyc.bad_streak >= m.unlock_cycles {
+            self.sh.cyc.locked = false;
+            self.sh.cyc.not_locked_reported = false;
+            self.sh.cyc.cycles = 0;
             self.push_event(Event::LockLost { bound_ns: bound });
         }
-        if !self.cyc.locked
-            && !self.cyc.not_locked_reported
-            && self.cyc.cycles >= m.lock_timeout_cycles
+        if !self.sh.cyc.locked
+            && !self.sh.cyc.not_locked_reported
+            && self.sh.cyc.cycles >= m.lock_timeout_cycles
         {
-            self.cyc.not_locked_reported = true;
+            self.sh.cyc.not_locked_reported = true;
             self.push_event(Event::Error(Error::NotLocked {
-                cycles: self.cyc.cycles,
+                cycles: self.sh.cyc.cycles,
                 bound_ns: bound,
             }));
         }
@@ -456,18 +465,18 @@ impl<const N: usize> Machine<N> {
     /// The cycle in flight is lost: coast, or give up after `max_lost_cycles`.
     pub(crate) fn cyclic_lost(&mut self, now: u64) {
         self.stop_awaiting();
-        self.stats.lost_cycles = self.stats.lost_cycles.saturating_add(1);
-        self.cyc.lost_streak = self.cyc.lost_streak.saturating_add(1);
+        self.sh.stats.lost_cycles = self.sh.stats.lost_cycles.saturating_add(1);
+        self.sh.cyc.lost_streak = self.sh.cyc.lost_streak.saturating_add(1);
         // A lost re-measurement step is resent (a lost trigger restarts the measurement).
-        self.cyc.rm_sent_to = self.cyc.rm_cursor;
-        if self.cyc.remeasure == Remeasure::After {
-            self.cyc.remeasure = Remeasure::Before;
-            self.cyc.rm_cursor = 0;
-            self.cyc.rm_sent_to = 0;
+        self.sh.cyc.rm_sent_to = self.sh.cyc.rm_cursor;
+        if self.sh.cyc.remeasure == Remeasure::After {
+            self.sh.cyc.remeasure = Remeasure::Before;
+            self.sh.cyc.rm_cursor = 0;
+            self.sh.cyc.rm_sent_to = 0;
         }
-        if self.cyc.holdover.is_some() {
+        if self.sh.cyc.holdover.is_some() {
             let _ = self.holdover_expired(now);
-        } else if self.cyc.lost_streak >= self.cfg.monitor.max_lost_cycles {
+        } else if self.sh.cyc.lost_streak >= self.sh.cfg.monitor.max_lost_cycles {
             if self.holdover_enabled() {
                 self.holdover_start(self.silence_since(), HoldoverCause::Silence);
                 let _ = self.holdover_expired(now);
@@ -532,10 +541,10 @@ mod tests {
         cfg.drift_command = cmd;
         let mut m = Machine::<48>::new(cfg).unwrap();
         m.state = State::Cyclic;
-        m.timers.set(Timer::Cycle, SystemTime(0));
-        m.line.count = n;
-        m.line.sys_count = 0;
-        for (i, s) in m.line.slaves.iter_mut().enumerate().take(usize::from(n)) {
+        m.sh.timers.set(Timer::Cycle, SystemTime(0));
+        m.sh.line.count = n;
+        m.sh.line.sys_count = 0;
+        for (i, s) in m.sh.line.slaves.iter_mut().enumerate().take(usize::from(n)) {
             s.station = 0x1001 + i as u16 * 0x0101;
             s.dc = match i % 3 {
                 1 => DcKind::None,
@@ -543,11 +552,11 @@ mod tests {
                 _ => DcKind::Bits64,
             };
             if s.dc.has_system_time() {
-                m.line.sys_count += 1;
+                m.sh.line.sys_count += 1;
             }
         }
-        m.cyc.rr = rr;
-        m.inflight.next_index = next;
+        m.sh.cyc.rr = rr;
+        m.sh.inflight.next_index = next;
         m
     }
 
@@ -570,7 +579,7 @@ mod tests {
                                     for caller in [false, true] {
                                         let mut m = cyclic_machine(n, per_cycle, rr, cmd, next);
                                         if reference < n {
-                                            m.line.reference = reference;
+                                            m.sh.line.reference = reference;
                                         }
                                         if compare(&m, size, caller) {
                                             taken += 1;
@@ -601,7 +610,7 @@ mod tests {
         for ((n, per_cycle), remeasure) in shapes.into_iter().flat_map(|s| [(s, false), (s, true)])
         {
             let mut m = cyclic_machine(n, per_cycle, 0, DriftCommand::Frmw, 0x80);
-            m.line.reference = 0;
+            m.sh.line.reference = 0;
             if remeasure {
                 // Re-measurement reads ride behind the cycle's own datagrams: the table is
                 // no longer the cycle's block, so the pattern walk applies.
@@ -619,7 +628,7 @@ mod tests {
                 for (k, mut d) in f.iter_mut().map(Result::unwrap).enumerate() {
                     let fill = 0x10u8.wrapping_add(k as u8);
                     d.data_mut().iter_mut().for_each(|b| *b = fill);
-                    d.set_wkc(if k < 2 { m.line.sys_count } else { 1 });
+                    d.set_wkc(if k < 2 { m.sh.line.sys_count } else { 1 });
                 }
             }
             let mut variants = std::vec![reply.clone()];
@@ -635,7 +644,7 @@ mod tests {
             {
                 let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
                 let f = eth.ecat_frame_unvalidated().unwrap().into_inner();
-                let n_sent = m.inflight.fresh_len().unwrap();
+                let n_sent = m.sh.inflight.fresh_len().unwrap();
                 let mut c = m.clone();
                 match c.cyclic_block_reply(T + 1, f, n_sent) {
                     Some(true) => block_taken += 1,
@@ -660,7 +669,7 @@ mod tests {
                 b.handle_frame_with(SystemTime(T + 1), v, false);
                 assert_eq!(format!("{a:?}"), format!("{b:?}"));
                 // Once a reply is taken the table is no longer as filled: the path declines.
-                if a.is_awaiting_reply() && a.stats.foreign_frames == m.stats.foreign_frames {
+                if a.is_awaiting_reply() && a.sh.stats.foreign_frames == m.sh.stats.foreign_frames {
                     let before = format!("{a:?}");
                     let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
                     let f = eth.ecat_frame_unvalidated().unwrap();

@@ -38,13 +38,13 @@ impl<const N: usize> Machine<N> {
         };
         if frmw.len > 8
             || frmw.address.check_for(frmw.command).is_err()
-            || !self.inflight.is_cleared()
+            || !self.sh.inflight.is_cleared()
         {
             return false;
         }
         // Indexes as `alloc_index` hands them out, one per datagram in send order.
-        let (first, range) = (self.cfg.index_first, self.cfg.index_count);
-        let mut next = self.inflight.next_index;
+        let (first, range) = (self.sh.cfg.index_first, self.sh.cfg.index_count);
+        let mut next = self.sh.inflight.next_index;
         let mut alloc = || {
             let i = next;
             next = index_after(i, first, range);
@@ -55,13 +55,13 @@ impl<const N: usize> Machine<N> {
         // from the first at or after the cursor, `k` of them, wrapping; the cursor then stands
         // after the last read once `budget` were found, or where it started when fewer than
         // `budget` exist (the scan went all the way round).
-        let count = self.line.count;
+        let count = self.sh.line.count;
         let start = self.rr_start();
-        let Some((fixed_slots, rr_slots)) = self.inflight.entries.split_at_mut_checked(3) else {
+        let Some((fixed_slots, rr_slots)) = self.sh.inflight.entries.split_at_mut_checked(3) else {
             return false;
         };
-        let (list, j) = self.monitor.get(&self.line.slaves, count, start);
-        let budget = usize::from(self.cfg.monitor.slaves_per_cycle);
+        let (list, j) = self.sh.monitor.get(&self.sh.line.slaves, count, start);
+        let budget = usize::from(self.sh.cfg.monitor.slaves_per_cycle);
         let (before, after) = list.split_at(j.min(list.len()));
         let k = budget.min(list.len());
         if k > rr_slots.len() {
@@ -69,7 +69,7 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         let new_rr = if count == 0 || budget == 0 {
-            self.cyc.rr
+            self.sh.cyc.rr
         } else if budget <= list.len() {
             // The budget-th read: list[j + budget − 1], wrapped.
             let at = j.wrapping_add(budget).wrapping_sub(1);
@@ -198,16 +198,16 @@ impl<const N: usize> Machine<N> {
             }
             None => ok = false,
         }
-        self.cyc.rr = new_rr;
-        self.inflight.next_index = next;
-        ok &= self.inflight.mark_filled(n);
+        self.sh.cyc.rr = new_rr;
+        self.sh.inflight.next_index = next;
+        ok &= self.sh.inflight.mark_filled(n);
         // Unreachable by construction: `rest` was exactly `total` bytes, the sum of the pieces
         // written above, and `n` fits the table (checked before `append_block`). Should the
         // sums ever disagree, the block is already in the frame, so the cycle goes out with
         // nothing in flight: its replies count as foreign, the cycle is lost the ordinary way,
         // and the fault is reported instead of a panic (REQ-CONV-008).
         if !ok || !rest.is_empty() {
-            self.inflight.clear();
+            self.sh.inflight.clear();
             self.push_event(Event::Error(Error::Internal { state: self.state }));
         }
         true
@@ -218,7 +218,7 @@ impl<const N: usize> Machine<N> {
     /// datagrams, else the per-datagram pattern walk. True if the frame was handled.
     #[inline]
     pub(crate) fn cyclic_fast(&mut self, now: u64, ecat: &[u8]) -> bool {
-        let Some(n) = self.inflight.fresh_len() else {
+        let Some(n) = self.sh.inflight.fresh_len() else {
             return false;
         };
         match self.cyclic_block_reply(now, ecat, n) {
@@ -234,7 +234,7 @@ impl<const N: usize> Machine<N> {
     /// went to `on_cyclic_reply` in slot order, as `cyclic_pattern_reply` would have done.
     #[inline]
     pub(crate) fn cyclic_block_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> Option<bool> {
-        let [Some(p0), Some(p1), Some(p2), fprds @ ..] = self.inflight.entries.get(..n)? else {
+        let [Some(p0), Some(p1), Some(p2), fprds @ ..] = self.sh.inflight.entries.get(..n)? else {
             return None;
         };
         // Anything else in flight (re-measurement steps) is pushed after the cycle's reads.
@@ -293,12 +293,12 @@ impl<const N: usize> Machine<N> {
         self.on_bound_reply(wkc, data);
         let (data, wkc) = data_wkc(d2);
         self.on_topology_reply(wkc, data);
-        let Machine {
+        let crate::dc::machine::Shared {
             inflight,
             line,
             cyc,
             ..
-        } = self;
+        } = &mut self.sh;
         let reads = inflight.entries.get(3..n).unwrap_or(&[]);
         for (p, d) in reads.iter().zip(rr.chunks_exact(FPRD_LEN)) {
             if let (Some(p), Some((_, data)), Some((_, wkc))) = (
@@ -319,7 +319,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        self.inflight.took_all(n);
+        self.sh.inflight.took_all(n);
         Some(true)
     }
 
@@ -330,14 +330,14 @@ impl<const N: usize> Machine<N> {
     /// changes neither the state nor the table. Routes every reply and returns true; else
     /// returns false having changed nothing.
     pub(crate) fn cyclic_pattern_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> bool {
-        let inflight = &self.inflight;
+        let inflight = &self.sh.inflight;
         if !matches_pattern(ecat, n, |i| inflight.get(i).map(Pending::pattern)) {
             return false;
         }
         // Validated: `n` datagrams at the offsets their lengths give, slot `i` for datagram `i`.
         let mut rest = ecat.get(ECAT_HEADER_LEN..).unwrap_or(&[]);
         for i in 0..n {
-            let Some(p) = self.inflight.get(i).copied() else {
+            let Some(p) = self.sh.inflight.get(i).copied() else {
                 break;
             };
             let size = usize::from(p.len).wrapping_add(DATAGRAM_OVERHEAD);
@@ -348,7 +348,7 @@ impl<const N: usize> Machine<N> {
             let (data, wkc) = data_wkc(d);
             self.on_cyclic_reply(now, p, wkc, data);
         }
-        self.inflight.took_all(n);
+        self.sh.inflight.took_all(n);
         true
     }
 }

@@ -36,7 +36,7 @@ impl<const N: usize> Machine<N> {
 
     /// Station address given to position `pos`; `Config::validate` keeps it in range.
     pub(crate) fn station_of(&self, pos: u16) -> u16 {
-        self.cfg.station_base.wrapping_add(pos)
+        self.sh.cfg.station_base.wrapping_add(pos)
     }
 
     pub(crate) fn discovery_reply(
@@ -58,8 +58,8 @@ impl<const N: usize> Machine<N> {
                         capacity: cap,
                     });
                 }
-                self.line.count = wkc;
-                for s in self.line.slaves.iter_mut() {
+                self.sh.line.count = wkc;
+                for s in self.sh.line.slaves.iter_mut() {
                     *s = SlaveInfo::default();
                 }
                 Ok(())
@@ -143,10 +143,10 @@ impl<const N: usize> Machine<N> {
                     }
                 }
                 let reference = reference.ok_or(Error::NoReferenceClock)?;
-                self.line.reference = reference;
-                self.line.sys_count = sys;
+                self.sh.line.reference = reference;
+                self.sh.line.sys_count = sys;
                 self.push_event(Event::SlavesFound {
-                    count: self.line.count,
+                    count: self.sh.line.count,
                     dc: sys,
                 });
                 Ok(State::TdiffRead)

@@ -44,10 +44,10 @@ impl<const N: usize> Machine<N> {
     /// watch the loops at the cyclic sample rate they will run at (a loop held tight by
     /// back-to-back samples can drift off once samples come only every cycle).
     pub(crate) fn burst_len(&self) -> u16 {
-        if self.drift_gate.passed > 0 {
+        if self.sh.drift_gate.passed > 0 {
             1
         } else {
-            self.cfg.drift.burst_frames
+            self.sh.cfg.drift.burst_frames
         }
     }
 
@@ -55,8 +55,10 @@ impl<const N: usize> Machine<N> {
     /// burst waits `check_pause_ns` after the previous frame (REQ-DC-104).
     pub(crate) fn pace_until(&self) -> u64 {
         let last_of_burst = self.burst_len().saturating_sub(1);
-        if self.state == State::DriftBurst && self.step.cursor == last_of_burst {
-            self.last_sent.saturating_add(self.cfg.drift.check_pause_ns)
+        if self.state == State::DriftBurst && self.sh.step.cursor == last_of_burst {
+            self.sh
+                .last_sent
+                .saturating_add(self.sh.cfg.drift.check_pause_ns)
         } else {
             0
         }
@@ -81,7 +83,7 @@ impl<const N: usize> Machine<N> {
     /// the check pause.
     pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
         if self.state == State::DriftCheck && self.push_op(b, self.frmw_op(now), Tag::Frmw) {
-            self.drift_gate.frames = self.drift_gate.frames.saturating_add(1);
+            self.sh.drift_gate.frames = self.sh.drift_gate.frames.saturating_add(1);
         }
     }
 
@@ -89,7 +91,7 @@ impl<const N: usize> Machine<N> {
         match self.state {
             State::DriftBurst => Item::Send(self.frmw_op(now)),
             State::DriftCheck => {
-                let check = self.cfg.drift.check;
+                let check = self.sh.cfg.drift.check;
                 if i == 0 {
                     if check == DriftCheck::PerSlave {
                         return Item::Skip;
@@ -121,7 +123,7 @@ impl<const N: usize> Machine<N> {
             State::DriftBurst => self.check_frmw(p, wkc),
             State::DriftCheck => {
                 // BRD 0x092C: only ESCs with a system time have the register.
-                let expected = if i == 0 { self.line.sys_count } else { 1 };
+                let expected = if i == 0 { self.sh.line.sys_count } else { 1 };
                 self.expect_wkc(p, expected, wkc)?;
                 let raw =
                     le(data, 4)
@@ -132,7 +134,7 @@ impl<const N: usize> Machine<N> {
                         })?;
                 let d = SystemTimeDifference::from_raw(raw);
                 if i == 0 {
-                    self.drift_gate.bound = Some(d.magnitude());
+                    self.sh.drift_gate.bound = Some(d.magnitude());
                 } else if let Some(s) = self.slave_mut(i.saturating_sub(1)) {
                     s.last_diff_ns = Some(i64::from(d.to_ns()));
                 }
@@ -156,10 +158,10 @@ impl<const N: usize> Machine<N> {
     /// `threshold_ns` and its mean |0x092C| at most `scatter_ns` (the bound's mean against
     /// `threshold_ns` in `Broadcast` mode), and otherwise starts over.
     fn drift_judge(&mut self) -> Result<State, Error> {
-        let d = self.cfg.drift;
+        let d = self.sh.cfg.drift;
         let per_slave = d.check != DriftCheck::Broadcast;
         let by_bound = d.check != DriftCheck::PerSlave;
-        let fresh = self.drift_gate.passed == 0;
+        let fresh = self.sh.drift_gate.passed == 0;
         let limit = d.spike_ns;
         let mut over = 0u16;
         let mut worst = (0u16, 0u32);
@@ -174,7 +176,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        let bound = self.drift_gate.bound.unwrap_or(u32::MAX);
+        let bound = self.sh.drift_gate.bound.unwrap_or(u32::MAX);
         let bound_ok = !by_bound || bound <= limit;
         if by_bound && bound > worst.1 && worst.1 <= limit {
             worst = (0, bound);
@@ -182,8 +184,8 @@ impl<const N: usize> Machine<N> {
         let passed = over == 0 && bound_ok;
         // Running sums of the streak: restarted by its first check, kept only while it lasts.
         let keep = passed && !fresh;
-        let count = usize::from(self.line.count);
-        for s in self.line.slaves.iter_mut().take(count) {
+        let count = usize::from(self.sh.line.count);
+        for s in self.sh.line.slaves.iter_mut().take(count) {
             let mag = u64::from(diff_magnitude(s.last_diff_ns));
             let signed = s.last_diff_ns.unwrap_or(i64::MAX);
             if keep {
@@ -194,18 +196,21 @@ impl<const N: usize> Machine<N> {
                 s.diff_sum = signed;
             }
         }
-        self.drift_gate.bound_sum = if keep {
-            self.drift_gate.bound_sum.saturating_add(u64::from(bound))
+        self.sh.drift_gate.bound_sum = if keep {
+            self.sh
+                .drift_gate
+                .bound_sum
+                .saturating_add(u64::from(bound))
         } else {
             u64::from(bound)
         };
-        self.drift_gate.passed = if passed {
-            self.drift_gate.passed.saturating_add(1)
+        self.sh.drift_gate.passed = if passed {
+            self.sh.drift_gate.passed.saturating_add(1)
         } else {
             0
         };
-        if self.drift_gate.passed >= d.consecutive {
-            let k = u64::from(self.drift_gate.passed);
+        if self.sh.drift_gate.passed >= d.consecutive {
+            let k = u64::from(self.sh.drift_gate.passed);
             let budget = u64::from(d.threshold_ns).saturating_mul(k);
             let scatter = u64::from(d.scatter_ns).saturating_mul(k);
             let means_ok = if per_slave {
@@ -214,7 +219,7 @@ impl<const N: usize> Machine<N> {
                     .filter(|s| s.dc.has_system_time())
                     .all(|s| s.diff_sum.unsigned_abs() <= budget && s.diff_abs_sum <= scatter)
             } else {
-                self.drift_gate.bound_sum <= budget
+                self.sh.drift_gate.bound_sum <= budget
             };
             if means_ok {
                 let max_diff_ns = if by_bound {
@@ -223,21 +228,21 @@ impl<const N: usize> Machine<N> {
                     worst.1
                 };
                 self.push_event(Event::DriftConverged {
-                    frames: self.drift_gate.frames,
+                    frames: self.sh.drift_gate.frames,
                     max_diff_ns,
                 });
-                return Ok(if self.cfg.sync.is_some() {
+                return Ok(if self.sh.cfg.sync.is_some() {
                     State::ReadReferenceTime
                 } else {
                     State::Cyclic
                 });
             }
             // Readings stayed in bounds but some mean did not settle: a new streak.
-            self.drift_gate.passed = 0;
+            self.sh.drift_gate.passed = 0;
         }
-        if self.drift_gate.frames >= d.max_frames {
+        if self.sh.drift_gate.frames >= d.max_frames {
             return Err(Error::NotConverged {
-                frames: self.drift_gate.frames,
+                frames: self.sh.drift_gate.frames,
                 slaves_over: over.max(u16::from(!bound_ok)),
                 worst_station: worst.0,
                 worst_diff_ns: worst.1,
@@ -277,14 +282,14 @@ mod tests {
             ..Config::default()
         };
         let mut m = Machine::<N>::new(cfg).unwrap();
-        m.line.count = slaves;
-        m.line.sys_count = slaves;
-        for (i, s) in m
-            .line
-            .slaves
-            .iter_mut()
-            .take(usize::from(slaves))
-            .enumerate()
+        m.sh.line.count = slaves;
+        m.sh.line.sys_count = slaves;
+        for (i, s) in
+            m.sh.line
+                .slaves
+                .iter_mut()
+                .take(usize::from(slaves))
+                .enumerate()
         {
             s.station = 0x1000 + u16::try_from(i).unwrap();
             s.dc = DcKind::Bits64;
@@ -295,7 +300,7 @@ mod tests {
 
     /// One completed check with these per-slave readings (ns); the state it leads to.
     fn judge(m: &mut Machine<4>, readings: &[i64]) -> State {
-        for (s, r) in m.line.slaves.iter_mut().zip(readings) {
+        for (s, r) in m.sh.line.slaves.iter_mut().zip(readings) {
             s.last_diff_ns = Some(*r);
         }
         let next = m.drift_done().unwrap();
@@ -312,12 +317,12 @@ mod tests {
         let mut m = in_check::<4>(2, DriftCheck::PerSlave);
         // A reading above the spike bound (400) does not open a streak.
         assert_eq!(judge(&mut m, &[401, 10]), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 0);
+        assert_eq!(m.sh.drift_gate.passed, 0);
         // Noisy readings open and continue one ...
         assert_eq!(judge(&mut m, &[150, -80]), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 1);
+        assert_eq!(m.sh.drift_gate.passed, 1);
         assert_eq!(judge(&mut m, &[-180, 20]), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 2);
+        assert_eq!(m.sh.drift_gate.passed, 2);
         // ... and after K = 3 checks: slave 1's signed mean (150 − 180 + 90) / 3 = 20, its
         // mean |Δ| 140 ≤ 200; slave 2's −10 and 40. Converged (SYNC configured: the
         // reference time is read next).
@@ -338,16 +343,16 @@ mod tests {
         assert_eq!(judge(&mut m, &[10, 100]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, 120]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, 110]), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 0);
+        assert_eq!(m.sh.drift_gate.passed, 0);
         // Slave 1 swings ±300 around zero: signed mean 100 / 3, mean |Δ| 300 > 200.
         assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[-300, 0]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 0);
+        assert_eq!(m.sh.drift_gate.passed, 0);
         // A spike in the middle of a good streak restarts it.
         assert_eq!(judge(&mut m, &[10, 10]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, -450]), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 0);
+        assert_eq!(m.sh.drift_gate.passed, 0);
         assert!(m.poll_event().is_none());
     }
 
@@ -356,14 +361,14 @@ mod tests {
         let mut m = in_check::<4>(2, DriftCheck::Broadcast);
         for (bound, ok) in [(100, 1), (190, 2)] {
             // Every bound within the spike bound (400) counts.
-            m.drift_gate.bound = Some(bound);
+            m.sh.drift_gate.bound = Some(bound);
             assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
-            assert_eq!(m.drift_gate.passed, ok);
+            assert_eq!(m.sh.drift_gate.passed, ok);
         }
         // Mean of 100, 190, 20 = 103 > 100: starts over.
-        m.drift_gate.bound = Some(20);
+        m.sh.drift_gate.bound = Some(20);
         assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
-        assert_eq!(m.drift_gate.passed, 0);
+        assert_eq!(m.sh.drift_gate.passed, 0);
     }
 
     /// Commands of the datagrams in a frame, in order.
@@ -385,7 +390,7 @@ mod tests {
         assert_eq!(first.first(), Some(&Command::Brd));
         assert_eq!(first.last(), Some(&Command::Frmw));
         assert_eq!(first.iter().filter(|c| **c == Command::Fprd).count(), 30);
-        assert_eq!(m.drift_gate.frames, 1);
+        assert_eq!(m.sh.drift_gate.frames, 1);
         // Answer it (WKC 1 per FPRD, 40 for BRD and FRMW), then the rest goes out without FRMW.
         let mut reply = buf[..n].to_vec();
         {
@@ -407,6 +412,6 @@ mod tests {
         let second = commands(&buf[..n]);
         assert_eq!(second.len(), 10);
         assert!(second.iter().all(|c| *c == Command::Fprd));
-        assert_eq!(m.drift_gate.frames, 1);
+        assert_eq!(m.sh.drift_gate.frames, 1);
     }
 }

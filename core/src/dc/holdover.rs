@@ -107,27 +107,27 @@ impl<const N: usize> Machine<N> {
     /// Whether hold-over replaces the re-initialisation on silence (`holdover_ns` > 0).
     #[inline]
     pub(crate) fn holdover_enabled(&self) -> bool {
-        self.cfg.holdover_ns > 0
+        self.sh.cfg.holdover_ns > 0
     }
 
     /// Enters hold-over (idempotent): reports it and suspends what needs every cycle.
     pub(crate) fn holdover_start(&mut self, since: u64, cause: HoldoverCause) {
-        if self.cyc.holdover.is_some() {
+        if self.sh.cyc.holdover.is_some() {
             return;
         }
-        self.cyc.holdover = Some(Holdover {
+        self.sh.cyc.holdover = Some(Holdover {
             since,
             cause,
-            al_before: self.cyc.al_ok,
+            al_before: self.sh.cyc.al_ok,
         });
         // A delay re-measurement cut by the silence is run again from its first step once
         // the wire is back (some 0x0928 may already be rewritten: the rerun rewrites all).
-        if self.cyc.remeasure != Remeasure::Idle {
-            self.cyc.remeasure = Remeasure::Idle;
-            self.cyc.remeasure_requested = true;
-            self.cyc.rm_cursor = 0;
-            self.cyc.rm_sent_to = 0;
-            self.cyc.rm_error = None;
+        if self.sh.cyc.remeasure != Remeasure::Idle {
+            self.sh.cyc.remeasure = Remeasure::Idle;
+            self.sh.cyc.remeasure_requested = true;
+            self.sh.cyc.rm_cursor = 0;
+            self.sh.cyc.rm_sent_to = 0;
+            self.sh.cyc.rm_error = None;
         }
         self.push_event(Event::HoldoverStarted { since, cause });
     }
@@ -137,14 +137,15 @@ impl<const N: usize> Machine<N> {
     /// and the first cycle after a silence can leave up to one period after it ended: one
     /// period more is allowed, so that a silence of exactly `holdover_ns` is held over.
     pub(crate) fn holdover_expired(&mut self, now: u64) -> bool {
-        let Some(h) = self.cyc.holdover else {
+        let Some(h) = self.sh.cyc.holdover else {
             return false;
         };
         let silent_ns = now.saturating_sub(h.since);
         let limit = self
+            .sh
             .cfg
             .holdover_ns
-            .saturating_add(self.cfg.monitor.cycle_ns);
+            .saturating_add(self.sh.cfg.monitor.cycle_ns);
         if silent_ns <= limit {
             return false;
         }
@@ -158,10 +159,10 @@ impl<const N: usize> Machine<N> {
         let result = self.resume_result(h);
         match result {
             Ok(check) => {
-                self.cyc.holdover = None;
-                self.cyc.topo_streak = 0;
-                self.cyc.wkc_streak = 0;
-                self.stats.holdovers = self.stats.holdovers.saturating_add(1);
+                self.sh.cyc.holdover = None;
+                self.sh.cyc.topo_streak = 0;
+                self.sh.cyc.wkc_streak = 0;
+                self.sh.stats.holdovers = self.sh.stats.holdovers.saturating_add(1);
                 self.push_event(Event::HoldoverEnded {
                     after_ns: now.saturating_sub(h.since),
                     check,
@@ -176,29 +177,30 @@ impl<const N: usize> Machine<N> {
     }
 
     fn resume_result(&self, h: Holdover) -> Result<ResumeCheck, ResumeFailure> {
-        let c = &self.cyc;
+        let c = &self.sh.cyc;
         let found = c.topo_wkc.unwrap_or(0);
-        if found != self.line.count {
+        if found != self.sh.line.count {
             return Err(ResumeFailure::SlaveCount {
-                expected: self.line.count,
+                expected: self.sh.line.count,
                 found,
             });
         }
         let frmw = c.frmw_wkc.unwrap_or(0);
-        if frmw != self.line.sys_count {
+        if frmw != self.sh.line.sys_count {
             return Err(ResumeFailure::ReferenceWkc {
-                expected: self.line.sys_count,
+                expected: self.sh.line.sys_count,
                 actual: frmw,
             });
         }
         let bound_wkc = c.bound_wkc.unwrap_or(0);
-        if bound_wkc != self.line.sys_count {
+        if bound_wkc != self.sh.line.sys_count {
             return Err(ResumeFailure::SlaveCount {
-                expected: self.line.count,
+                expected: self.sh.line.count,
                 found: self
+                    .sh
                     .line
                     .count
-                    .saturating_sub(self.line.sys_count)
+                    .saturating_sub(self.sh.line.sys_count)
                     .saturating_add(bound_wkc),
             });
         }
@@ -214,7 +216,7 @@ impl<const N: usize> Machine<N> {
         // The bound is taken from this cycle only: `bound_ns` still holds the last value
         // from before the silence when this cycle's read carried none.
         let bound_ns = c.cycle_bound_ns.unwrap_or(u32::MAX);
-        if bound_ns > self.cfg.holdover_check_ns {
+        if bound_ns > self.sh.cfg.holdover_check_ns {
             return Err(ResumeFailure::Bound { bound_ns });
         }
         Ok(ResumeCheck {
@@ -226,11 +228,11 @@ impl<const N: usize> Machine<N> {
 
     /// Whether the cyclic phase is in hold-over.
     pub fn in_holdover(&self) -> bool {
-        self.state == crate::dc::State::Cyclic && self.cyc.holdover.is_some()
+        self.state == crate::dc::State::Cyclic && self.sh.cyc.holdover.is_some()
     }
 
     /// Master time at which the running re-initialisation pause ends (`RestartWait` only).
     pub fn restart_at(&self) -> Option<crate::time::SystemTime> {
-        self.timers.get(crate::dc::timer::Timer::Restart)
+        self.sh.timers.get(crate::dc::timer::Timer::Restart)
     }
 }

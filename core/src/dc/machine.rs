@@ -117,8 +117,16 @@ pub(crate) enum Item {
 /// P6), and only datagrams matched by index, command, register, station and length are used.
 #[derive(Debug, Clone)]
 pub struct Machine<const N: usize> {
-    pub(crate) cfg: Config,
     pub(crate) state: State,
+    /// What every phase reads and uses (`Shared`).
+    pub(crate) sh: Shared<N>,
+}
+
+/// The machine's parts that outlive a phase: configuration, the line, the in-flight and timer
+/// tables, events and counters, and the working tables.
+#[derive(Debug, Clone)]
+pub(crate) struct Shared<const N: usize> {
+    pub(crate) cfg: Config,
     /// The slave table and the line's facts (`dc/line.rs`).
     pub(crate) line: Line<N>,
     pub(crate) inflight: Inflight,
@@ -196,9 +204,9 @@ impl<const N: usize> Machine<N> {
     pub fn configure(&mut self, cfg: Config) -> Result<(), ConfigError> {
         cfg.validate(N)?;
         // Every field is named, so that a new one cannot be forgotten here.
-        let Machine {
+        let Machine { state, sh } = self;
+        let Shared {
             cfg: c,
-            state,
             line,
             inflight,
             timers,
@@ -214,7 +222,7 @@ impl<const N: usize> Machine<N> {
             tdiff,
             restart_streak,
             scratch,
-        } = self;
+        } = sh;
         *c = cfg;
         *state = State::Idle;
         line.clear();
@@ -240,23 +248,25 @@ impl<const N: usize> Machine<N> {
     /// The machine of [`new`](Self::new) and [`idle`](Self::idle), for a validated `cfg`.
     const fn blank(cfg: Config) -> Self {
         Machine {
-            cfg,
             state: State::Idle,
-            line: Line::new(),
-            inflight: Inflight::new(cfg.index_first),
-            timers: TimerTable::new(),
-            step: StepProgress::START,
-            events: EventQueue::new(),
-            stats: Stats::ZERO,
-            last_sent: 0,
-            frames_at_start: 0,
-            latch: LatchRounds::new(),
-            drift_gate: DriftGate::IDLE,
-            cyc: CyclicState::IDLE,
-            monitor: MonitorList::new(),
-            tdiff: Tdiff::new(),
-            restart_streak: 0,
-            scratch: Scratch::new(),
+            sh: Shared {
+                cfg,
+                line: Line::new(),
+                inflight: Inflight::new(cfg.index_first),
+                timers: TimerTable::new(),
+                step: StepProgress::START,
+                events: EventQueue::new(),
+                stats: Stats::ZERO,
+                last_sent: 0,
+                frames_at_start: 0,
+                latch: LatchRounds::new(),
+                drift_gate: DriftGate::IDLE,
+                cyc: CyclicState::IDLE,
+                monitor: MonitorList::new(),
+                tdiff: Tdiff::new(),
+                restart_streak: 0,
+                scratch: Scratch::new(),
+            },
         }
     }
 
@@ -265,8 +275,8 @@ impl<const N: usize> Machine<N> {
     /// Starts (or restarts) the bring-up from `CountSlaves`.
     pub fn start(&mut self, _now: SystemTime) {
         self.reset();
-        self.restart_streak = 0;
-        self.frames_at_start = self.stats.frames_sent;
+        self.sh.restart_streak = 0;
+        self.sh.frames_at_start = self.sh.stats.frames_sent;
         self.enter(State::CountSlaves);
     }
 
@@ -281,7 +291,7 @@ impl<const N: usize> Machine<N> {
     /// cycles and rewrites only 0x0928 (REQ-DC-107). Ignored outside `Cyclic`.
     pub fn request_delay_measurement(&mut self) {
         if self.state == State::Cyclic {
-            self.cyc.remeasure_requested = true;
+            self.sh.cyc.remeasure_requested = true;
         }
     }
 
@@ -296,6 +306,7 @@ impl<const N: usize> Machine<N> {
         t_diff_ns: Option<i32>,
     ) -> Result<Option<i32>, ConfigError> {
         let slot = self
+            .sh
             .line
             .t_diff
             .get_mut(usize::from(position))
@@ -307,12 +318,13 @@ impl<const N: usize> Machine<N> {
     /// `Config::t_diff_ns`. The value a bring-up used (measured or configured) and its source
     /// are in [`SlaveInfo::t_diff_ns`] / [`SlaveInfo::t_diff_source`].
     pub fn slave_t_diff(&self, position: u16) -> i32 {
-        self.line
+        self.sh
+            .line
             .t_diff
             .get(usize::from(position))
             .copied()
             .flatten()
-            .unwrap_or(self.cfg.t_diff_ns)
+            .unwrap_or(self.sh.cfg.t_diff_ns)
     }
 
     // ----- getters --------------------------------------------------------------------------
@@ -323,58 +335,59 @@ impl<const N: usize> Machine<N> {
     }
     /// The configuration.
     pub fn config(&self) -> &Config {
-        &self.cfg
+        &self.sh.cfg
     }
     /// The slaves found, in position order.
     pub fn slaves(&self) -> &[SlaveInfo] {
-        self.line
+        self.sh
+            .line
             .slaves
-            .get(..usize::from(self.line.count))
+            .get(..usize::from(self.sh.line.count))
             .unwrap_or(&[])
     }
     /// Position of the reference clock, once chosen.
     pub fn reference(&self) -> Option<u16> {
-        (self.line.sys_count > 0).then_some(self.line.reference)
+        (self.sh.line.sys_count > 0).then_some(self.sh.line.reference)
     }
     /// Counters.
     pub fn stats(&self) -> &Stats {
-        &self.stats
+        &self.sh.stats
     }
     /// Whether cyclic operation is locked.
     pub fn is_locked(&self) -> bool {
-        self.state == State::Cyclic && self.cyc.locked && self.cyc.holdover.is_none()
+        self.state == State::Cyclic && self.sh.cyc.locked && self.sh.cyc.holdover.is_none()
     }
     /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
     pub fn diff_bound_ns(&self) -> Option<u32> {
-        self.cyc.bound_ns
+        self.sh.cyc.bound_ns
     }
     /// Reference system time returned by the last cyclic FRMW (64 bit; for a 32-bit reference,
     /// extended around the master's clock).
     pub fn reference_time(&self) -> Option<SystemTime> {
-        self.cyc.ref_time.map(SystemTime)
+        self.sh.cyc.ref_time.map(SystemTime)
     }
     /// System time of the first SYNC0 pulse programmed in the last bring-up.
     pub fn sync_start(&self) -> Option<SystemTime> {
-        (self.line.sync_start != 0).then_some(SystemTime(self.line.sync_start))
+        (self.sh.line.sync_start != 0).then_some(SystemTime(self.sh.line.sync_start))
     }
     /// Whether a transmitted frame's datagrams are still awaited (until all came back, the
     /// deadline passed, or `reset`/`start`). Only replies to that frame can be used.
     pub fn is_awaiting_reply(&self) -> bool {
-        self.timers.is_set(Timer::Reply)
+        self.sh.timers.is_set(Timer::Reply)
     }
 
     /// Gives up the frame in flight: its datagrams are forgotten (a late reply is foreign)
     /// and the reply timer stops.
     pub(crate) fn stop_awaiting(&mut self) {
-        self.inflight.clear();
-        self.timers.stop(Timer::Reply);
+        self.sh.inflight.clear();
+        self.sh.timers.stop(Timer::Reply);
     }
     // ----- output ---------------------------------------------------------------------------
 
     /// Next event, if any.
     #[must_use]
     pub fn poll_event(&mut self) -> Option<Event> {
-        self.events.pop()
+        self.sh.events.pop()
     }
 
     /// When `handle_timeout` (or, for a paced drift burst, `poll_transmit`) should be called
@@ -383,9 +396,9 @@ impl<const N: usize> Machine<N> {
     /// is in flight. `None` when nothing is scheduled.
     #[must_use]
     pub fn poll_timeout(&self) -> Option<SystemTime> {
-        let next = self.timers.next();
+        let next = self.sh.timers.next();
         let gate = self.pace_until();
-        if self.state.is_request_step() && !self.is_awaiting_reply() && gate > self.last_sent {
+        if self.state.is_request_step() && !self.is_awaiting_reply() && gate > self.sh.last_sent {
             let gate = SystemTime(gate);
             return Some(next.map_or(gate, |t| earliest(t, gate)));
         }
@@ -440,13 +453,14 @@ impl<const N: usize> Machine<N> {
     pub fn handle_timeout(&mut self, now: SystemTime) {
         let at = now;
         let now = now.0;
-        if self.timers.expired(Timer::Reply, at) {
-            self.stats.timeouts = self.stats.timeouts.saturating_add(1);
+        if self.sh.timers.expired(Timer::Reply, at) {
+            self.sh.stats.timeouts = self.sh.stats.timeouts.saturating_add(1);
             if self.state == State::Cyclic {
                 self.cyclic_lost(now);
             } else {
                 self.stop_awaiting();
                 let e = self
+                    .sh
                     .step
                     .error
                     .take()
@@ -454,8 +468,8 @@ impl<const N: usize> Machine<N> {
                 self.retry_or_fail(now, e);
             }
         }
-        if self.timers.expired(Timer::Restart, at) {
-            self.frames_at_start = self.stats.frames_sent;
+        if self.sh.timers.expired(Timer::Restart, at) {
+            self.sh.frames_at_start = self.sh.stats.frames_sent;
             self.enter(State::CountSlaves);
         }
     }
@@ -471,7 +485,7 @@ impl<const N: usize> Machine<N> {
     #[inline]
     pub(crate) fn handle_frame_with(&mut self, now: SystemTime, bytes: &[u8], fast: bool) {
         let now = now.0;
-        self.stats.frames_received = self.stats.frames_received.saturating_add(1);
+        self.sh.stats.frames_received = self.sh.stats.frames_received.saturating_add(1);
         let Ok(eth) = EthernetFrame::new_checked(bytes) else {
             return self.count_foreign_frame();
         };
@@ -496,16 +510,17 @@ impl<const N: usize> Machine<N> {
         for d in frame.iter_valid() {
             // A circulated datagram went round a broken ring: its contents are not a reply.
             if d.circulating() {
-                self.stats.foreign_datagrams = self.stats.foreign_datagrams.saturating_add(1);
+                self.sh.stats.foreign_datagrams = self.sh.stats.foreign_datagrams.saturating_add(1);
                 continue;
             }
-            match self.inflight.take_match(d.header) {
+            match self.sh.inflight.take_match(d.header) {
                 Some(p) => {
                     matched = matched.saturating_add(1);
                     self.on_reply(now, p, d.wkc, d.data);
                 }
                 None => {
-                    self.stats.foreign_datagrams = self.stats.foreign_datagrams.saturating_add(1);
+                    self.sh.stats.foreign_datagrams =
+                        self.sh.stats.foreign_datagrams.saturating_add(1);
                 }
             }
         }
@@ -519,8 +534,8 @@ impl<const N: usize> Machine<N> {
     /// reply is outstanding.
     #[inline]
     fn replies_done(&mut self, now: u64) {
-        if self.is_awaiting_reply() && self.inflight.is_empty() {
-            self.timers.stop(Timer::Reply);
+        if self.is_awaiting_reply() && self.sh.inflight.is_empty() {
+            self.sh.timers.stop(Timer::Reply);
             if self.state == State::Cyclic {
                 self.cyclic_complete(now);
             } else if self.state.is_request_step() {
@@ -532,12 +547,12 @@ impl<const N: usize> Machine<N> {
     // ----- engine ---------------------------------------------------------------------------
 
     fn count_foreign_frame(&mut self) {
-        self.stats.foreign_frames = self.stats.foreign_frames.saturating_add(1);
+        self.sh.stats.foreign_frames = self.sh.stats.foreign_frames.saturating_add(1);
     }
 
     pub(crate) fn push_event(&mut self, e: Event) {
-        if !self.events.push(e) {
-            self.stats.events_dropped = self.stats.events_dropped.saturating_add(1);
+        if !self.sh.events.push(e) {
+            self.sh.stats.events_dropped = self.sh.stats.events_dropped.saturating_add(1);
         }
     }
 
@@ -556,12 +571,12 @@ impl<const N: usize> Machine<N> {
         self.state = to;
         // The state-bound timers run only in their state (`dc/timer.rs`).
         if to != State::RestartWait {
-            self.timers.stop(Timer::Restart);
+            self.sh.timers.stop(Timer::Restart);
         }
         if to != State::Cyclic {
-            self.timers.stop(Timer::Cycle);
+            self.sh.timers.stop(Timer::Cycle);
         }
-        self.step = StepProgress::START;
+        self.sh.step = StepProgress::START;
         self.on_enter(to);
     }
 
@@ -569,14 +584,14 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn fault(&mut self, now: u64, e: Error) {
         self.push_event(Event::Error(e));
         self.stop_awaiting();
-        self.cyc = CyclicState::default();
-        if self.cfg.auto_restart {
-            self.stats.restarts = self.stats.restarts.saturating_add(1);
+        self.sh.cyc = CyclicState::default();
+        if self.sh.cfg.auto_restart {
+            self.sh.stats.restarts = self.sh.stats.restarts.saturating_add(1);
             let wake = SystemTime(now.saturating_add(self.restart_delay()));
-            self.restart_streak = self.restart_streak.saturating_add(1);
+            self.sh.restart_streak = self.sh.restart_streak.saturating_add(1);
             self.enter(State::RestartWait);
             if self.state == State::RestartWait {
-                self.timers.set(Timer::Restart, wake);
+                self.sh.timers.set(Timer::Restart, wake);
             }
             self.push_event(Event::Restarting);
         } else {
@@ -587,49 +602,50 @@ impl<const N: usize> Machine<N> {
     /// The pause before the next re-initialisation: `restart_delay_ns` doubled per
     /// re-initialisation since the last lock, capped at `restart_backoff_max_ns` (REQ-DC-130).
     fn restart_delay(&self) -> u64 {
-        let base = self.cfg.restart_delay_ns;
+        let base = self.sh.cfg.restart_delay_ns;
         let factor = 1u64
-            .checked_shl(u32::from(self.restart_streak.min(40)))
+            .checked_shl(u32::from(self.sh.restart_streak.min(40)))
             .unwrap_or(u64::MAX);
         base.saturating_mul(factor)
-            .min(self.cfg.restart_backoff_max_ns.max(base))
+            .min(self.sh.cfg.restart_backoff_max_ns.max(base))
     }
 
     fn retry_or_fail(&mut self, now: u64, e: Error) {
-        if self.step.tries < self.cfg.retries && e.is_retryable() {
-            self.stats.retries = self.stats.retries.saturating_add(1);
-            let tries = self.step.tries.saturating_add(1);
+        if self.sh.step.tries < self.sh.cfg.retries && e.is_retryable() {
+            self.sh.stats.retries = self.sh.stats.retries.saturating_add(1);
+            let tries = self.sh.step.tries.saturating_add(1);
             if matches!(self.state, State::LatchTrigger | State::LatchReadAfter) {
                 // The trigger may or may not have latched: measure the whole round again.
                 self.enter(State::LatchReadBefore);
             } else if let Some(s) = self.tdiff_retry_state() {
                 self.enter(s);
             } else {
-                self.step.cursor = self.step.chunk_start;
-                self.step.error = None;
+                self.sh.step.cursor = self.sh.step.chunk_start;
+                self.sh.step.error = None;
             }
-            self.step.tries = tries;
+            self.sh.step.tries = tries;
         } else {
             self.fault(now, e);
         }
     }
 
     pub(crate) fn alloc_index(&mut self) -> u8 {
-        let i = self.inflight.next_index;
-        self.inflight.next_index = index_after(i, self.cfg.index_first, self.cfg.index_count);
+        let i = self.sh.inflight.next_index;
+        self.sh.inflight.next_index =
+            index_after(i, self.sh.cfg.index_first, self.sh.cfg.index_count);
         i
     }
 
     /// Emits `op` into `b` and records it in flight; false if it did not fit.
     pub(crate) fn push_op(&mut self, b: &mut FrameBuilder<'_>, op: Op, tag: Tag) -> bool {
-        if !self.inflight.has_room() {
+        if !self.sh.inflight.has_room() {
             return false;
         }
         let index = self.alloc_index();
         if op.emit(b, index).is_err() {
             return false;
         }
-        self.inflight.insert(Pending {
+        self.sh.inflight.insert(Pending {
             index,
             command: op.command,
             register: op.register(),
@@ -654,11 +670,12 @@ impl<const N: usize> Machine<N> {
                 return self.state == State::Cyclic && self.fill_cyclic(now, b, into_caller);
             }
             let count = self.item_count();
-            while self.step.cursor < count && matches!(self.item(now, self.step.cursor), Item::Skip)
+            while self.sh.step.cursor < count
+                && matches!(self.item(now, self.sh.step.cursor), Item::Skip)
             {
-                self.step.cursor = self.step.cursor.saturating_add(1);
+                self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
             }
-            if self.step.cursor < count {
+            if self.sh.step.cursor < count {
                 break;
             }
             self.step_done(now);
@@ -670,40 +687,40 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         let before = b.datagram_count();
-        self.step.chunk_start = self.step.cursor;
-        self.inflight.clear();
+        self.sh.step.chunk_start = self.sh.step.cursor;
+        self.sh.inflight.clear();
         let count = self.item_count();
         let max = self.max_per_frame();
         let mut sent = 0usize;
-        while self.step.cursor < count && sent < max {
-            match self.item(now, self.step.cursor) {
-                Item::Skip => self.step.cursor = self.step.cursor.saturating_add(1),
+        while self.sh.step.cursor < count && sent < max {
+            match self.item(now, self.sh.step.cursor) {
+                Item::Skip => self.sh.step.cursor = self.sh.step.cursor.saturating_add(1),
                 Item::Send(op) => {
                     if !self.drift_check_room(now, b, op)
-                        || !self.push_op(b, op, Tag::Item(self.step.cursor))
+                        || !self.push_op(b, op, Tag::Item(self.sh.step.cursor))
                     {
                         break;
                     }
-                    self.before_send(now, self.step.cursor);
+                    self.before_send(now, self.sh.step.cursor);
                     sent = sent.saturating_add(1);
-                    self.step.cursor = self.step.cursor.saturating_add(1);
+                    self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
                 }
             }
         }
-        if sent > 0 && self.step.cursor < count {
+        if sent > 0 && self.sh.step.cursor < count {
             self.drift_check_epilogue(now, b);
         }
-        if self.inflight.is_empty() {
+        if self.sh.inflight.is_empty() {
             if before == 0 {
                 self.push_event(Event::Error(Error::BufferTooSmall));
             }
-            self.step.cursor = self.step.chunk_start;
+            self.sh.step.cursor = self.sh.step.chunk_start;
             return false;
         }
-        self.last_sent = now;
-        let due = now.saturating_add(self.cfg.response_timeout_ns);
-        self.timers.set(Timer::Reply, SystemTime(due));
-        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        self.sh.last_sent = now;
+        let due = now.saturating_add(self.sh.cfg.response_timeout_ns);
+        self.sh.timers.set(Timer::Reply, SystemTime(due));
+        self.sh.stats.frames_sent = self.sh.stats.frames_sent.saturating_add(1);
         true
     }
 
@@ -716,12 +733,12 @@ impl<const N: usize> Machine<N> {
         match p.tag {
             Tag::Item(i) if self.state.is_request_step() => {
                 if let Err(e) = self.on_item(now, i, p, wkc, data) {
-                    self.step.error.get_or_insert(e);
+                    self.sh.step.error.get_or_insert(e);
                 }
             }
             Tag::Frmw if self.state == State::DriftCheck => {
                 if let Err(e) = self.check_frmw(p, wkc) {
-                    self.step.error.get_or_insert(e);
+                    self.sh.step.error.get_or_insert(e);
                 }
             }
             _ if self.state == State::Cyclic => self.on_cyclic_reply(now, p, wkc, data),
@@ -730,15 +747,17 @@ impl<const N: usize> Machine<N> {
     }
 
     fn step_complete(&mut self, now: u64) {
-        if let Some(e) = self.step.error.take() {
+        if let Some(e) = self.sh.step.error.take() {
             return self.retry_or_fail(now, e);
         }
-        self.step.tries = 0;
+        self.sh.step.tries = 0;
         let count = self.item_count();
-        while self.step.cursor < count && matches!(self.item(now, self.step.cursor), Item::Skip) {
-            self.step.cursor = self.step.cursor.saturating_add(1);
+        while self.sh.step.cursor < count
+            && matches!(self.item(now, self.sh.step.cursor), Item::Skip)
+        {
+            self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
         }
-        if self.step.cursor >= count {
+        if self.sh.step.cursor >= count {
             self.step_done(now);
         }
     }
@@ -759,15 +778,17 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn slave(&self, pos: u16) -> Option<&SlaveInfo> {
-        self.line
+        self.sh
+            .line
             .slaves
             .get(usize::from(pos))
-            .filter(|_| pos < self.line.count)
+            .filter(|_| pos < self.sh.line.count)
     }
 
     pub(crate) fn slave_mut(&mut self, pos: u16) -> Option<&mut SlaveInfo> {
-        let count = self.line.count;
-        self.line
+        let count = self.sh.line.count;
+        self.sh
+            .line
             .slaves
             .get_mut(usize::from(pos))
             .filter(|_| pos < count)
@@ -775,7 +796,7 @@ impl<const N: usize> Machine<N> {
 
     /// Positions `0..count`, as u16.
     pub(crate) fn positions(&self) -> core::ops::Range<u16> {
-        0..self.line.count
+        0..self.sh.line.count
     }
 }
 

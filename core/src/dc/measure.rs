@@ -81,7 +81,7 @@ impl<const N: usize> Machine<N> {
                 // Every slave with latches must have seen the write; slaves without DC may or
                 // may not count it, so the WKC lies between the two.
                 let latching = self.latching_count();
-                if wkc < latching || wkc > self.line.count {
+                if wkc < latching || wkc > self.sh.line.count {
                     return Err(crate::dc::error::Error::Wkc {
                         command: p.command,
                         station: 0,
@@ -127,8 +127,8 @@ impl<const N: usize> Machine<N> {
             State::LatchTrigger => Ok(State::LatchReadAfter),
             State::LatchReadAfter => {
                 self.add_latch_round()?;
-                self.latch.round = self.latch.round.saturating_add(1);
-                if self.latch.round < self.cfg.latch_rounds {
+                self.sh.latch.round = self.sh.latch.round.saturating_add(1);
+                if self.sh.latch.round < self.sh.cfg.latch_rounds {
                     return Ok(State::LatchReadBefore);
                 }
                 self.finish_delays()?;
@@ -143,7 +143,7 @@ impl<const N: usize> Machine<N> {
     fn finish_delays(&mut self) -> Result<(), Error> {
         // The sum is used once: dropped whatever the outcome.
         let applied = self.apply_delays();
-        self.latch.sum.clear();
+        self.sh.latch.sum.clear();
         let max_seen = applied?;
         self.compute_offsets()?;
         self.push_event(Event::DelaysMeasured {
@@ -155,14 +155,15 @@ impl<const N: usize> Machine<N> {
     /// The 0x0928 value of every slave with a system time from the sum of the rounds; the
     /// largest one.
     fn apply_delays(&mut self) -> Result<u32, Error> {
-        let delays = &self.latch.sum;
+        let delays = &self.sh.latch.sum;
         if !delays.has_rounds() {
             return Err(Error::Measurement { station: 0 });
         }
-        let max_delay = self.cfg.max_delay_ns;
+        let max_delay = self.sh.cfg.max_delay_ns;
         let mut max_seen = 0u32;
-        let count = self.line.count;
+        let count = self.sh.line.count;
         for (i, s) in self
+            .sh
             .line
             .slaves
             .iter_mut()

@@ -19,7 +19,7 @@ const PER_CYCLE: u16 = 8;
 impl<const N: usize> Machine<N> {
     fn remeasure_op(&self, pos: u16) -> Option<Op> {
         let s = self.slave(pos)?;
-        match self.cyc.remeasure {
+        match self.sh.cyc.remeasure {
             Remeasure::Idle => None,
             Remeasure::Trigger => Some(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
             Remeasure::Before if s.dc.has_latches() => {
@@ -36,25 +36,25 @@ impl<const N: usize> Machine<N> {
     }
 
     fn remeasure_len(&self) -> u16 {
-        match self.cyc.remeasure {
+        match self.sh.cyc.remeasure {
             Remeasure::Idle => 0,
             Remeasure::Trigger => 1,
-            _ => self.line.count,
+            _ => self.sh.line.count,
         }
     }
 
     pub(crate) fn fill_remeasure(&mut self, _now: u64, b: &mut FrameBuilder<'_>) {
-        if self.cyc.remeasure == Remeasure::Idle {
-            if !self.cyc.remeasure_requested {
+        if self.sh.cyc.remeasure == Remeasure::Idle {
+            if !self.sh.cyc.remeasure_requested {
                 return;
             }
-            self.cyc.remeasure_requested = false;
-            self.cyc.remeasure = Remeasure::Before;
-            self.cyc.rm_cursor = 0;
-            self.cyc.rm_error = None;
+            self.sh.cyc.remeasure_requested = false;
+            self.sh.cyc.remeasure = Remeasure::Before;
+            self.sh.cyc.rm_cursor = 0;
+            self.sh.cyc.rm_error = None;
         }
         let len = self.remeasure_len();
-        let mut pos = self.cyc.rm_cursor;
+        let mut pos = self.sh.cyc.rm_cursor;
         let mut pushed = 0u16;
         while pos < len && pushed < PER_CYCLE {
             if let Some(op) = self.remeasure_op(pos) {
@@ -65,12 +65,12 @@ impl<const N: usize> Machine<N> {
             }
             pos = pos.saturating_add(1);
         }
-        self.cyc.rm_sent_to = pos;
+        self.sh.cyc.rm_sent_to = pos;
     }
 
     pub(crate) fn remeasure_reply(&mut self, i: u16, p: Pending, wkc: u16, data: &[u8]) {
         if let Err(e) = self.remeasure_store(i, p, wkc, data) {
-            self.cyc.rm_error.get_or_insert(e);
+            self.sh.cyc.rm_error.get_or_insert(e);
         }
     }
 
@@ -79,10 +79,10 @@ impl<const N: usize> Machine<N> {
             station: p.station,
             register: p.register,
         };
-        match self.cyc.remeasure {
+        match self.sh.cyc.remeasure {
             Remeasure::Trigger => {
                 let latching = self.latching_count();
-                if wkc < latching || wkc > self.line.count {
+                if wkc < latching || wkc > self.sh.line.count {
                     return Err(Error::Wkc {
                         command: p.command,
                         station: 0,
@@ -95,7 +95,7 @@ impl<const N: usize> Machine<N> {
             Remeasure::Before | Remeasure::After => {
                 self.expect_wkc(p, 1, wkc)?;
                 let t = port_times(data).ok_or(bad)?;
-                let after = self.cyc.remeasure == Remeasure::After;
+                let after = self.sh.cyc.remeasure == Remeasure::After;
                 if let Some(s) = self.slave_mut(i) {
                     if after {
                         s.times_after = t;
@@ -112,29 +112,29 @@ impl<const N: usize> Machine<N> {
 
     /// Called when a cycle came back complete: move the re-measurement on.
     pub(crate) fn remeasure_advance(&mut self, now: u64) {
-        if self.cyc.remeasure == Remeasure::Idle {
+        if self.sh.cyc.remeasure == Remeasure::Idle {
             return;
         }
-        self.cyc.rm_cursor = self.cyc.rm_sent_to;
-        if self.cyc.rm_cursor < self.remeasure_len() {
+        self.sh.cyc.rm_cursor = self.sh.cyc.rm_sent_to;
+        if self.sh.cyc.rm_cursor < self.remeasure_len() {
             return;
         }
-        self.cyc.rm_cursor = 0;
-        self.cyc.rm_sent_to = 0;
-        self.cyc.remeasure = match self.cyc.remeasure {
+        self.sh.cyc.rm_cursor = 0;
+        self.sh.cyc.rm_sent_to = 0;
+        self.sh.cyc.remeasure = match self.sh.cyc.remeasure {
             Remeasure::Before => Remeasure::Trigger,
             Remeasure::Trigger => Remeasure::After,
             Remeasure::After => match self.remeasure_compute() {
                 Ok(()) => Remeasure::Write,
                 Err(e) => {
-                    self.cyc.remeasure = Remeasure::Idle;
+                    self.sh.cyc.remeasure = Remeasure::Idle;
                     return self.fault(now, e);
                 }
             },
             Remeasure::Write => {
                 let mut max_change = 0u32;
-                let count = self.line.count;
-                for s in self.line.slaves.iter_mut().take(usize::from(count)) {
+                let count = self.sh.line.count;
+                for s in self.sh.line.slaves.iter_mut().take(usize::from(count)) {
                     max_change = max_change.max(s.delay_new.abs_diff(s.delay_ns));
                     s.delay_ns = s.delay_new;
                 }
@@ -153,13 +153,13 @@ impl<const N: usize> Machine<N> {
     #[cold]
     #[inline(never)]
     fn remeasure_compute(&mut self) -> Result<(), Error> {
-        for s in self.line.slaves.iter_mut() {
+        for s in self.sh.line.slaves.iter_mut() {
             s.delay_sum = 0;
         }
         self.accumulate_round()?;
-        let max = self.cfg.max_delay_ns;
-        let count = self.line.count;
-        for s in self.line.slaves.iter_mut().take(usize::from(count)) {
+        let max = self.sh.cfg.max_delay_ns;
+        let count = self.sh.line.count;
+        for s in self.sh.line.slaves.iter_mut().take(usize::from(count)) {
             if !s.dc.has_system_time() {
                 s.delay_new = s.delay_ns;
                 continue;

@@ -22,7 +22,7 @@ pub enum Stations {
 impl<const N: usize> Machine<N> {
     /// The request of the address step for position `i`.
     pub(crate) fn station_item(&self, i: u16) -> Item {
-        match self.cfg.stations {
+        match self.sh.cfg.stations {
             Stations::Assign => Item::Send(Op {
                 command: Command::Apwr,
                 address: Address::position(i, reg::STATION_ADDRESS),
@@ -43,7 +43,7 @@ impl<const N: usize> Machine<N> {
     /// value) or one that an earlier position already has would make configured-address
     /// commands miss or hit two slaves, so it is rejected as out of range.
     pub(crate) fn station_reply(&self, i: u16, p: Pending, data: &[u8]) -> Result<u16, Error> {
-        match self.cfg.stations {
+        match self.sh.cfg.stations {
             Stations::Assign => Ok(self.station_of(i)),
             Stations::Adopt => {
                 let bad = Error::OutOfRange {

@@ -11,9 +11,9 @@ use crate::dc::state::State;
 impl<const N: usize> Machine<N> {
     /// Number of items of the current step.
     pub(crate) fn item_count(&self) -> u16 {
-        let n = self.line.count;
+        let n = self.sh.line.count;
         match self.state {
-            State::CountSlaves => 1u16.saturating_add(u16::from(self.tdiff.recovering)),
+            State::CountSlaves => 1u16.saturating_add(u16::from(self.sh.tdiff.recovering)),
             State::LatchTrigger | State::ReadReferenceTime => 1,
             State::TdiffRead
             | State::TdiffLatch
@@ -41,14 +41,14 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn max_per_frame(&self) -> usize {
         match self.state {
             // The restore of an interrupted t_Diff measurement goes alone, before the count.
-            State::CountSlaves if self.tdiff.recovering => 1,
+            State::CountSlaves if self.sh.tdiff.recovering => 1,
             State::DriftBurst => 1,
             // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two:
             // a frame from the AL half ends with its last AL read.
-            State::ReadAlStatus if self.step.cursor < self.line.count => self
+            State::ReadAlStatus if self.sh.step.cursor < self.sh.line.count => self
                 .slaves()
                 .iter()
-                .skip(usize::from(self.step.cursor))
+                .skip(usize::from(self.sh.step.cursor))
                 .filter(|s| s.dc.has_system_time())
                 .count()
                 .max(1),
@@ -62,14 +62,14 @@ impl<const N: usize> Machine<N> {
     /// FRMW by station address or ARMW by position (`Config::drift_command`).
     pub(crate) fn frmw_op(&self, now: u64) -> Op {
         let (station, width) = self
-            .slave(self.line.reference)
+            .slave(self.sh.line.reference)
             .map_or((0, 8), |s| (s.station, s.dc.time_width()));
         let reg = crate::wire::register::reg::SYSTEM_TIME;
-        match self.cfg.drift_command {
+        match self.sh.cfg.drift_command {
             DriftCommand::Frmw => Op::frmw(station, reg, width, now),
             DriftCommand::Armw => Op {
                 command: crate::wire::Command::Armw,
-                address: crate::wire::Address::position(self.line.reference, reg),
+                address: crate::wire::Address::position(self.sh.line.reference, reg),
                 len: width,
                 payload: crate::dc::request::Payload::Le(now),
             },
@@ -78,11 +78,11 @@ impl<const N: usize> Machine<N> {
 
     /// FRMW working counter: every slave with a system time reads or writes it once.
     pub(crate) fn check_frmw(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
-        self.expect_wkc(p, self.line.sys_count, wkc)
+        self.expect_wkc(p, self.sh.line.sys_count, wkc)
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
-        if self.state == State::CountSlaves && self.tdiff.recovering {
+        if self.state == State::CountSlaves && self.sh.tdiff.recovering {
             return match i {
                 0 => self.tdiff_recover_item(),
                 _ => self.discovery_item(0),
@@ -115,11 +115,11 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn before_send(&mut self, now: u64, i: u16) {
         if self.state == State::LatchTrigger {
             // REQ-DC-102: master time sampled *before* the latching BWR leaves.
-            self.latch.trigger_time = now;
+            self.sh.latch.trigger_time = now;
         }
         if self.state == State::DriftBurst {
             // One FRMW per burst frame: one loop sample in every slave.
-            self.drift_gate.frames = self.drift_gate.frames.saturating_add(1);
+            self.sh.drift_gate.frames = self.sh.drift_gate.frames.saturating_add(1);
         }
         let _ = i;
     }
@@ -132,7 +132,7 @@ impl<const N: usize> Machine<N> {
         wkc: u16,
         data: &[u8],
     ) -> Result<(), Error> {
-        if self.state == State::CountSlaves && self.tdiff.recovering {
+        if self.state == State::CountSlaves && self.sh.tdiff.recovering {
             return match i {
                 0 => {
                     self.tdiff_recover_reply();
@@ -170,14 +170,14 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn on_enter(&mut self, to: State) {
         match to {
             State::CountSlaves => {
-                self.line.forget_found();
-                self.latch.round = 0;
-                self.drift_gate.frames = 0;
-                self.drift_gate.passed = 0;
-                self.drift_gate.bound = None;
+                self.sh.line.forget_found();
+                self.sh.latch.round = 0;
+                self.sh.drift_gate.frames = 0;
+                self.sh.drift_gate.passed = 0;
+                self.sh.drift_gate.bound = None;
                 self.tdiff_reset();
             }
-            State::DriftCheck => self.drift_gate.bound = None,
+            State::DriftCheck => self.sh.drift_gate.bound = None,
             State::Cyclic => self.cyclic_enter(),
             _ => {}
         }

@@ -297,19 +297,20 @@ fn mean(sum: i64, n: i64) -> Option<i32> {
 
 impl<const N: usize> Machine<N> {
     fn tdiff_cfg(&self) -> &TdiffConfig {
-        &self.cfg.tdiff
+        &self.sh.cfg.tdiff
     }
 
     /// The user's value for slave `i`, if any: a per-slave override, else a per-type entry.
     fn configured_t_diff(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
-        configured(&self.line.t_diff, self.tdiff_cfg(), i, s)
+        configured(&self.sh.line.t_diff, self.tdiff_cfg(), i, s)
     }
 
     /// Number of items of the current t_Diff step.
     pub(crate) fn tdiff_count(&self) -> u16 {
         match self.state {
-            State::TdiffRead => self.line.count.saturating_mul(3),
+            State::TdiffRead => self.sh.line.count.saturating_mul(3),
             State::TdiffLatch => self
+                .sh
                 .line
                 .count
                 .saturating_add(u16::from(self.tdiff_chained())),
@@ -332,13 +333,13 @@ impl<const N: usize> Machine<N> {
                         .then_some(Work::ReadDlControl(pos)),
                 }
             }
-            State::TdiffLatch if i == self.line.count => {
+            State::TdiffLatch if i == self.sh.line.count => {
                 self.tdiff_chained().then_some(Work::Trigger)
             }
             State::TdiffLatch => {
                 let s = self.slave(i)?;
-                match self.tdiff.phase {
-                    Phase::Closed { target, .. } => match self.tdiff.plan_of(target) {
+                match self.sh.tdiff.phase {
+                    Phase::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
                         Plan::Measure { parent, .. } if parent == i => Some(Work::ReadPorts(i)),
                         _ => None,
                     },
@@ -346,7 +347,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
             State::TdiffTrigger => Some(Work::Trigger),
-            State::TdiffClose | State::TdiffRestore => match self.tdiff.phase {
+            State::TdiffClose | State::TdiffRestore => match self.sh.tdiff.phase {
                 Phase::Closed { target, .. } if self.state == State::TdiffClose => {
                     Some(Work::Close(target))
                 }
@@ -369,8 +370,8 @@ impl<const N: usize> Machine<N> {
             Work::Trigger => Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4),
             Work::ReadPorts(pos) => Op::fprd(station(pos), reg::RECEIVE_TIME_PORT0, 16),
             Work::Close(pos) => {
-                let original = self.tdiff.dl_control.get(usize::from(pos)).copied();
-                let close = match self.tdiff.plan_of(pos) {
+                let original = self.sh.tdiff.dl_control.get(usize::from(pos)).copied();
+                let close = match self.sh.tdiff.plan_of(pos) {
                     Plan::Measure { close, .. } => close,
                     Plan::Skip | Plan::Done { .. } => PortSet::EMPTY,
                 };
@@ -383,7 +384,7 @@ impl<const N: usize> Machine<N> {
                 Op::fpwr(station(pos), DL_CONTROL, 2, u64::from(v))
             }
             Work::Restore(pos) => {
-                let original = self.tdiff.dl_control.get(usize::from(pos)).copied();
+                let original = self.sh.tdiff.dl_control.get(usize::from(pos)).copied();
                 Op::fpwr(
                     station(pos),
                     DL_CONTROL,
@@ -406,7 +407,7 @@ impl<const N: usize> Machine<N> {
     /// not happen.
     fn tdiff_chained(&self) -> bool {
         let c = self.tdiff_cfg();
-        match self.tdiff.phase {
+        match self.sh.tdiff.phase {
             Phase::Pre => true,
             Phase::Base { round } => round.saturating_add(1) < c.base_rounds,
             Phase::Closed { round, .. } => round.saturating_add(1) < c.rounds,
@@ -415,8 +416,8 @@ impl<const N: usize> Machine<N> {
 
     /// Slaves (all, latching) that the current trigger can reach.
     fn tdiff_reachable(&self) -> (u16, u16) {
-        let cut = match self.tdiff.phase {
-            Phase::Closed { target, .. } => match self.tdiff.plan_of(target) {
+        let cut = match self.sh.tdiff.phase {
+            Phase::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
                 Plan::Measure { end, .. } => Some((target, end)),
                 Plan::Skip | Plan::Done { .. } => None,
             },
@@ -481,13 +482,13 @@ impl<const N: usize> Machine<N> {
             }
             Work::ReadDlControl(pos) => {
                 let v = word()?;
-                if let Some(slot) = self.tdiff.dl_control.get_mut(usize::from(pos)) {
+                if let Some(slot) = self.sh.tdiff.dl_control.get_mut(usize::from(pos)) {
                     *slot = v;
                 }
             }
             Work::ReadPorts(pos) => {
                 let t = port_times(data).ok_or(bad)?;
-                if let Some(slot) = self.tdiff.cur.get_mut(usize::from(pos)) {
+                if let Some(slot) = self.sh.tdiff.cur.get_mut(usize::from(pos)) {
                     *slot = t;
                 }
             }
@@ -508,24 +509,25 @@ impl<const N: usize> Machine<N> {
                     return Ok(self.tdiff_finish());
                 }
                 // REQ-DC-123: never cut off a running slave.
-                self.tdiff.running = self
+                self.sh.tdiff.running = self
                     .slaves()
                     .iter()
                     .any(|s| !s.al_status.is_some_and(offset_write_permitted));
-                if self.tdiff.running {
+                if self.sh.tdiff.running {
                     return Ok(self.tdiff_finish());
                 }
-                self.tdiff.phase = Phase::Pre;
+                self.sh.tdiff.phase = Phase::Pre;
                 Ok(State::TdiffLatch)
             }
             State::TdiffTrigger => Ok(State::TdiffLatch),
             State::TdiffLatch => self.tdiff_latch_done(),
             State::TdiffClose => Ok(State::TdiffTrigger),
             State::TdiffRestore => {
-                self.tdiff.pending = None;
-                if let Phase::Closed { target, .. } = self.tdiff.phase {
+                self.sh.tdiff.pending = None;
+                if let Phase::Closed { target, .. } = self.sh.tdiff.phase {
                     let c = self.tdiff_cfg();
                     let base = self
+                        .sh
                         .tdiff
                         .base
                         .get(usize::from(target))
@@ -533,6 +535,7 @@ impl<const N: usize> Machine<N> {
                         .unwrap_or(0);
                     // closed/R − base/B = (closed·B − base·R) / (R·B), rounded once.
                     let m = self
+                        .sh
                         .tdiff
                         .closed
                         .checked_mul(i64::from(c.base_rounds))
@@ -544,7 +547,7 @@ impl<const N: usize> Machine<N> {
                                 i64::from(c.rounds).saturating_mul(i64::from(c.base_rounds)),
                             )
                         });
-                    if let Some(slot) = self.tdiff.plan.get_mut(usize::from(target)) {
+                    if let Some(slot) = self.sh.tdiff.plan.get_mut(usize::from(target)) {
                         *slot = Plan::Done { mean: m };
                     }
                     return Ok(self.tdiff_next(target.saturating_add(1)));
@@ -557,16 +560,16 @@ impl<const N: usize> Machine<N> {
 
     /// The next target from position `from` on (its port gets closed), or the end.
     fn tdiff_next(&mut self, from: u16) -> State {
-        match self.tdiff.next_target(from) {
+        match self.sh.tdiff.next_target(from) {
             Some(t) => {
-                self.tdiff.phase = Phase::Closed {
+                self.sh.tdiff.phase = Phase::Closed {
                     target: t,
                     round: 0,
                 };
                 let station = self.slave(t).map_or(0, |s| s.station);
-                let original = self.tdiff.dl_control.get(usize::from(t)).copied();
-                self.tdiff.pending = Some((station, original.unwrap_or(0)));
-                self.tdiff.closed = 0;
+                let original = self.sh.tdiff.dl_control.get(usize::from(t)).copied();
+                self.sh.tdiff.pending = Some((station, original.unwrap_or(0)));
+                self.sh.tdiff.closed = 0;
                 State::TdiffClose
             }
             None => self.tdiff_finish(),
@@ -579,17 +582,17 @@ impl<const N: usize> Machine<N> {
         let stale = |m: &Self, pos: u16| Error::Measurement {
             station: m.slave(pos).map_or(0, |s| s.station),
         };
-        match self.tdiff.phase {
+        match self.sh.tdiff.phase {
             Phase::Pre => {
-                self.tdiff.prev = self.tdiff.cur;
-                self.tdiff.phase = Phase::Base { round: 0 };
+                self.sh.tdiff.prev = self.sh.tdiff.cur;
+                self.sh.tdiff.phase = Phase::Base { round: 0 };
                 // The read step carried the first trigger (`tdiff_chained`).
                 Ok(State::TdiffLatch)
             }
             Phase::Base { round } => {
                 if round == 0 {
                     self.tdiff_plan()?;
-                    if self.tdiff.next_target(0).is_none() {
+                    if self.sh.tdiff.next_target(0).is_none() {
                         // Nothing to measure (e.g. a two-slave line: the first DC slave and a
                         // line end): the remaining all-open rounds would serve no target.
                         return Ok(self.tdiff_finish());
@@ -603,7 +606,7 @@ impl<const N: usize> Machine<N> {
                         entry,
                         last,
                         ..
-                    } = self.tdiff.plan_of(b)
+                    } = self.sh.tdiff.plan_of(b)
                     else {
                         continue;
                     };
@@ -618,47 +621,47 @@ impl<const N: usize> Machine<N> {
                     }
                     let i = usize::from(b);
                     if round == 0 {
-                        if let Some(f) = self.tdiff.first.get_mut(i) {
+                        if let Some(f) = self.sh.tdiff.first.get_mut(i) {
                             *f = (
                                 tc.get(q.index()).copied().unwrap_or(0),
                                 bc.get(entry.index()).copied().unwrap_or(0),
                             );
                         }
                     }
-                    if let Some(x) = self.tdiff.base.get_mut(i) {
+                    if let Some(x) = self.sh.tdiff.base.get_mut(i) {
                         *x = x.saturating_add(diff(&tc, p, q));
                     }
-                    if let Some(r) = self.tdiff.rtt.get_mut(i) {
+                    if let Some(r) = self.sh.tdiff.rtt.get_mut(i) {
                         *r = r.saturating_add(diff(&bc, last, entry));
                     }
                 }
-                self.tdiff.prev = self.tdiff.cur;
+                self.sh.tdiff.prev = self.sh.tdiff.cur;
                 let next = round.saturating_add(1);
                 if next < base_rounds {
-                    self.tdiff.phase = Phase::Base { round: next };
+                    self.sh.tdiff.phase = Phase::Base { round: next };
                     return Ok(State::TdiffLatch);
                 }
                 self.tdiff_rate_correct();
                 Ok(self.tdiff_next(0))
             }
             Phase::Closed { target, round } => {
-                let Plan::Measure { parent, q, p, .. } = self.tdiff.plan_of(target) else {
+                let Plan::Measure { parent, q, p, .. } = self.sh.tdiff.plan_of(target) else {
                     return Ok(self.tdiff_next(target.saturating_add(1)));
                 };
                 let (tc, tp) = self.tdiff_times(parent);
                 if !changed(&tc, &tp, q) || !changed(&tc, &tp, p) {
                     return Err(stale(self, parent));
                 }
-                self.tdiff.closed = self.tdiff.closed.saturating_add(diff(&tc, p, q));
+                self.sh.tdiff.closed = self.sh.tdiff.closed.saturating_add(diff(&tc, p, q));
                 if let (Some(dst), Some(src)) = (
-                    self.tdiff.prev.get_mut(usize::from(parent)),
-                    self.tdiff.cur.get(usize::from(parent)),
+                    self.sh.tdiff.prev.get_mut(usize::from(parent)),
+                    self.sh.tdiff.cur.get(usize::from(parent)),
                 ) {
                     *dst = *src;
                 }
                 let next = round.saturating_add(1);
                 if next < rounds {
-                    self.tdiff.phase = Phase::Closed {
+                    self.sh.tdiff.phase = Phase::Closed {
                         target,
                         round: next,
                     };
@@ -679,22 +682,23 @@ impl<const N: usize> Machine<N> {
         for b in self.positions() {
             let Plan::Measure {
                 parent, q, entry, ..
-            } = self.tdiff.plan_of(b)
+            } = self.sh.tdiff.plan_of(b)
             else {
                 continue;
             };
             let i = usize::from(b);
-            let (fa, fb) = self.tdiff.first.get(i).copied().unwrap_or((0, 0));
+            let (fa, fb) = self.sh.tdiff.first.get(i).copied().unwrap_or((0, 0));
             let last_a = self
+                .sh
                 .tdiff
                 .prev
                 .get(usize::from(parent))
                 .and_then(|t| t.get(q.index()));
-            let last_b = self.tdiff.prev.get(i).and_then(|t| t.get(entry.index()));
+            let last_b = self.sh.tdiff.prev.get(i).and_then(|t| t.get(entry.index()));
             let span = |last: Option<&u32>, first: u32| {
                 last.map(|l| i64::from(PortTime(*l).wrapping_since(PortTime(first))))
             };
-            let rtt = self.tdiff.rtt.get(i).copied().unwrap_or(0);
+            let rtt = self.sh.tdiff.rtt.get(i).copied().unwrap_or(0);
             // Without a usable span (one round), the clocks are taken as equal.
             let conv = match (span(last_a, fa), span(last_b, fb)) {
                 (Some(da), Some(db)) if da > 0 && db > 0 => rtt
@@ -704,7 +708,7 @@ impl<const N: usize> Machine<N> {
                     .unwrap_or(rtt),
                 _ => rtt,
             };
-            if let Some(x) = self.tdiff.base.get_mut(i) {
+            if let Some(x) = self.sh.tdiff.base.get_mut(i) {
                 *x = x.saturating_sub(conv);
             }
         }
@@ -713,21 +717,22 @@ impl<const N: usize> Machine<N> {
     fn tdiff_times(&self, pos: u16) -> ([u32; 4], [u32; 4]) {
         let i = usize::from(pos);
         (
-            self.tdiff.cur.get(i).copied().unwrap_or_default(),
-            self.tdiff.prev.get(i).copied().unwrap_or_default(),
+            self.sh.tdiff.cur.get(i).copied().unwrap_or_default(),
+            self.sh.tdiff.prev.get(i).copied().unwrap_or_default(),
         )
     }
 
     /// REQ-DC-121/122: from the first all-open latch, which slaves are measured and through
     /// which upstream port pair.
     fn tdiff_plan(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.line.count);
+        let count = usize::from(self.sh.line.count);
         for ((s, out), (cur, prev)) in self
+            .sh
             .line
             .slaves
             .iter()
-            .zip(self.scratch.samples.iter_mut())
-            .zip(self.tdiff.cur.iter().zip(self.tdiff.prev.iter()))
+            .zip(self.sh.scratch.samples.iter_mut())
+            .zip(self.sh.tdiff.cur.iter().zip(self.sh.tdiff.prev.iter()))
             .take(count)
         {
             let open = PortSet::from_dl_status(s.dl_status);
@@ -750,7 +755,7 @@ impl<const N: usize> Machine<N> {
                 t_diff: 0,
             };
         }
-        let sc = &mut self.scratch;
+        let sc = &mut self.sh.scratch;
         let samples = sc.samples.get(..count).unwrap_or(&[]);
         sc.topo
             .build_in_place(samples, &mut sc.stack)
@@ -767,16 +772,17 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        let mode = self.cfg.tdiff.mode;
+        let mode = self.sh.cfg.tdiff.mode;
         let mut types_done: [Option<u16>; 8] = [None; 8];
         let (samples, topo, size) = (&sc.samples, &sc.topo, &sc.subtree);
-        let plan = &mut self.tdiff.plan;
+        let plan = &mut self.sh.tdiff.plan;
         plan.fill(Plan::Skip);
         for (b, slot) in (0u16..).zip(plan.iter_mut()).take(count) {
-            let Some(s) = self.line.slaves.get(usize::from(b)) else {
+            let Some(s) = self.sh.line.slaves.get(usize::from(b)) else {
                 continue;
             };
-            if !s.dc.has_latches() || configured(&self.line.t_diff, &self.cfg.tdiff, b, s).is_some()
+            if !s.dc.has_latches()
+                || configured(&self.sh.line.t_diff, &self.sh.cfg.tdiff, b, s).is_some()
             {
                 continue;
             }
@@ -853,16 +859,16 @@ impl<const N: usize> Machine<N> {
     /// REQ-DC-126: every slave's t_Diff and its source; then the delay measurement.
     fn tdiff_finish(&mut self) -> State {
         let cfg = *self.tdiff_cfg();
-        let default = self.cfg.t_diff_ns;
-        let count = usize::from(self.line.count);
+        let default = self.sh.cfg.t_diff_ns;
+        let count = usize::from(self.sh.line.count);
         let mut measured = 0u16;
         let mut same_type = 0u16;
         let mut configured = 0u16;
         let mut fallback = 0u16;
-        self.scratch.resolved.fill((0, TdiffSource::Default));
+        self.sh.scratch.resolved.fill((0, TdiffSource::Default));
         for i in (0u16..).take(count) {
             let Some(s) = self.slave(i) else { continue };
-            let r = match self.tdiff.plan_of(i) {
+            let r = match self.sh.tdiff.plan_of(i) {
                 Plan::Done { mean } => mean,
                 _ => None,
             };
@@ -877,16 +883,16 @@ impl<const N: usize> Machine<N> {
                 )
             } else if let Some(v) = self.tdiff_earlier(i, s) {
                 (v, TdiffSource::Earlier)
-            } else if self.tdiff.running && s.dc.has_latches() && cfg.mode != TdiffMode::Off {
+            } else if self.sh.tdiff.running && s.dc.has_latches() && cfg.mode != TdiffMode::Off {
                 (default, TdiffSource::Fallback(TdiffFallback::Running))
             } else {
                 (default, TdiffSource::Default)
             };
-            if let Some(out) = self.scratch.resolved.get_mut(usize::from(i)) {
+            if let Some(out) = self.sh.scratch.resolved.get_mut(usize::from(i)) {
                 *out = v;
             }
         }
-        let resolved = &mut self.scratch.resolved;
+        let resolved = &mut self.sh.scratch.resolved;
         // Slaves without their own value (including non-DC slaves, whose t_Diff enters the
         // delays of the DC slaves behind them, and slaves a running network kept from being
         // measured) take one measured on the same ESC type + revision.
@@ -896,12 +902,12 @@ impl<const N: usize> Machine<N> {
             else {
                 continue;
             };
-            let Some(s) = self.line.slaves.get(i) else {
+            let Some(s) = self.sh.line.slaves.get(i) else {
                 continue;
             };
             let ty = s.esc_type;
             let from = (0u16..)
-                .zip(self.line.slaves.iter().zip(resolved.iter()))
+                .zip(self.sh.line.slaves.iter().zip(resolved.iter()))
                 .take(count)
                 .find(|(_, (o, (_, src)))| {
                     o.esc_type == ty && matches!(src, TdiffSource::Measured | TdiffSource::Earlier)
@@ -917,13 +923,14 @@ impl<const N: usize> Machine<N> {
             .any(|(_, src)| *src == TdiffSource::Measured)
         {
             // A new measurement replaces what was kept (the slave count may have changed).
-            self.tdiff.kept.fill(None);
-            self.tdiff.kept_count = self.line.count;
+            self.sh.tdiff.kept.fill(None);
+            self.sh.tdiff.kept_count = self.sh.line.count;
             for ((slot, s), (v, src)) in self
+                .sh
                 .tdiff
                 .kept
                 .iter_mut()
-                .zip(self.line.slaves.iter())
+                .zip(self.sh.line.slaves.iter())
                 .zip(resolved.iter())
                 .take(count)
             {
@@ -932,7 +939,14 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        for (s, (v, src)) in self.line.slaves.iter_mut().zip(resolved.iter()).take(count) {
+        for (s, (v, src)) in self
+            .sh
+            .line
+            .slaves
+            .iter_mut()
+            .zip(resolved.iter())
+            .take(count)
+        {
             s.t_diff_ns = *v;
             s.t_diff_source = *src;
             match src {
@@ -951,7 +965,7 @@ impl<const N: usize> Machine<N> {
             configured,
             fallback,
         });
-        self.tdiff.clear();
+        self.sh.tdiff.clear();
         State::LatchReadBefore
     }
 
@@ -959,10 +973,10 @@ impl<const N: usize> Machine<N> {
     /// measure (a slave runs), the network has the same slave count and the slave there has
     /// the same ESC type and revision.
     fn tdiff_earlier(&self, i: u16, s: &SlaveInfo) -> Option<i32> {
-        if !self.tdiff.running || self.tdiff.kept_count != self.line.count {
+        if !self.sh.tdiff.running || self.sh.tdiff.kept_count != self.sh.line.count {
             return None;
         }
-        match self.tdiff.kept.get(usize::from(i)).copied().flatten() {
+        match self.sh.tdiff.kept.get(usize::from(i)).copied().flatten() {
             Some((ty, v)) if ty == s.esc_type => Some(v),
             _ => None,
         }
@@ -971,14 +985,14 @@ impl<const N: usize> Machine<N> {
     /// Resets the phase's data at the start of a bring-up; a restore left pending by an
     /// interrupted measurement becomes the first datagram of `CountSlaves`.
     pub(crate) fn tdiff_reset(&mut self) {
-        self.tdiff.clear();
-        self.tdiff.recovering = self.tdiff.pending.is_some();
+        self.sh.tdiff.clear();
+        self.sh.tdiff.recovering = self.sh.tdiff.pending.is_some();
     }
 
     /// The restore of a target left closed by an interrupted bring-up (`CountSlaves` item 0
     /// while recovering): FPWR 0x0100 with the value read before it was closed.
     pub(crate) fn tdiff_recover_item(&self) -> Item {
-        match self.tdiff.pending {
+        match self.sh.tdiff.pending {
             Some((station, v)) => Item::Send(Op::fpwr(station, DL_CONTROL, 2, u64::from(v))),
             None => Item::Skip,
         }
@@ -995,7 +1009,7 @@ impl<const N: usize> Machine<N> {
     ///   that and, if treated as a fault, would repeat before every count: the bring-up could
     ///   never reach the address step that ends the duplicate.
     pub(crate) fn tdiff_recover_reply(&mut self) {
-        self.tdiff.pending = None;
+        self.sh.tdiff.pending = None;
     }
 }
 

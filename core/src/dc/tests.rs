@@ -277,14 +277,14 @@ fn implausible_register_value_is_out_of_range_and_nothing_is_written() {
 /// A two-slave line with hand-made latches, ready for `accumulate_round`.
 fn two_slave_line() -> Machine<4> {
     let mut m = machine();
-    m.line.count = 2;
-    m.line.reference = 0;
-    m.line.sys_count = 2;
+    m.sh.line.count = 2;
+    m.sh.line.reference = 0;
+    m.sh.line.sys_count = 2;
     // Port 0 and 1 open (link + communication, loop open) on slave 0; port 0 only on slave 1.
     let dl_0 = 0x0010 | 0x0020 | 0x0200 | 0x0800 | (1 << 12) | (1 << 14);
     let dl_1 = 0x0010 | 0x0200 | (1 << 10) | (1 << 12) | (1 << 14);
     for (i, dl) in [dl_0, dl_1].into_iter().enumerate() {
-        let s = &mut m.line.slaves[i];
+        let s = &mut m.sh.line.slaves[i];
         s.station = 0x1001 + i as u16;
         s.dc = crate::dc::DcKind::Bits64;
         s.dl_status = dl;
@@ -292,8 +292,8 @@ fn two_slave_line() -> Machine<4> {
     }
     // Frame reaches slave 0 at 10 000, slave 1 at 10 600 (its clock reads 50 000), comes back
     // to slave 0's port 1 at 11 210.
-    m.line.slaves[0].times_after = [10_000, 11_210, 0, 0];
-    m.line.slaves[1].times_after = [50_000, 2_000, 0, 0];
+    m.sh.line.slaves[0].times_after = [10_000, 11_210, 0, 0];
+    m.sh.line.slaves[1].times_after = [50_000, 2_000, 0, 0];
     m
 }
 
@@ -301,8 +301,8 @@ fn two_slave_line() -> Machine<4> {
 fn latched_ports_give_delays() {
     let mut m = two_slave_line();
     m.accumulate_round().unwrap();
-    assert_eq!(m.line.slaves[0].delay_sum, 0);
-    assert_eq!(m.line.slaves[1].delay_sum, 605); // (1 210 + t_Diff 0) / 2, rounded half up
+    assert_eq!(m.sh.line.slaves[0].delay_sum, 0);
+    assert_eq!(m.sh.line.slaves[1].delay_sum, 605); // (1 210 + t_Diff 0) / 2, rounded half up
 }
 
 /// Stale-latch detection: slave 0's port 1 is open according to DL status but its receive time
@@ -313,14 +313,14 @@ fn latched_ports_give_delays() {
 #[test]
 fn stale_latch_is_not_used() {
     let mut m = two_slave_line();
-    m.line.slaves[0].times_after[1] = m.line.slaves[0].times_before[1];
+    m.sh.line.slaves[0].times_after[1] = m.sh.line.slaves[0].times_before[1];
     assert!(matches!(
         m.accumulate_round(),
         Err(Error::Measurement { .. })
     ));
     // A slave none of whose latches changed was not reached at all.
     let mut m = two_slave_line();
-    m.line.slaves[1].times_after = m.line.slaves[1].times_before;
+    m.sh.line.slaves[1].times_after = m.sh.line.slaves[1].times_before;
     assert_eq!(
         m.accumulate_round(),
         Err(Error::Measurement { station: 0x1002 })
@@ -354,22 +354,22 @@ fn transition_outside_can_go_is_a_typed_error() {
 fn running_offsets_read_after_al_states_and_anchor_the_others() {
     use crate::dc::slave::DcKind;
     let mut m = machine();
-    m.line.count = 3;
-    m.line.reference = 0;
-    m.line.sys_count = 2;
-    m.latch.trigger_time = T0;
+    m.sh.line.count = 3;
+    m.sh.line.reference = 0;
+    m.sh.line.sys_count = 2;
+    m.sh.latch.trigger_time = T0;
     for (i, dc) in [DcKind::Bits64, DcKind::None, DcKind::Bits64]
         .into_iter()
         .enumerate()
     {
-        m.line.slaves[i].station = 0x1001 + i as u16;
-        m.line.slaves[i].dc = dc;
+        m.sh.line.slaves[i].station = 0x1001 + i as u16;
+        m.sh.line.slaves[i].dc = dc;
     }
-    m.line.slaves[0].al_status = Some(0x01);
-    m.line.slaves[2].al_status = Some(0x08);
-    m.line.slaves[0].entry_local = 1_000;
-    m.line.slaves[2].entry_local = 7_000;
-    m.line.slaves[2].delay_ns = 300;
+    m.sh.line.slaves[0].al_status = Some(0x01);
+    m.sh.line.slaves[2].al_status = Some(0x08);
+    m.sh.line.slaves[0].entry_local = 1_000;
+    m.sh.line.slaves[2].entry_local = 7_000;
+    m.sh.line.slaves[2].delay_ns = 300;
     m.state = State::ReadAlStatus;
     let now = SystemTime(T0 + 1_000_000);
     let mut buf = [0u8; 1514];
@@ -417,9 +417,9 @@ fn running_offsets_read_after_al_states_and_anchor_the_others() {
     assert_eq!(second, [(0x1001, 0x0920, 8)]);
     m.handle_frame(now, &answer(&buf[..n]));
     assert_eq!(m.state(), State::WriteOffsets);
-    assert_eq!(m.line.domain_shift, 5_000);
+    assert_eq!(m.sh.line.domain_shift, 5_000);
     assert_eq!(
-        m.line.slaves[2].offset.wrapping_add(7_000),
+        m.sh.line.slaves[2].offset.wrapping_add(7_000),
         T0 + 5_000 + 300
     );
 }
