@@ -25,7 +25,7 @@ impl<const N: usize> Machine<N> {
         let Some(sync) = self.sh.cfg.sync else {
             return Item::Skip;
         };
-        match self.state {
+        match self.state() {
             State::ReadReferenceTime => match self.slave(self.sh.line.reference) {
                 Some(r) => Item::Send(Op::fprd(r.station, reg::SYSTEM_TIME, r.dc.time_width())),
                 None => Item::Skip,
@@ -81,7 +81,7 @@ impl<const N: usize> Machine<N> {
         data: &[u8],
     ) -> Result<(), Error> {
         self.expect_wkc(p, 1, wkc)?;
-        match self.state {
+        match self.state() {
             State::ReadReferenceTime => {
                 let bad = Error::OutOfRange {
                     station: p.station,
@@ -104,7 +104,7 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn activation_done(&mut self) -> Result<State, Error> {
-        match self.state {
+        match self.state() {
             State::ReadReferenceTime => Ok(State::ClearActivation),
             State::ClearActivation => Ok(State::ProgramSync),
             State::ProgramSync => Ok(State::ActivateSync),
@@ -117,7 +117,7 @@ impl<const N: usize> Machine<N> {
                 });
                 Ok(State::Cyclic)
             }
-            _ => Ok(self.state),
+            _ => Ok(self.state()),
         }
     }
 }

@@ -13,7 +13,7 @@ use crate::wire::register::reg;
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
-        match self.state {
+        match self.state() {
             State::ReadAlStatus if i < self.sh.line.count => match self.slave(i) {
                 Some(s) if s.dc.has_system_time() => {
                     Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
@@ -83,7 +83,7 @@ impl<const N: usize> Machine<N> {
         data: &[u8],
     ) -> Result<(), Error> {
         self.expect_wkc(p, 1, wkc)?;
-        match self.state {
+        match self.state() {
             State::ReadAlStatus if i >= self.sh.line.count => {
                 let v = le(data, usize::from(p.len)).ok_or(Error::OutOfRange {
                     station: p.station,
@@ -116,7 +116,7 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn adjust_done(&mut self) -> Result<State, Error> {
-        match self.state {
+        match self.state() {
             State::ReadAlStatus => {
                 self.anchor_on_running_domain()?;
                 for s in self.sh.line.slaves.iter_mut() {
@@ -141,12 +141,8 @@ impl<const N: usize> Machine<N> {
                 });
                 Ok(State::ResetLoops)
             }
-            State::ResetLoops => {
-                self.sh.drift_gate.frames = 0;
-                self.sh.drift_gate.passed = 0;
-                Ok(State::DriftBurst)
-            }
-            _ => Ok(self.state),
+            State::ResetLoops => Ok(State::DriftBurst),
+            _ => Ok(self.state()),
         }
     }
 }

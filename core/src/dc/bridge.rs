@@ -359,7 +359,7 @@ mod tests {
 
     /// Runs the last step of the bring-up measurement (REQ-DC-101) on the latches in place.
     fn finish_round(m: &mut Machine<4>) -> Result<State, Error> {
-        m.state = State::LatchReadAfter;
+        m.phase = m.phase.enter(State::LatchReadAfter);
         m.measure_done()
     }
 

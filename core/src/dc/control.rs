@@ -38,7 +38,7 @@ impl<const N: usize> Machine<N> {
     pub fn invariant_violation(&self) -> Option<&'static str> {
         use crate::dc::timer::Timer;
         use crate::dc::State;
-        let st = self.state;
+        let st = self.state();
         if self.sh.timers.is_set(Timer::Restart) != (st == State::RestartWait) {
             return Some("restart timer armed outside RestartWait, or not in it");
         }
@@ -55,7 +55,7 @@ impl<const N: usize> Machine<N> {
 impl<'m, const N: usize> ControlState<'m, N> {
     /// The fields that make up the control state, as one comparable and hashable value.
     fn fields(self) -> impl PartialEq + Hash + 'm {
-        let Machine { state, sh } = self.m;
+        let Machine { phase, sh } = self.m;
         let crate::dc::machine::Shared {
             cfg,
             line,
@@ -67,7 +67,6 @@ impl<'m, const N: usize> ControlState<'m, N> {
             last_sent,
             frames_at_start: _,
             latch,
-            drift_gate,
             cyc,
             monitor: _,
             tdiff,
@@ -75,10 +74,10 @@ impl<'m, const N: usize> ControlState<'m, N> {
             scratch,
         } = sh;
         (
-            (cfg, state, line, inflight, timers),
+            (cfg, phase, line, inflight, timers),
             (step, events),
             (last_sent, latch),
-            (drift_gate, cyc),
+            cyc,
             (tdiff, restart_streak, &scratch.topo, &scratch.round),
         )
     }

@@ -134,7 +134,7 @@ impl<const N: usize> Machine<N> {
         if self.is_awaiting_reply() {
             // The previous cycle's datagrams never came back.
             self.cyclic_lost(now);
-            if self.state != State::Cyclic {
+            if self.state() != State::Cyclic {
                 return false;
             }
         }
@@ -410,7 +410,7 @@ impl<const N: usize> Machine<N> {
             return self.fault(now, e);
         }
         self.remeasure_advance(now);
-        if self.state != State::Cyclic {
+        if self.state() != State::Cyclic {
             return;
         }
         self.update_lock();
@@ -540,7 +540,7 @@ mod tests {
         cfg.monitor.slaves_per_cycle = per_cycle;
         cfg.drift_command = cmd;
         let mut m = Machine::<48>::new(cfg).unwrap();
-        m.state = State::Cyclic;
+        m.phase = m.phase.enter(State::Cyclic);
         m.sh.timers.set(Timer::Cycle, SystemTime(0));
         m.sh.line.count = n;
         m.sh.line.sys_count = 0;

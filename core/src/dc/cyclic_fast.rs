@@ -208,7 +208,9 @@ impl<const N: usize> Machine<N> {
         // and the fault is reported instead of a panic (REQ-CONV-008).
         if !ok || !rest.is_empty() {
             self.sh.inflight.clear();
-            self.push_event(Event::Error(Error::Internal { state: self.state }));
+            self.push_event(Event::Error(Error::Internal {
+                state: self.state(),
+            }));
         }
         true
     }

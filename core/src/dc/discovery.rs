@@ -12,7 +12,7 @@ use crate::wire::register::{reg, DlStatus, EscFeatures};
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn discovery_item(&self, i: u16) -> Item {
-        match self.state {
+        match self.state() {
             // BRD of the 2-byte type/revision word: every slave increments the WKC.
             State::CountSlaves => Item::Send(Op::brd(0x0000, 2)),
             State::AssignAddresses => self.station_item(i),
@@ -46,7 +46,7 @@ impl<const N: usize> Machine<N> {
         wkc: u16,
         data: &[u8],
     ) -> Result<(), Error> {
-        match self.state {
+        match self.state() {
             State::CountSlaves => {
                 if wkc == 0 {
                     return Err(Error::NoSlaves);
@@ -113,7 +113,7 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn discovery_done(&mut self) -> Result<State, Error> {
-        match self.state {
+        match self.state() {
             State::CountSlaves => Ok(State::AssignAddresses),
             State::AssignAddresses => Ok(State::ReadInfo),
             State::ReadInfo => {
@@ -151,7 +151,7 @@ impl<const N: usize> Machine<N> {
                 });
                 Ok(State::TdiffRead)
             }
-            _ => Ok(self.state),
+            _ => Ok(self.state()),
         }
     }
 }

@@ -44,7 +44,7 @@ impl<const N: usize> Machine<N> {
     /// watch the loops at the cyclic sample rate they will run at (a loop held tight by
     /// back-to-back samples can drift off once samples come only every cycle).
     pub(crate) fn burst_len(&self) -> u16 {
-        if self.sh.drift_gate.passed > 0 {
+        if self.phase.drift_gate().is_some_and(|g| g.passed > 0) {
             1
         } else {
             self.sh.cfg.drift.burst_frames
@@ -55,7 +55,7 @@ impl<const N: usize> Machine<N> {
     /// burst waits `check_pause_ns` after the previous frame (REQ-DC-104).
     pub(crate) fn pace_until(&self) -> u64 {
         let last_of_burst = self.burst_len().saturating_sub(1);
-        if self.state == State::DriftBurst && self.sh.step.cursor == last_of_burst {
+        if self.state() == State::DriftBurst && self.sh.step.cursor == last_of_burst {
             self.sh
                 .last_sent
                 .saturating_add(self.sh.cfg.drift.check_pause_ns)
@@ -67,7 +67,7 @@ impl<const N: usize> Machine<N> {
     /// In `DriftCheck`, whether check datagram `op` still leaves room in the frame for the
     /// closing FRMW (always true in other states).
     pub(crate) fn drift_check_room(&self, now: u64, b: &FrameBuilder<'_>, op: Op) -> bool {
-        self.state != State::DriftCheck
+        self.state() != State::DriftCheck
             || b.fits(
                 usize::from(op.len)
                     .saturating_add(DATAGRAM_OVERHEAD)
@@ -82,13 +82,15 @@ impl<const N: usize> Machine<N> {
     /// fresh one; a check of one frame (short networks) has none and reads exactly the Δt of
     /// the check pause.
     pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
-        if self.state == State::DriftCheck && self.push_op(b, self.frmw_op(now), Tag::Frmw) {
-            self.sh.drift_gate.frames = self.sh.drift_gate.frames.saturating_add(1);
+        if self.state() == State::DriftCheck && self.push_op(b, self.frmw_op(now), Tag::Frmw) {
+            if let Some(gate) = self.phase.drift_gate_mut() {
+                gate.frames = gate.frames.saturating_add(1);
+            }
         }
     }
 
     pub(crate) fn drift_item(&self, now: u64, i: u16) -> Item {
-        match self.state {
+        match self.state() {
             State::DriftBurst => Item::Send(self.frmw_op(now)),
             State::DriftCheck => {
                 let check = self.sh.cfg.drift.check;
@@ -119,7 +121,7 @@ impl<const N: usize> Machine<N> {
         wkc: u16,
         data: &[u8],
     ) -> Result<(), Error> {
-        match self.state {
+        match self.state() {
             State::DriftBurst => self.check_frmw(p, wkc),
             State::DriftCheck => {
                 // BRD 0x092C: only ESCs with a system time have the register.
@@ -134,7 +136,9 @@ impl<const N: usize> Machine<N> {
                         })?;
                 let d = SystemTimeDifference::from_raw(raw);
                 if i == 0 {
-                    self.sh.drift_gate.bound = Some(d.magnitude());
+                    if let Some(gate) = self.phase.drift_gate_mut() {
+                        gate.bound = Some(d.magnitude());
+                    }
                 } else if let Some(s) = self.slave_mut(i.saturating_sub(1)) {
                     s.last_diff_ns = Some(i64::from(d.to_ns()));
                 }
@@ -145,10 +149,10 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn drift_done(&mut self) -> Result<State, Error> {
-        match self.state {
+        match self.state() {
             State::DriftBurst => Ok(State::DriftCheck),
             State::DriftCheck => self.drift_judge(),
-            _ => Ok(self.state),
+            _ => Ok(self.state()),
         }
     }
 
@@ -158,15 +162,19 @@ impl<const N: usize> Machine<N> {
     /// `threshold_ns` and its mean |0x092C| at most `scatter_ns` (the bound's mean against
     /// `threshold_ns` in `Broadcast` mode), and otherwise starts over.
     fn drift_judge(&mut self) -> Result<State, Error> {
-        let d = self.sh.cfg.drift;
+        let Machine { phase, sh } = self;
+        let Some(gate) = phase.drift_gate_mut() else {
+            return Ok(phase.state());
+        };
+        let d = sh.cfg.drift;
         let per_slave = d.check != DriftCheck::Broadcast;
         let by_bound = d.check != DriftCheck::PerSlave;
-        let fresh = self.sh.drift_gate.passed == 0;
+        let fresh = gate.passed == 0;
         let limit = d.spike_ns;
         let mut over = 0u16;
         let mut worst = (0u16, 0u32);
         if per_slave {
-            for s in self.slaves().iter().filter(|s| s.dc.has_system_time()) {
+            for s in sh.line.found().iter().filter(|s| s.dc.has_system_time()) {
                 let mag = diff_magnitude(s.last_diff_ns);
                 if mag > limit {
                     over = over.saturating_add(1);
@@ -176,7 +184,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
         }
-        let bound = self.sh.drift_gate.bound.unwrap_or(u32::MAX);
+        let bound = gate.bound.unwrap_or(u32::MAX);
         let bound_ok = !by_bound || bound <= limit;
         if by_bound && bound > worst.1 && worst.1 <= limit {
             worst = (0, bound);
@@ -184,8 +192,8 @@ impl<const N: usize> Machine<N> {
         let passed = over == 0 && bound_ok;
         // Running sums of the streak: restarted by its first check, kept only while it lasts.
         let keep = passed && !fresh;
-        let count = usize::from(self.sh.line.count);
-        for s in self.sh.line.slaves.iter_mut().take(count) {
+        let count = usize::from(sh.line.count);
+        for s in sh.line.slaves.iter_mut().take(count) {
             let mag = u64::from(diff_magnitude(s.last_diff_ns));
             let signed = s.last_diff_ns.unwrap_or(i64::MAX);
             if keep {
@@ -196,30 +204,28 @@ impl<const N: usize> Machine<N> {
                 s.diff_sum = signed;
             }
         }
-        self.sh.drift_gate.bound_sum = if keep {
-            self.sh
-                .drift_gate
-                .bound_sum
-                .saturating_add(u64::from(bound))
+        gate.bound_sum = if keep {
+            gate.bound_sum.saturating_add(u64::from(bound))
         } else {
             u64::from(bound)
         };
-        self.sh.drift_gate.passed = if passed {
-            self.sh.drift_gate.passed.saturating_add(1)
+        gate.passed = if passed {
+            gate.passed.saturating_add(1)
         } else {
             0
         };
-        if self.sh.drift_gate.passed >= d.consecutive {
-            let k = u64::from(self.sh.drift_gate.passed);
+        if gate.passed >= d.consecutive {
+            let k = u64::from(gate.passed);
             let budget = u64::from(d.threshold_ns).saturating_mul(k);
             let scatter = u64::from(d.scatter_ns).saturating_mul(k);
             let means_ok = if per_slave {
-                self.slaves()
+                sh.line
+                    .found()
                     .iter()
                     .filter(|s| s.dc.has_system_time())
                     .all(|s| s.diff_sum.unsigned_abs() <= budget && s.diff_abs_sum <= scatter)
             } else {
-                self.sh.drift_gate.bound_sum <= budget
+                gate.bound_sum <= budget
             };
             if means_ok {
                 let max_diff_ns = if by_bound {
@@ -227,22 +233,22 @@ impl<const N: usize> Machine<N> {
                 } else {
                     worst.1
                 };
-                self.push_event(Event::DriftConverged {
-                    frames: self.sh.drift_gate.frames,
+                sh.push_event(Event::DriftConverged {
+                    frames: gate.frames,
                     max_diff_ns,
                 });
-                return Ok(if self.sh.cfg.sync.is_some() {
+                return Ok(if sh.cfg.sync.is_some() {
                     State::ReadReferenceTime
                 } else {
                     State::Cyclic
                 });
             }
             // Readings stayed in bounds but some mean did not settle: a new streak.
-            self.sh.drift_gate.passed = 0;
+            gate.passed = 0;
         }
-        if self.sh.drift_gate.frames >= d.max_frames {
+        if gate.frames >= d.max_frames {
             return Err(Error::NotConverged {
-                frames: self.sh.drift_gate.frames,
+                frames: gate.frames,
                 slaves_over: over.max(u16::from(!bound_ok)),
                 worst_station: worst.0,
                 worst_diff_ns: worst.1,
@@ -294,7 +300,7 @@ mod tests {
             s.station = 0x1000 + u16::try_from(i).unwrap();
             s.dc = DcKind::Bits64;
         }
-        m.state = State::DriftCheck;
+        m.phase = m.phase.enter(State::DriftCheck);
         m
     }
 
@@ -304,11 +310,11 @@ mod tests {
             s.last_diff_ns = Some(*r);
         }
         let next = m.drift_done().unwrap();
-        m.state = if next == State::DriftBurst {
+        m.phase = m.phase.enter(if next == State::DriftBurst {
             State::DriftCheck
         } else {
             next
-        };
+        });
         next
     }
 
@@ -317,12 +323,12 @@ mod tests {
         let mut m = in_check::<4>(2, DriftCheck::PerSlave);
         // A reading above the spike bound (400) does not open a streak.
         assert_eq!(judge(&mut m, &[401, 10]), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 0);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 0);
         // Noisy readings open and continue one ...
         assert_eq!(judge(&mut m, &[150, -80]), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 1);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 1);
         assert_eq!(judge(&mut m, &[-180, 20]), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 2);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 2);
         // ... and after K = 3 checks: slave 1's signed mean (150 − 180 + 90) / 3 = 20, its
         // mean |Δ| 140 ≤ 200; slave 2's −10 and 40. Converged (SYNC configured: the
         // reference time is read next).
@@ -343,16 +349,16 @@ mod tests {
         assert_eq!(judge(&mut m, &[10, 100]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, 120]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, 110]), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 0);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 0);
         // Slave 1 swings ±300 around zero: signed mean 100 / 3, mean |Δ| 300 > 200.
         assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[-300, 0]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[300, 0]), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 0);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 0);
         // A spike in the middle of a good streak restarts it.
         assert_eq!(judge(&mut m, &[10, 10]), State::DriftBurst);
         assert_eq!(judge(&mut m, &[10, -450]), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 0);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 0);
         assert!(m.poll_event().is_none());
     }
 
@@ -361,14 +367,14 @@ mod tests {
         let mut m = in_check::<4>(2, DriftCheck::Broadcast);
         for (bound, ok) in [(100, 1), (190, 2)] {
             // Every bound within the spike bound (400) counts.
-            m.sh.drift_gate.bound = Some(bound);
+            m.phase.drift_gate_mut().unwrap().bound = Some(bound);
             assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
-            assert_eq!(m.sh.drift_gate.passed, ok);
+            assert_eq!(m.phase.drift_gate().unwrap().passed, ok);
         }
         // Mean of 100, 190, 20 = 103 > 100: starts over.
-        m.sh.drift_gate.bound = Some(20);
+        m.phase.drift_gate_mut().unwrap().bound = Some(20);
         assert_eq!(m.drift_done().unwrap(), State::DriftBurst);
-        assert_eq!(m.sh.drift_gate.passed, 0);
+        assert_eq!(m.phase.drift_gate().unwrap().passed, 0);
     }
 
     /// Commands of the datagrams in a frame, in order.
@@ -390,7 +396,7 @@ mod tests {
         assert_eq!(first.first(), Some(&Command::Brd));
         assert_eq!(first.last(), Some(&Command::Frmw));
         assert_eq!(first.iter().filter(|c| **c == Command::Fprd).count(), 30);
-        assert_eq!(m.sh.drift_gate.frames, 1);
+        assert_eq!(m.phase.drift_gate().unwrap().frames, 1);
         // Answer it (WKC 1 per FPRD, 40 for BRD and FRMW), then the rest goes out without FRMW.
         let mut reply = buf[..n].to_vec();
         {
@@ -412,6 +418,6 @@ mod tests {
         let second = commands(&buf[..n]);
         assert_eq!(second.len(), 10);
         assert!(second.iter().all(|c| *c == Command::Fprd));
-        assert_eq!(m.sh.drift_gate.frames, 1);
+        assert_eq!(m.phase.drift_gate().unwrap().frames, 1);
     }
 }

@@ -228,7 +228,7 @@ impl<const N: usize> Machine<N> {
 
     /// Whether the cyclic phase is in hold-over.
     pub fn in_holdover(&self) -> bool {
-        self.state == crate::dc::State::Cyclic && self.sh.cyc.holdover.is_some()
+        self.state() == crate::dc::State::Cyclic && self.sh.cyc.holdover.is_some()
     }
 
     /// Master time at which the running re-initialisation pause ends (`RestartWait` only).

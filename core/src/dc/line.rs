@@ -44,6 +44,11 @@ impl<const N: usize> Line<N> {
         }
     }
 
+    /// The slaves found, in position order.
+    pub(crate) fn found(&self) -> &[SlaveInfo] {
+        self.slaves.get(..usize::from(self.count)).unwrap_or(&[])
+    }
+
     /// Back to [`new`](Self::new) in place (nothing of size `N` on the stack).
     pub(crate) fn clear(&mut self) {
         self.slaves.fill(SlaveInfo::EMPTY);

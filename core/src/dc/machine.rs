@@ -2,12 +2,12 @@
 
 use crate::dc::config::{Config, ConfigError};
 use crate::dc::cyclic::CyclicState;
-use crate::dc::drift::DriftGate;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
 use crate::dc::line::Line;
 use crate::dc::measure::LatchRounds;
 use crate::dc::monitor::MonitorList;
+use crate::dc::phase::Phase;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::scratch::Scratch;
 use crate::dc::slave::SlaveInfo;
@@ -117,9 +117,19 @@ pub(crate) enum Item {
 /// P6), and only datagrams matched by index, command, register, station and length are used.
 #[derive(Debug, Clone)]
 pub struct Machine<const N: usize> {
-    pub(crate) state: State,
+    /// The phase and its own data (`dc/phase.rs`).
+    pub(crate) phase: Phase,
     /// What every phase reads and uses (`Shared`).
     pub(crate) sh: Shared<N>,
+}
+
+impl<const N: usize> Shared<N> {
+    /// Queues an event, counting it in `Stats::events_dropped` when the queue is full.
+    pub(crate) fn push_event(&mut self, e: Event) {
+        if !self.events.push(e) {
+            self.stats.events_dropped = self.stats.events_dropped.saturating_add(1);
+        }
+    }
 }
 
 /// The machine's parts that outlive a phase: configuration, the line, the in-flight and timer
@@ -142,8 +152,6 @@ pub(crate) struct Shared<const N: usize> {
     pub(crate) frames_at_start: u64,
     /// The delay measurement's rounds (`dc/measure.rs`).
     pub(crate) latch: LatchRounds<N>,
-    /// The static drift compensation's convergence gate (`dc/drift.rs`).
-    pub(crate) drift_gate: DriftGate,
     pub(crate) cyc: CyclicState,
     /// The round robin's slave list (a cache of `slaves`, see `dc/monitor.rs`).
     pub(crate) monitor: MonitorList<N>,
@@ -204,7 +212,7 @@ impl<const N: usize> Machine<N> {
     pub fn configure(&mut self, cfg: Config) -> Result<(), ConfigError> {
         cfg.validate(N)?;
         // Every field is named, so that a new one cannot be forgotten here.
-        let Machine { state, sh } = self;
+        let Machine { phase, sh } = self;
         let Shared {
             cfg: c,
             line,
@@ -216,7 +224,6 @@ impl<const N: usize> Machine<N> {
             last_sent,
             frames_at_start,
             latch,
-            drift_gate,
             cyc,
             monitor,
             tdiff,
@@ -224,7 +231,7 @@ impl<const N: usize> Machine<N> {
             scratch,
         } = sh;
         *c = cfg;
-        *state = State::Idle;
+        *phase = Phase::Idle;
         line.clear();
         *inflight = Inflight::new(cfg.index_first);
         *timers = TimerTable::new();
@@ -234,7 +241,6 @@ impl<const N: usize> Machine<N> {
         *last_sent = 0;
         *frames_at_start = 0;
         latch.clear();
-        *drift_gate = DriftGate::IDLE;
         *cyc = CyclicState::IDLE;
         monitor.clear();
         tdiff.forget();
@@ -248,7 +254,7 @@ impl<const N: usize> Machine<N> {
     /// The machine of [`new`](Self::new) and [`idle`](Self::idle), for a validated `cfg`.
     const fn blank(cfg: Config) -> Self {
         Machine {
-            state: State::Idle,
+            phase: Phase::Idle,
             sh: Shared {
                 cfg,
                 line: Line::new(),
@@ -260,7 +266,6 @@ impl<const N: usize> Machine<N> {
                 last_sent: 0,
                 frames_at_start: 0,
                 latch: LatchRounds::new(),
-                drift_gate: DriftGate::IDLE,
                 cyc: CyclicState::IDLE,
                 monitor: MonitorList::new(),
                 tdiff: Tdiff::new(),
@@ -290,7 +295,7 @@ impl<const N: usize> Machine<N> {
     /// "continuous propagation delay measurement"). It runs in spare room of the following
     /// cycles and rewrites only 0x0928 (REQ-DC-107). Ignored outside `Cyclic`.
     pub fn request_delay_measurement(&mut self) {
-        if self.state == State::Cyclic {
+        if self.state() == State::Cyclic {
             self.sh.cyc.remeasure_requested = true;
         }
     }
@@ -331,7 +336,7 @@ impl<const N: usize> Machine<N> {
 
     /// Current state.
     pub fn state(&self) -> State {
-        self.state
+        self.phase.state()
     }
     /// The configuration.
     pub fn config(&self) -> &Config {
@@ -355,7 +360,7 @@ impl<const N: usize> Machine<N> {
     }
     /// Whether cyclic operation is locked.
     pub fn is_locked(&self) -> bool {
-        self.state == State::Cyclic && self.sh.cyc.locked && self.sh.cyc.holdover.is_none()
+        self.state() == State::Cyclic && self.sh.cyc.locked && self.sh.cyc.holdover.is_none()
     }
     /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
     pub fn diff_bound_ns(&self) -> Option<u32> {
@@ -398,7 +403,7 @@ impl<const N: usize> Machine<N> {
     pub fn poll_timeout(&self) -> Option<SystemTime> {
         let next = self.sh.timers.next();
         let gate = self.pace_until();
-        if self.state.is_request_step() && !self.is_awaiting_reply() && gate > self.sh.last_sent {
+        if self.state().is_request_step() && !self.is_awaiting_reply() && gate > self.sh.last_sent {
             let gate = SystemTime(gate);
             return Some(next.map_or(gate, |t| earliest(t, gate)));
         }
@@ -455,16 +460,13 @@ impl<const N: usize> Machine<N> {
         let now = now.0;
         if self.sh.timers.expired(Timer::Reply, at) {
             self.sh.stats.timeouts = self.sh.stats.timeouts.saturating_add(1);
-            if self.state == State::Cyclic {
+            if self.state() == State::Cyclic {
                 self.cyclic_lost(now);
             } else {
                 self.stop_awaiting();
-                let e = self
-                    .sh
-                    .step
-                    .error
-                    .take()
-                    .unwrap_or(Error::Timeout { state: self.state });
+                let e = self.sh.step.error.take().unwrap_or(Error::Timeout {
+                    state: self.state(),
+                });
                 self.retry_or_fail(now, e);
             }
         }
@@ -495,7 +497,7 @@ impl<const N: usize> Machine<N> {
         }
         // In `Cyclic`, a reply frame laid out exactly as sent takes one validating, matching
         // pass (same result as the general path below, which handles everything else).
-        if fast && self.state == State::Cyclic && self.is_awaiting_reply() {
+        if fast && self.state() == State::Cyclic && self.is_awaiting_reply() {
             if let Some(frame) = eth.ecat_frame_unvalidated() {
                 if self.cyclic_fast(now, frame.into_inner()) {
                     return self.replies_done(now);
@@ -536,9 +538,9 @@ impl<const N: usize> Machine<N> {
     fn replies_done(&mut self, now: u64) {
         if self.is_awaiting_reply() && self.sh.inflight.is_empty() {
             self.sh.timers.stop(Timer::Reply);
-            if self.state == State::Cyclic {
+            if self.state() == State::Cyclic {
                 self.cyclic_complete(now);
-            } else if self.state.is_request_step() {
+            } else if self.state().is_request_step() {
                 self.step_complete(now);
             }
         }
@@ -551,9 +553,7 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn push_event(&mut self, e: Event) {
-        if !self.sh.events.push(e) {
-            self.sh.stats.events_dropped = self.sh.stats.events_dropped.saturating_add(1);
-        }
+        self.sh.push_event(e);
     }
 
     /// Enters `to` with a fresh cursor. Internal transitions follow [`State::can_go`]; one that
@@ -561,14 +561,16 @@ impl<const N: usize> Machine<N> {
     /// `Failed` (every state may go to `Failed`, so this cannot recurse) rather than a panic
     /// (REQ-CONV-008). The model check asserts that no explored run reports it.
     pub(crate) fn enter(&mut self, to: State) {
-        let to = if self.state.can_go(to) {
+        let to = if self.state().can_go(to) {
             to
         } else {
-            self.push_event(Event::Error(Error::Internal { state: self.state }));
+            self.push_event(Event::Error(Error::Internal {
+                state: self.state(),
+            }));
             self.stop_awaiting();
             State::Failed
         };
-        self.state = to;
+        self.phase = self.phase.enter(to);
         // The state-bound timers run only in their state (`dc/timer.rs`).
         if to != State::RestartWait {
             self.sh.timers.stop(Timer::Restart);
@@ -590,7 +592,7 @@ impl<const N: usize> Machine<N> {
             let wake = SystemTime(now.saturating_add(self.restart_delay()));
             self.sh.restart_streak = self.sh.restart_streak.saturating_add(1);
             self.enter(State::RestartWait);
-            if self.state == State::RestartWait {
+            if self.state() == State::RestartWait {
                 self.sh.timers.set(Timer::Restart, wake);
             }
             self.push_event(Event::Restarting);
@@ -614,7 +616,7 @@ impl<const N: usize> Machine<N> {
         if self.sh.step.tries < self.sh.cfg.retries && e.is_retryable() {
             self.sh.stats.retries = self.sh.stats.retries.saturating_add(1);
             let tries = self.sh.step.tries.saturating_add(1);
-            if matches!(self.state, State::LatchTrigger | State::LatchReadAfter) {
+            if matches!(self.state(), State::LatchTrigger | State::LatchReadAfter) {
                 // The trigger may or may not have latched: measure the whole round again.
                 self.enter(State::LatchReadBefore);
             } else if let Some(s) = self.tdiff_retry_state() {
@@ -656,18 +658,18 @@ impl<const N: usize> Machine<N> {
     }
 
     fn fill(&mut self, now: u64, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
-        if self.state == State::Cyclic {
+        if self.state() == State::Cyclic {
             return self.fill_cyclic(now, b, into_caller);
         }
-        if !self.state.is_request_step() || self.is_awaiting_reply() {
+        if !self.state().is_request_step() || self.is_awaiting_reply() {
             return false;
         }
         // Skip items with nothing to send; finish steps that have nothing (left) to send.
         // Bounded: every step finishes after at most its item count, and there are < 64 steps
         // between two sends.
         for _ in 0..64u8 {
-            if !self.state.is_request_step() {
-                return self.state == State::Cyclic && self.fill_cyclic(now, b, into_caller);
+            if !self.state().is_request_step() {
+                return self.state() == State::Cyclic && self.fill_cyclic(now, b, into_caller);
             }
             let count = self.item_count();
             while self.sh.step.cursor < count
@@ -680,7 +682,7 @@ impl<const N: usize> Machine<N> {
             }
             self.step_done(now);
         }
-        if !self.state.is_request_step() {
+        if !self.state().is_request_step() {
             return false;
         }
         if now < self.pace_until() {
@@ -727,21 +729,21 @@ impl<const N: usize> Machine<N> {
     #[inline]
     fn on_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
         // The cyclic path first (neither guard below holds in `Cyclic`).
-        if self.state == State::Cyclic {
+        if self.state() == State::Cyclic {
             return self.on_cyclic_reply(now, p, wkc, data);
         }
         match p.tag {
-            Tag::Item(i) if self.state.is_request_step() => {
+            Tag::Item(i) if self.state().is_request_step() => {
                 if let Err(e) = self.on_item(now, i, p, wkc, data) {
                     self.sh.step.error.get_or_insert(e);
                 }
             }
-            Tag::Frmw if self.state == State::DriftCheck => {
+            Tag::Frmw if self.state() == State::DriftCheck => {
                 if let Err(e) = self.check_frmw(p, wkc) {
                     self.sh.step.error.get_or_insert(e);
                 }
             }
-            _ if self.state == State::Cyclic => self.on_cyclic_reply(now, p, wkc, data),
+            _ if self.state() == State::Cyclic => self.on_cyclic_reply(now, p, wkc, data),
             _ => {}
         }
     }

@@ -47,7 +47,7 @@ impl<const N: usize> LatchRounds<N> {
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn measure_item(&self, i: u16) -> Item {
-        match self.state {
+        match self.state() {
             State::LatchTrigger => Item::Send(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
             State::LatchReadBefore => match self.slave(i) {
                 Some(s) if s.dc.has_latches() => {
@@ -76,7 +76,7 @@ impl<const N: usize> Machine<N> {
             station: p.station,
             register: p.register,
         };
-        match self.state {
+        match self.state() {
             State::LatchTrigger => {
                 // Every slave with latches must have seen the write; slaves without DC may or
                 // may not count it, so the WKC lies between the two.
@@ -95,7 +95,7 @@ impl<const N: usize> Machine<N> {
             State::LatchReadBefore | State::LatchReadAfter => {
                 self.expect_wkc(p, 1, wkc)?;
                 let t = port_times(data).ok_or(bad)?;
-                let after = self.state == State::LatchReadAfter;
+                let after = self.state() == State::LatchReadAfter;
                 let epu = if after {
                     data.get(24..32).and_then(|d| le(d, 8)).ok_or(bad)?
                 } else {
@@ -122,7 +122,7 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn measure_done(&mut self) -> Result<State, Error> {
-        match self.state {
+        match self.state() {
             State::LatchReadBefore => Ok(State::LatchTrigger),
             State::LatchTrigger => Ok(State::LatchReadAfter),
             State::LatchReadAfter => {
@@ -134,7 +134,7 @@ impl<const N: usize> Machine<N> {
                 self.finish_delays()?;
                 Ok(State::ReadAlStatus)
             }
-            _ => Ok(self.state),
+            _ => Ok(self.state()),
         }
     }
 

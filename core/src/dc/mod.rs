@@ -29,6 +29,7 @@ mod line;
 pub mod machine;
 mod measure;
 mod monitor;
+mod phase;
 mod remeasure;
 mod request;
 mod scratch;

@@ -5,6 +5,7 @@
 use crate::dc::config::DriftCommand;
 use crate::dc::error::Error;
 use crate::dc::machine::{Item, Machine};
+use crate::dc::phase::Phase;
 use crate::dc::request::{Op, Pending};
 use crate::dc::state::State;
 
@@ -12,7 +13,7 @@ impl<const N: usize> Machine<N> {
     /// Number of items of the current step.
     pub(crate) fn item_count(&self) -> u16 {
         let n = self.sh.line.count;
-        match self.state {
+        match self.state() {
             State::CountSlaves => 1u16.saturating_add(u16::from(self.sh.tdiff.recovering)),
             State::LatchTrigger | State::ReadReferenceTime => 1,
             State::TdiffRead
@@ -39,7 +40,7 @@ impl<const N: usize> Machine<N> {
 
     /// Most items per frame: one FRMW per frame in a burst (each frame is one loop sample).
     pub(crate) fn max_per_frame(&self) -> usize {
-        match self.state {
+        match self.state() {
             // The restore of an interrupted t_Diff measurement goes alone, before the count.
             State::CountSlaves if self.sh.tdiff.recovering => 1,
             State::DriftBurst => 1,
@@ -82,44 +83,34 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
-        if self.state == State::CountSlaves && self.sh.tdiff.recovering {
+        if self.state() == State::CountSlaves && self.sh.tdiff.recovering {
             return match i {
                 0 => self.tdiff_recover_item(),
                 _ => self.discovery_item(0),
             };
         }
-        match self.state {
-            State::CountSlaves
-            | State::AssignAddresses
-            | State::ReadInfo
-            | State::ProbeSystemTime => self.discovery_item(i),
-            State::TdiffRead
-            | State::TdiffLatch
-            | State::TdiffTrigger
-            | State::TdiffClose
-            | State::TdiffRestore => self.tdiff_item(i),
-            State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
-                self.measure_item(i)
-            }
-            State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => self.adjust_item(i),
-            State::DriftBurst | State::DriftCheck => self.drift_item(now, i),
-            State::ReadReferenceTime
-            | State::ClearActivation
-            | State::ProgramSync
-            | State::ActivateSync => self.activation_item(i),
-            State::Idle | State::Cyclic | State::RestartWait | State::Failed => Item::Skip,
+        match self.phase {
+            Phase::Discovery(_) => self.discovery_item(i),
+            Phase::Tdiff(_) => self.tdiff_item(i),
+            Phase::Measure(_) => self.measure_item(i),
+            Phase::Adjust(_) => self.adjust_item(i),
+            Phase::Drift(..) => self.drift_item(now, i),
+            Phase::Activation(_) => self.activation_item(i),
+            Phase::Idle | Phase::Cyclic | Phase::RestartWait | Phase::Failed => Item::Skip,
         }
     }
 
     /// Hook right before item `i` goes out (the latch trigger samples master time here).
     pub(crate) fn before_send(&mut self, now: u64, i: u16) {
-        if self.state == State::LatchTrigger {
+        if self.state() == State::LatchTrigger {
             // REQ-DC-102: master time sampled *before* the latching BWR leaves.
             self.sh.latch.trigger_time = now;
         }
-        if self.state == State::DriftBurst {
+        if self.state() == State::DriftBurst {
             // One FRMW per burst frame: one loop sample in every slave.
-            self.sh.drift_gate.frames = self.sh.drift_gate.frames.saturating_add(1);
+            if let Some(gate) = self.phase.drift_gate_mut() {
+                gate.frames = gate.frames.saturating_add(1);
+            }
         }
         let _ = i;
     }
@@ -132,7 +123,7 @@ impl<const N: usize> Machine<N> {
         wkc: u16,
         data: &[u8],
     ) -> Result<(), Error> {
-        if self.state == State::CountSlaves && self.sh.tdiff.recovering {
+        if self.state() == State::CountSlaves && self.sh.tdiff.recovering {
             return match i {
                 0 => {
                     self.tdiff_recover_reply();
@@ -141,28 +132,14 @@ impl<const N: usize> Machine<N> {
                 _ => self.discovery_reply(0, p, wkc, data),
             };
         }
-        match self.state {
-            State::CountSlaves
-            | State::AssignAddresses
-            | State::ReadInfo
-            | State::ProbeSystemTime => self.discovery_reply(i, p, wkc, data),
-            State::TdiffRead
-            | State::TdiffLatch
-            | State::TdiffTrigger
-            | State::TdiffClose
-            | State::TdiffRestore => self.tdiff_reply(i, p, wkc, data),
-            State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
-                self.measure_reply(i, p, wkc, data)
-            }
-            State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => {
-                self.adjust_reply(i, p, wkc, data)
-            }
-            State::DriftBurst | State::DriftCheck => self.drift_reply(i, p, wkc, data),
-            State::ReadReferenceTime
-            | State::ClearActivation
-            | State::ProgramSync
-            | State::ActivateSync => self.activation_reply(now, i, p, wkc, data),
-            State::Idle | State::Cyclic | State::RestartWait | State::Failed => Ok(()),
+        match self.phase {
+            Phase::Discovery(_) => self.discovery_reply(i, p, wkc, data),
+            Phase::Tdiff(_) => self.tdiff_reply(i, p, wkc, data),
+            Phase::Measure(_) => self.measure_reply(i, p, wkc, data),
+            Phase::Adjust(_) => self.adjust_reply(i, p, wkc, data),
+            Phase::Drift(..) => self.drift_reply(i, p, wkc, data),
+            Phase::Activation(_) => self.activation_reply(now, i, p, wkc, data),
+            Phase::Idle | Phase::Cyclic | Phase::RestartWait | Phase::Failed => Ok(()),
         }
     }
 
@@ -172,12 +149,8 @@ impl<const N: usize> Machine<N> {
             State::CountSlaves => {
                 self.sh.line.forget_found();
                 self.sh.latch.round = 0;
-                self.sh.drift_gate.frames = 0;
-                self.sh.drift_gate.passed = 0;
-                self.sh.drift_gate.bound = None;
                 self.tdiff_reset();
             }
-            State::DriftCheck => self.sh.drift_gate.bound = None,
             State::Cyclic => self.cyclic_enter(),
             _ => {}
         }
@@ -185,26 +158,14 @@ impl<const N: usize> Machine<N> {
 
     /// The step's items are all sent and answered: validate the whole step and move on.
     pub(crate) fn step_done(&mut self, now: u64) {
-        let next = match self.state {
-            State::CountSlaves
-            | State::AssignAddresses
-            | State::ReadInfo
-            | State::ProbeSystemTime => self.discovery_done(),
-            State::TdiffRead
-            | State::TdiffLatch
-            | State::TdiffTrigger
-            | State::TdiffClose
-            | State::TdiffRestore => self.tdiff_done(),
-            State::LatchReadBefore | State::LatchTrigger | State::LatchReadAfter => {
-                self.measure_done()
-            }
-            State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => self.adjust_done(),
-            State::DriftBurst | State::DriftCheck => self.drift_done(),
-            State::ReadReferenceTime
-            | State::ClearActivation
-            | State::ProgramSync
-            | State::ActivateSync => self.activation_done(),
-            State::Idle | State::Cyclic | State::RestartWait | State::Failed => return,
+        let next = match self.phase {
+            Phase::Discovery(_) => self.discovery_done(),
+            Phase::Tdiff(_) => self.tdiff_done(),
+            Phase::Measure(_) => self.measure_done(),
+            Phase::Adjust(_) => self.adjust_done(),
+            Phase::Drift(..) => self.drift_done(),
+            Phase::Activation(_) => self.activation_done(),
+            Phase::Idle | Phase::Cyclic | Phase::RestartWait | Phase::Failed => return,
         };
         match next {
             Ok(s) => self.enter(s),

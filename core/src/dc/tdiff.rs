@@ -307,7 +307,7 @@ impl<const N: usize> Machine<N> {
 
     /// Number of items of the current t_Diff step.
     pub(crate) fn tdiff_count(&self) -> u16 {
-        match self.state {
+        match self.state() {
             State::TdiffRead => self.sh.line.count.saturating_mul(3),
             State::TdiffLatch => self
                 .sh
@@ -322,7 +322,7 @@ impl<const N: usize> Machine<N> {
     /// The typed work item `i` of the current step, `None` when there is nothing to send.
     fn tdiff_work(&self, i: u16) -> Option<Work> {
         let off = self.tdiff_cfg().mode == TdiffMode::Off;
-        match self.state {
+        match self.state() {
             State::TdiffRead if !off => {
                 let pos = i / 3;
                 let s = self.slave(pos)?;
@@ -348,7 +348,7 @@ impl<const N: usize> Machine<N> {
             }
             State::TdiffTrigger => Some(Work::Trigger),
             State::TdiffClose | State::TdiffRestore => match self.sh.tdiff.phase {
-                Phase::Closed { target, .. } if self.state == State::TdiffClose => {
+                Phase::Closed { target, .. } if self.state() == State::TdiffClose => {
                     Some(Work::Close(target))
                 }
                 Phase::Closed { target, .. } => Some(Work::Restore(target)),
@@ -499,11 +499,12 @@ impl<const N: usize> Machine<N> {
 
     /// Retry target of a failed t_Diff step: a failed trigger or read latches again.
     pub(crate) fn tdiff_retry_state(&self) -> Option<State> {
-        matches!(self.state, State::TdiffTrigger | State::TdiffLatch).then_some(State::TdiffTrigger)
+        matches!(self.state(), State::TdiffTrigger | State::TdiffLatch)
+            .then_some(State::TdiffTrigger)
     }
 
     pub(crate) fn tdiff_done(&mut self) -> Result<State, Error> {
-        match self.state {
+        match self.state() {
             State::TdiffRead => {
                 if self.tdiff_cfg().mode == TdiffMode::Off {
                     return Ok(self.tdiff_finish());
@@ -554,7 +555,7 @@ impl<const N: usize> Machine<N> {
                 }
                 Ok(self.tdiff_finish())
             }
-            _ => Ok(self.state),
+            _ => Ok(self.state()),
         }
     }
 

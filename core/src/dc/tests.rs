@@ -370,7 +370,7 @@ fn running_offsets_read_after_al_states_and_anchor_the_others() {
     m.sh.line.slaves[0].entry_local = 1_000;
     m.sh.line.slaves[2].entry_local = 7_000;
     m.sh.line.slaves[2].delay_ns = 300;
-    m.state = State::ReadAlStatus;
+    m.phase = m.phase.enter(State::ReadAlStatus);
     let now = SystemTime(T0 + 1_000_000);
     let mut buf = [0u8; 1514];
     // Answers with the true AL states: the reference (station 0x1001) in OP, 0x1003 in INIT;
