@@ -91,7 +91,7 @@ impl<const N: usize> Machine<N> {
                 let r = self.slave(self.sh.line.reference).copied().ok_or(bad)?;
                 let sync = self.sh.cfg.sync.ok_or(bad)?;
                 self.sh.line.sync_start =
-                    self.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
+                    self.sh.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
             }
             State::ActivateSync => {
                 if let Some(s) = self.slave_mut(i) {

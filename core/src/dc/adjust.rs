@@ -118,7 +118,7 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_done(&mut self) -> Result<State, Error> {
         match self.state() {
             State::ReadAlStatus => {
-                self.anchor_on_running_domain()?;
+                self.sh.anchor_on_running_domain()?;
                 for s in self.sh.line.slaves.iter_mut() {
                     s.offset_written = false;
                     s.sync_programmed = false;

@@ -6,7 +6,7 @@
 use crate::dc::config::SyncConfig;
 use crate::dc::delay::{self, DelayError};
 use crate::dc::error::Error;
-use crate::dc::machine::Machine;
+use crate::dc::machine::Shared;
 use crate::dc::offset::{self, ClockWidth};
 use crate::dc::port::{Port, PortSet};
 use crate::dc::slave::{DcKind, SlaveInfo};
@@ -16,7 +16,7 @@ use crate::num::low32;
 use crate::time::{PortTime, SystemTime};
 use crate::wire::register::reg;
 
-impl<const N: usize> Machine<N> {
+impl<const N: usize> Shared<N> {
     /// REQ-DC-101, REQ-DC-012..018: the topology (`scratch.topo`) and exact delays
     /// (`scratch.round`) of the latest latch round, built in the machine's working tables.
     ///
@@ -25,13 +25,12 @@ impl<const N: usize> Machine<N> {
     /// link); it is treated as closed. A latching slave with no changed port at all was not
     /// reached, and the round is rejected.
     fn latch_round_delays(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.sh.line.count);
+        let count = usize::from(self.line.count);
         for (s, out) in self
-            .sh
             .line
             .slaves
             .iter()
-            .zip(self.sh.scratch.samples.iter_mut())
+            .zip(self.scratch.samples.iter_mut())
             .take(count)
         {
             let open = PortSet::from_dl_status(s.dl_status);
@@ -60,33 +59,33 @@ impl<const N: usize> Machine<N> {
                 t_diff: s.t_diff_ns, // REQ-DC-015, REQ-DC-126
             };
         }
-        let sc = &mut self.sh.scratch;
+        let sc = &mut self.scratch;
         let samples = sc.samples.get(..count).unwrap_or(&[]);
         let built = sc.topo.build_in_place(samples, &mut sc.stack);
         built.map_err(|e| self.topology_error(e))?;
-        let sc = &mut self.sh.scratch;
+        let sc = &mut self.scratch;
         let samples = sc.samples.get(..count).unwrap_or(&[]);
-        let reference = usize::from(self.sh.line.reference);
+        let reference = usize::from(self.line.reference);
         let computed =
             delay::compute_in_place(samples, &sc.topo, reference, &mut sc.delay, &mut sc.round);
         computed.map_err(|e| self.delay_error(e))
     }
 
     /// REQ-DC-101, REQ-DC-019: adds the latest latch round of the bring-up measurement to the
-    /// exact sum of its rounds (`self.sh.latch.sum`, restarted at round 0) with
+    /// exact sum of its rounds (`self.latch.sum`, restarted at round 0) with
     /// [`Delays::accumulate`](delay::Delays::accumulate), so the mean over the K rounds is
     /// rounded once, not once per round. This round's topology stays in `scratch.topo` (its
     /// entry ports are needed for the offsets). A failed sum is dropped, so the next round
     /// starts a new one.
     pub(crate) fn add_latch_round(&mut self) -> Result<(), Error> {
         self.latch_round_delays()?;
-        if self.sh.latch.round > 0 && self.sh.latch.sum.has_rounds() {
-            if let Err(e) = self.sh.latch.sum.accumulate(&self.sh.scratch.round) {
-                self.sh.latch.sum.clear();
+        if self.latch.round > 0 && self.latch.sum.has_rounds() {
+            if let Err(e) = self.latch.sum.accumulate(&self.scratch.round) {
+                self.latch.sum.clear();
                 return Err(self.delay_error(e));
             }
         } else {
-            self.sh.latch.sum.copy_from(&self.sh.scratch.round);
+            self.latch.sum.copy_from(&self.scratch.round);
         }
         Ok(())
     }
@@ -96,14 +95,13 @@ impl<const N: usize> Machine<N> {
     /// exactly by [`Self::add_latch_round`] instead.
     pub(crate) fn accumulate_round(&mut self) -> Result<(), Error> {
         self.latch_round_delays()?;
-        let delays = &self.sh.scratch.round;
+        let delays = &self.scratch.round;
         for (i, s) in self
-            .sh
             .line
             .slaves
             .iter_mut()
             .enumerate()
-            .take(usize::from(self.sh.line.count))
+            .take(usize::from(self.line.count))
         {
             if !s.dc.has_system_time() {
                 continue;
@@ -119,7 +117,7 @@ impl<const N: usize> Machine<N> {
     }
 
     fn station_at(&self, pos: u16) -> u16 {
-        self.slave(pos).map_or(0, |s| s.station)
+        self.line.slave(pos).map_or(0, |s| s.station)
     }
 
     fn topology_error(&self, e: TopologyError) -> Error {
@@ -160,10 +158,10 @@ impl<const N: usize> Machine<N> {
     ///
     /// REQ-DC-112: no offset is derived from an implausible EPU time ([`epu_plausible`]).
     pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
-        let topo = &self.sh.scratch.topo;
-        let master = SystemTime(self.sh.latch.trigger_time);
-        let count = usize::from(self.sh.line.count);
-        for (i, s) in self.sh.line.slaves.iter_mut().enumerate().take(count) {
+        let topo = &self.scratch.topo;
+        let master = SystemTime(self.latch.trigger_time);
+        let count = usize::from(self.line.count);
+        for (i, s) in self.line.slaves.iter_mut().enumerate().take(count) {
             let Some(width) = clock_width(s.dc) else {
                 continue;
             };
@@ -195,15 +193,15 @@ impl<const N: usize> Machine<N> {
     /// slave then gets [`offset::initial_offset`] of `m`, as [`Self::compute_offsets`] gives it
     /// of the master's time. No running slave: nothing changes.
     pub(crate) fn anchor_on_running_domain(&mut self) -> Result<(), Error> {
-        let count = usize::from(self.sh.line.count);
-        let slaves = self.sh.line.slaves.get(..count).unwrap_or(&[]);
+        let count = usize::from(self.line.count);
+        let slaves = self.line.slaves.get(..count).unwrap_or(&[]);
         let running = |s: &&SlaveInfo| s.running_offset.is_some() && !s.may_step_offset();
-        let anchor = match self.slave(self.sh.line.reference).filter(running) {
+        let anchor = match self.line.slave(self.line.reference).filter(running) {
             Some(r) => Some(*r),
             None => slaves.iter().find(running).copied(),
         };
         let Some(a) = anchor else {
-            self.sh.line.domain_shift = 0;
+            self.line.domain_shift = 0;
             return Ok(());
         };
         let (Some(width), Some(read)) = (clock_width(a.dc), a.running_offset) else {
@@ -212,7 +210,7 @@ impl<const N: usize> Machine<N> {
                 register: reg::SYSTEM_TIME_OFFSET,
             });
         };
-        let master = SystemTime(self.sh.latch.trigger_time);
+        let master = SystemTime(self.latch.trigger_time);
         let at_latch = a
             .entry_local
             .wrapping_add(read)
@@ -222,11 +220,11 @@ impl<const N: usize> Machine<N> {
         if shift.unsigned_abs() > MAX_DOMAIN_SHIFT_NS {
             // REQ-DC-112: not a drifted domain but a 0x0920 that was never set by a master of
             // this epoch (or garbage): nothing is derived from it.
-            self.sh.line.domain_shift = 0;
+            self.line.domain_shift = 0;
             return Ok(());
         }
-        self.sh.line.domain_shift = shift;
-        for s in self.sh.line.slaves.iter_mut().take(count) {
+        self.line.domain_shift = shift;
+        for s in self.line.slaves.iter_mut().take(count) {
             let Some(width) = clock_width(s.dc) else {
                 continue;
             };
@@ -259,7 +257,7 @@ impl<const N: usize> Machine<N> {
     ) -> Option<u64> {
         let width = clock_width(r.dc)?;
         // REQ-DC-131: the domain runs `domain_shift` away from the master's clock.
-        let expected = SystemTime(now).wrapping_add_signed(self.sh.line.domain_shift);
+        let expected = SystemTime(now).wrapping_add_signed(self.line.domain_shift);
         let t_ref = sync::reference_now(raw, width, expected);
         if r.offset_written
             && t_ref.wrapping_since(expected).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
@@ -326,7 +324,7 @@ mod tests {
     //! cases the emulator cannot produce (its slaves are always cabled upstream on port 0).
 
     use super::*;
-    use crate::dc::{Config, State};
+    use crate::dc::{Config, Machine, State};
 
     /// Master time sampled before the trigger (REQ-DC-002).
     const M: u64 = 800_000_000_000_000_000;
@@ -465,7 +463,7 @@ mod tests {
                 u64::from(low32(now))
             };
             let ok = SyncConfig::default();
-            let start = m.compute_sync_start(now, raw, &r, &ok).unwrap();
+            let start = m.sh.compute_sync_start(now, raw, &r, &ok).unwrap();
             let lead = start - now;
             assert!(lead >= ok.start_delay_ns && lead < 1 << 31, "{lead}");
             assert_eq!(start % u64::from(ok.sync0_cycle_ns), 0);
@@ -473,7 +471,7 @@ mod tests {
                 start_delay_ns: 3_000_000_000,
                 ..ok
             };
-            assert_eq!(m.compute_sync_start(now, raw, &r, &far), None);
+            assert_eq!(m.sh.compute_sync_start(now, raw, &r, &far), None);
             // SYNC1 "true cycle" of 3 × 0.9 s pushes the first grid point past 2^31 ns.
             let long = SyncConfig {
                 sync0_cycle_ns: 900_000_000,
@@ -486,7 +484,7 @@ mod tests {
             } else {
                 u64::from(low32(now_on_grid + 1))
             };
-            assert_eq!(m.compute_sync_start(now_on_grid, raw, &r, &long), None);
+            assert_eq!(m.sh.compute_sync_start(now_on_grid, raw, &r, &long), None);
         }
     }
 
@@ -521,7 +519,7 @@ mod tests {
         let entry1 = 0x2_9000_0000u64;
         let off0 = (M + ahead).wrapping_sub(entry0);
         let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
-        m.anchor_on_running_domain().unwrap();
+        m.sh.anchor_on_running_domain().unwrap();
         assert_eq!(m.sh.line.domain_shift, ahead as i64);
         assert_eq!(
             entry1.wrapping_add(m.sh.line.slaves[1].offset),
@@ -531,13 +529,13 @@ mod tests {
         let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
         m.sh.line.slaves[0].al_status = Some(0x02);
         m.sh.line.slaves[1].offset = 5;
-        m.anchor_on_running_domain().unwrap();
+        m.sh.anchor_on_running_domain().unwrap();
         assert_eq!((m.sh.line.domain_shift, m.sh.line.slaves[1].offset), (0, 5));
         // A running slave whose 0x0920 was never set (its system time is its local time) is
         // not a domain to join.
         let mut m = running_reference(DcKind::Bits64, 0, entry0, entry1, 700);
         m.sh.line.slaves[1].offset = 5;
-        m.anchor_on_running_domain().unwrap();
+        m.sh.anchor_on_running_domain().unwrap();
         assert_eq!((m.sh.line.domain_shift, m.sh.line.slaves[1].offset), (0, 5));
     }
 
@@ -555,7 +553,7 @@ mod tests {
             let off0 = u64::from(low32(domain.wrapping_sub(entry0)));
             let mut m = running_reference(DcKind::Bits32, off0, entry0, entry1, 300);
             m.sh.latch.trigger_time = master;
-            m.anchor_on_running_domain().unwrap();
+            m.sh.anchor_on_running_domain().unwrap();
             assert_eq!(m.sh.line.domain_shift, -(behind as i64));
             assert_eq!(
                 entry1.wrapping_add(m.sh.line.slaves[1].offset),
@@ -578,10 +576,10 @@ mod tests {
         };
         let sync = SyncConfig::default();
         let ahead = 1_500_000_000u64;
-        assert_eq!(m.compute_sync_start(M, M + ahead, &r, &sync), None);
+        assert_eq!(m.sh.compute_sync_start(M, M + ahead, &r, &sync), None);
         m.sh.line.domain_shift = ahead as i64;
-        let start = m.compute_sync_start(M, M + ahead, &r, &sync).unwrap();
+        let start = m.sh.compute_sync_start(M, M + ahead, &r, &sync).unwrap();
         assert!(start > M + ahead && start < M + ahead + (1 << 31));
-        assert_eq!(m.compute_sync_start(M, M, &r, &sync), None);
+        assert_eq!(m.sh.compute_sync_start(M, M, &r, &sync), None);
     }
 }

@@ -65,20 +65,16 @@ impl<'m, const N: usize> ControlState<'m, N> {
             events,
             stats: _,
             last_sent,
-            frames_at_start: _,
+            restarts,
             latch,
-            cyc,
-            monitor: _,
             tdiff,
-            restart_streak,
             scratch,
         } = sh;
         (
             (cfg, phase, line, inflight, timers),
             (step, events),
             (last_sent, latch),
-            cyc,
-            (tdiff, restart_streak, &scratch.topo, &scratch.round),
+            (tdiff, restarts.streak, &scratch.topo, &scratch.round),
         )
     }
 }
@@ -122,8 +118,8 @@ mod tests {
         let a = Machine::<4>::new(Config::default()).unwrap();
         let mut b = a.clone();
         b.sh.stats.frames_sent = 7;
-        b.sh.frames_at_start = 3;
-        b.sh.monitor.invalidate();
+        b.sh.restarts.frames_at_start = 3;
+        b.sh.scratch.monitor.invalidate();
         if let Some(s) = b.sh.scratch.subtree.get_mut(0) {
             *s = 5;
         }
@@ -134,10 +130,11 @@ mod tests {
     #[test]
     fn every_kind_of_control_field_counts() {
         let a = Machine::<4>::new(Config::default()).unwrap();
-        let changes: [fn(&mut Machine<4>); 5] = [
+        let changes: [fn(&mut Machine<4>); 6] = [
             |m| m.sh.step.cursor = 1,
             |m| m.sh.cfg.retries = m.sh.cfg.retries.wrapping_add(1),
-            |m| m.sh.cyc.locked = true,
+            |m| m.sh.line.sync_start = 1,
+            |m| m.phase = m.phase.enter(crate::dc::State::Failed),
             |m| m.push_event(crate::dc::Event::Restarting),
             |m| m.sh.line.slaves[1].station = 0x1234,
         ];

@@ -8,7 +8,8 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::holdover::{Holdover, HoldoverCause};
-use crate::dc::machine::Machine;
+use crate::dc::machine::{Machine, Shared};
+use crate::dc::phase::Phase;
 use crate::dc::request::{le, Op, Pending, Tag};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
@@ -104,12 +105,42 @@ impl CyclicState {
     };
 }
 
+/// Cyclic operation at work: its own data and the machine's shared parts. A fault found here
+/// ends the cyclic phase, so it is only recorded ([`CyclicCx::fail`]); the machine carries it
+/// out when the cyclic code returns ([`Machine::in_cyclic`]), and the code returns right after
+/// recording it.
+pub(crate) struct CyclicCx<'a, const N: usize> {
+    pub(crate) c: &'a mut CyclicState,
+    pub(crate) sh: &'a mut Shared<N>,
+    pub(crate) fault: Option<Error>,
+}
+
 impl<const N: usize> Machine<N> {
-    pub(crate) fn cyclic_enter(&mut self) {
-        self.sh.cyc = CyclicState::default();
-        self.sh.monitor.invalidate();
-        // The first cycle is due at once.
-        self.sh.timers.set(Timer::Cycle, SystemTime(0));
+    /// Runs `f` on the cyclic phase's data and the shared parts, then carries out the fault it
+    /// recorded, if any, at master time `now`. `None` outside `Cyclic`.
+    #[inline(always)]
+    pub(crate) fn in_cyclic<R>(
+        &mut self,
+        now: u64,
+        f: impl FnOnce(&mut CyclicCx<'_, N>) -> R,
+    ) -> Option<R> {
+        let Machine { phase, sh } = self;
+        let Phase::Cyclic(c) = phase else {
+            return None;
+        };
+        let mut cx = CyclicCx { c, sh, fault: None };
+        let r = f(&mut cx);
+        if let Some(e) = cx.fault {
+            self.fault(now, e);
+        }
+        Some(r)
+    }
+}
+
+impl<const N: usize> CyclicCx<'_, N> {
+    /// Records a fault: cyclic operation ends with it once the cyclic code returns.
+    pub(crate) fn fail(&mut self, e: Error) {
+        self.fault.get_or_insert(e);
     }
 
     pub(crate) fn fill_cyclic(
@@ -125,16 +156,16 @@ impl<const N: usize> Machine<N> {
         // No transmission for more than `max_lost_cycles` periods: the master stalled.
         let stall = period.saturating_mul(u64::from(self.sh.cfg.monitor.max_lost_cycles));
         if self.holdover_enabled()
-            && self.sh.cyc.holdover.is_none()
-            && self.sh.cyc.cycles > 0
-            && now.saturating_sub(self.sh.cyc.sent_at) > stall
+            && self.c.holdover.is_none()
+            && self.c.cycles > 0
+            && now.saturating_sub(self.c.sent_at) > stall
         {
             self.holdover_start(self.silence_since(), HoldoverCause::Stall);
         }
-        if self.is_awaiting_reply() {
+        if self.sh.timers.is_set(Timer::Reply) {
             // The previous cycle's datagrams never came back.
             self.cyclic_lost(now);
-            if self.state() != State::Cyclic {
+            if self.fault.is_some() {
                 return false;
             }
         }
@@ -152,26 +183,26 @@ impl<const N: usize> Machine<N> {
         self.sh.timers.set(Timer::Cycle, SystemTime(next));
         let before = b.datagram_count();
         self.sh.inflight.clear();
-        self.sh.cyc.frmw_wkc = None;
-        self.sh.cyc.bound_wkc = None;
-        self.sh.cyc.topo_wkc = None;
-        self.sh.cyc.lost_station = None;
-        self.sh.cyc.al_status = None;
-        self.sh.cyc.cycle_bound_ns = None;
-        let frmw = self.frmw_op(now);
+        self.c.frmw_wkc = None;
+        self.c.bound_wkc = None;
+        self.c.topo_wkc = None;
+        self.c.lost_station = None;
+        self.c.al_status = None;
+        self.c.cycle_bound_ns = None;
+        let frmw = self.sh.frmw_op(now);
         if !self.push_cycle_block(b, frmw) && !self.push_cycle_each(b, frmw) {
             if before == 0 {
-                self.push_event(Event::Error(Error::BufferTooSmall));
+                self.sh.push_event(Event::Error(Error::BufferTooSmall));
             }
             return false;
         }
         self.fill_remeasure(now, b);
-        self.sh.cyc.sent_at = now;
+        self.c.sent_at = now;
         let timeout = self.sh.cfg.response_timeout_ns.min(period);
         self.sh
             .timers
             .set(Timer::Reply, SystemTime(now.saturating_add(timeout)));
-        self.sh.cyc.cycles = self.sh.cyc.cycles.saturating_add(1);
+        self.c.cycles = self.c.cycles.saturating_add(1);
         self.sh.stats.cycles = self.sh.stats.cycles.saturating_add(1);
         self.sh.stats.frames_sent = self.sh.stats.frames_sent.saturating_add(1);
         true
@@ -182,7 +213,7 @@ impl<const N: usize> Machine<N> {
     #[inline]
     fn rr_step(&mut self) -> u16 {
         let pos = self.rr_start();
-        self.sh.cyc.rr = rr_after(pos, self.sh.line.count);
+        self.c.rr = rr_after(pos, self.sh.line.count);
         pos
     }
 
@@ -190,10 +221,10 @@ impl<const N: usize> Machine<N> {
     /// the slaves) the cursor modulo the count; 0 without slaves.
     #[inline]
     pub(crate) fn rr_start(&self) -> u16 {
-        if self.sh.cyc.rr < self.sh.line.count {
-            self.sh.cyc.rr
+        if self.c.rr < self.sh.line.count {
+            self.c.rr
         } else {
-            self.sh.cyc.rr.checked_rem(self.sh.line.count).unwrap_or(0)
+            self.c.rr.checked_rem(self.sh.line.count).unwrap_or(0)
         }
     }
 
@@ -206,6 +237,8 @@ impl<const N: usize> Machine<N> {
             let pos = self.rr_step();
             *scanned = scanned.saturating_add(1);
             let (station, has_time) = self
+                .sh
+                .line
                 .slave(pos)
                 .map(|s| (s.station, s.dc.has_system_time()))?;
             if has_time {
@@ -219,18 +252,22 @@ impl<const N: usize> Machine<N> {
     /// round robin over the slaves with a system time (up to `slaves_per_cycle` FPRD 0x092C),
     /// as many as fit. False if not even the FRMW fits.
     pub(crate) fn push_cycle_each(&mut self, b: &mut FrameBuilder<'_>, frmw: Op) -> bool {
-        if !self.push_op(b, frmw, Tag::Frmw) {
+        if !self.sh.push_op(b, frmw, Tag::Frmw) {
             return false;
         }
-        let _ = self.push_op(b, Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4), Tag::CycBound);
-        let _ = self.push_op(b, Op::brd(reg::AL_STATUS, 2), Tag::CycTopology);
+        let _ = self
+            .sh
+            .push_op(b, Op::brd(reg::SYSTEM_TIME_DIFFERENCE, 4), Tag::CycBound);
+        let _ = self
+            .sh
+            .push_op(b, Op::brd(reg::AL_STATUS, 2), Tag::CycTopology);
         let mut budget = self.sh.cfg.monitor.slaves_per_cycle;
         let mut scanned = 0u16;
         while budget > 0 {
             let Some((pos, station)) = self.rr_next_monitored(&mut scanned) else {
                 break;
             };
-            if !self.push_op(
+            if !self.sh.push_op(
                 b,
                 Op::fprd(station, reg::SYSTEM_TIME_DIFFERENCE, 4),
                 Tag::CycDiff(pos),
@@ -252,7 +289,7 @@ impl<const N: usize> Machine<N> {
                 if let Some(&raw) = data.first_chunk::<4>().filter(|_| data.len() == 4) {
                     self.on_diff_reply(pos, p.station, wkc, raw);
                 } else if wkc != 1 {
-                    self.sh.cyc.lost_station.get_or_insert(p.station);
+                    self.c.lost_station.get_or_insert(p.station);
                 }
             }
             Tag::CycRemeasure(i) => self.remeasure_reply(i, p, wkc, data),
@@ -264,7 +301,7 @@ impl<const N: usize> Machine<N> {
     /// around `now`), used only with the full working counter.
     #[inline(always)]
     pub(crate) fn on_frmw_reply(&mut self, now: u64, len: u16, wkc: u16, data: &[u8]) {
-        self.sh.cyc.frmw_wkc = Some(wkc);
+        self.c.frmw_wkc = Some(wkc);
         if wkc == self.sh.line.sys_count {
             if let Some(v) = le(data, usize::from(len)) {
                 let t = if len == 8 {
@@ -273,7 +310,7 @@ impl<const N: usize> Machine<N> {
                     let low = u32::try_from(v).unwrap_or(0);
                     SystemTime::extend_low32(low, SystemTime(now)).0
                 };
-                self.sh.cyc.ref_time = Some(t);
+                self.c.ref_time = Some(t);
             }
         }
     }
@@ -282,12 +319,12 @@ impl<const N: usize> Machine<N> {
     /// working counter.
     #[inline(always)]
     pub(crate) fn on_bound_reply(&mut self, wkc: u16, data: &[u8]) {
-        self.sh.cyc.bound_wkc = Some(wkc);
+        self.c.bound_wkc = Some(wkc);
         if wkc == self.sh.line.sys_count {
             if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
                 let bound = SystemTimeDifference::from_raw(raw).magnitude();
-                self.sh.cyc.bound_ns = Some(bound);
-                self.sh.cyc.cycle_bound_ns = Some(bound);
+                self.c.bound_ns = Some(bound);
+                self.c.cycle_bound_ns = Some(bound);
             }
         }
     }
@@ -296,9 +333,9 @@ impl<const N: usize> Machine<N> {
     /// of every AL status.
     #[inline(always)]
     pub(crate) fn on_topology_reply(&mut self, wkc: u16, data: &[u8]) {
-        self.sh.cyc.topo_wkc = Some(wkc);
+        self.c.topo_wkc = Some(wkc);
         if wkc > 0 {
-            self.sh.cyc.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
+            self.c.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
         }
     }
 
@@ -306,13 +343,12 @@ impl<const N: usize> Machine<N> {
     /// one (the first that did not come back or was not sent), or the first cycle's
     /// transmission before any completed.
     pub(crate) fn silence_since(&self) -> u64 {
-        if self.sh.cyc.last_good != 0 {
-            self.sh
-                .cyc
+        if self.c.last_good != 0 {
+            self.c
                 .last_good
                 .saturating_add(self.sh.cfg.monitor.cycle_ns)
         } else {
-            self.sh.cyc.sent_at
+            self.c.sent_at
         }
     }
 
@@ -322,7 +358,7 @@ impl<const N: usize> Machine<N> {
         diff_reply(
             &mut self.sh.line.slaves,
             self.sh.line.count,
-            &mut self.sh.cyc,
+            self.c,
             pos,
             station,
             wkc,
@@ -332,18 +368,18 @@ impl<const N: usize> Machine<N> {
 
     /// All of this cycle's datagrams came back: evaluate faults, then lock.
     pub(crate) fn cyclic_complete(&mut self, now: u64) {
-        if let Some(h) = self.sh.cyc.holdover {
+        if let Some(h) = self.c.holdover {
             if self.holdover_expired(now) || !self.resume_check(now, h) {
                 return;
             }
         }
-        self.sh.cyc.last_good = self.sh.cyc.sent_at;
-        self.sh.cyc.al_ok = self.sh.cyc.al_status;
-        self.sh.cyc.lost_streak = 0;
+        self.c.last_good = self.c.sent_at;
+        self.c.al_ok = self.c.al_status;
+        self.c.lost_streak = 0;
         let max_wkc = self.sh.cfg.monitor.max_wkc_errors;
         // Every slave counts the BRD of 0x0130, every slave with a system time the BRD of
         // 0x092C: either count changing means slaves appeared or disappeared.
-        let topo = match (self.sh.cyc.topo_wkc, self.sh.cyc.bound_wkc) {
+        let topo = match (self.c.topo_wkc, self.c.bound_wkc) {
             (Some(w), _) if w != self.sh.line.count => Some(w),
             (_, Some(w)) if w != self.sh.line.sys_count => Some(
                 self.sh
@@ -357,60 +393,55 @@ impl<const N: usize> Machine<N> {
         match topo {
             // A slave gone from its address in the same cycle as the count changed: the
             // topology changed, no need to wait for confirmation.
-            Some(found) if self.sh.cyc.lost_station.is_some() => {
-                return self.fault(
-                    now,
-                    Error::TopologyChanged {
-                        expected: self.sh.line.count,
-                        found,
-                    },
-                );
+            Some(found) if self.c.lost_station.is_some() => {
+                return self.fail(Error::TopologyChanged {
+                    expected: self.sh.line.count,
+                    found,
+                });
             }
             Some(found) => {
-                self.sh.cyc.topo_streak = self.sh.cyc.topo_streak.saturating_add(1);
-                if self.sh.cyc.topo_streak >= max_wkc {
-                    return self.fault(
-                        now,
-                        Error::TopologyChanged {
-                            expected: self.sh.line.count,
-                            found,
-                        },
-                    );
+                self.c.topo_streak = self.c.topo_streak.saturating_add(1);
+                if self.c.topo_streak >= max_wkc {
+                    return self.fail(Error::TopologyChanged {
+                        expected: self.sh.line.count,
+                        found,
+                    });
                 }
             }
-            None => self.sh.cyc.topo_streak = 0,
+            None => self.c.topo_streak = 0,
         }
         // A reset or lost reference no longer reads the FRMW; slaves behind a break no longer
         // write it.
-        match self.sh.cyc.frmw_wkc {
+        match self.c.frmw_wkc {
             Some(w) if w != self.sh.line.sys_count => {
-                self.sh.cyc.wkc_streak = self.sh.cyc.wkc_streak.saturating_add(1);
-                if self.sh.cyc.wkc_streak >= max_wkc {
-                    let station = self.slave(self.sh.line.reference).map_or(0, |s| s.station);
-                    return self.fault(
-                        now,
-                        Error::Wkc {
-                            command: self.frmw_op(now).command,
-                            station,
-                            register: reg::SYSTEM_TIME,
-                            expected: self.sh.line.sys_count,
-                            actual: w,
-                        },
-                    );
+                self.c.wkc_streak = self.c.wkc_streak.saturating_add(1);
+                if self.c.wkc_streak >= max_wkc {
+                    let station = self
+                        .sh
+                        .line
+                        .slave(self.sh.line.reference)
+                        .map_or(0, |s| s.station);
+                    return self.fail(Error::Wkc {
+                        command: self.sh.frmw_op(now).command,
+                        station,
+                        register: reg::SYSTEM_TIME,
+                        expected: self.sh.line.sys_count,
+                        actual: w,
+                    });
                 }
             }
-            _ => self.sh.cyc.wkc_streak = 0,
+            _ => self.c.wkc_streak = 0,
         }
-        if let Some(station) = self.sh.cyc.lost_station {
+        if let Some(station) = self.c.lost_station {
             // A power-cycled ESC has lost its station address; a broken link drops it too.
-            return self.fault(now, Error::SlaveLost { station });
+            return self.fail(Error::SlaveLost { station });
         }
-        if let Some(e) = self.sh.cyc.rm_error.take() {
-            self.sh.cyc.remeasure = crate::dc::cyclic::Remeasure::Idle;
-            return self.fault(now, e);
+        if let Some(e) = self.c.rm_error.take() {
+            self.c.remeasure = crate::dc::cyclic::Remeasure::Idle;
+            return self.fail(e);
         }
-        self.remeasure_advance(now);
-        if self.state() != State::Cyclic {
+        self.remeasure_advance();
+        if self.fault.is_some() {
             return;
         }
         self.update_lock();
@@ -418,45 +449,42 @@ impl<const N: usize> Machine<N> {
 
     fn update_lock(&mut self) {
         let m = self.sh.cfg.monitor;
-        let Some(bound) = self.sh.cyc.bound_ns else {
+        let Some(bound) = self.c.bound_ns else {
             return;
         };
         if bound <= m.lock_ns {
-            self.sh.cyc.good_streak = self.sh.cyc.good_streak.saturating_add(1);
+            self.c.good_streak = self.c.good_streak.saturating_add(1);
         } else {
-            self.sh.cyc.good_streak = 0;
+            self.c.good_streak = 0;
         }
         if bound > m.unlock_ns {
-            self.sh.cyc.bad_streak = self.sh.cyc.bad_streak.saturating_add(1);
+            self.c.bad_streak = self.c.bad_streak.saturating_add(1);
         } else {
-            self.sh.cyc.bad_streak = 0;
+            self.c.bad_streak = 0;
         }
-        if !self.sh.cyc.locked && self.sh.cyc.good_streak >= m.lock_cycles {
-            self.sh.cyc.locked = true;
-            self.sh.restart_streak = 0;
+        if !self.c.locked && self.c.good_streak >= m.lock_cycles {
+            self.c.locked = true;
+            self.sh.restarts.streak = 0;
             let frames = self
                 .sh
                 .stats
                 .frames_sent
-                .saturating_sub(self.sh.frames_at_start);
+                .saturating_sub(self.sh.restarts.frames_at_start);
             self.sh.stats.lock_frames = Some(frames);
-            self.push_event(Event::Locked {
+            self.sh.push_event(Event::Locked {
                 frames,
                 bound_ns: bound,
             });
-        } else if self.sh.cyc.locked && self.sh.cyc.bad_streak >= m.unlock_cycles {
-            self.sh.cyc.locked = false;
-            self.sh.cyc.not_locked_reported = false;
-            self.sh.cyc.cycles = 0;
-            self.push_event(Event::LockLost { bound_ns: bound });
+        } else if self.c.locked && self.c.bad_streak >= m.unlock_cycles {
+            self.c.locked = false;
+            self.c.not_locked_reported = false;
+            self.c.cycles = 0;
+            self.sh.push_event(Event::LockLost { bound_ns: bound });
         }
-        if !self.sh.cyc.locked
-            && !self.sh.cyc.not_locked_reported
-            && self.sh.cyc.cycles >= m.lock_timeout_cycles
-        {
-            self.sh.cyc.not_locked_reported = true;
-            self.push_event(Event::Error(Error::NotLocked {
-                cycles: self.sh.cyc.cycles,
+        if !self.c.locked && !self.c.not_locked_reported && self.c.cycles >= m.lock_timeout_cycles {
+            self.c.not_locked_reported = true;
+            self.sh.push_event(Event::Error(Error::NotLocked {
+                cycles: self.c.cycles,
                 bound_ns: bound,
             }));
         }
@@ -464,29 +492,26 @@ impl<const N: usize> Machine<N> {
 
     /// The cycle in flight is lost: coast, or give up after `max_lost_cycles`.
     pub(crate) fn cyclic_lost(&mut self, now: u64) {
-        self.stop_awaiting();
+        self.sh.stop_awaiting();
         self.sh.stats.lost_cycles = self.sh.stats.lost_cycles.saturating_add(1);
-        self.sh.cyc.lost_streak = self.sh.cyc.lost_streak.saturating_add(1);
+        self.c.lost_streak = self.c.lost_streak.saturating_add(1);
         // A lost re-measurement step is resent (a lost trigger restarts the measurement).
-        self.sh.cyc.rm_sent_to = self.sh.cyc.rm_cursor;
-        if self.sh.cyc.remeasure == Remeasure::After {
-            self.sh.cyc.remeasure = Remeasure::Before;
-            self.sh.cyc.rm_cursor = 0;
-            self.sh.cyc.rm_sent_to = 0;
+        self.c.rm_sent_to = self.c.rm_cursor;
+        if self.c.remeasure == Remeasure::After {
+            self.c.remeasure = Remeasure::Before;
+            self.c.rm_cursor = 0;
+            self.c.rm_sent_to = 0;
         }
-        if self.sh.cyc.holdover.is_some() {
+        if self.c.holdover.is_some() {
             let _ = self.holdover_expired(now);
-        } else if self.sh.cyc.lost_streak >= self.sh.cfg.monitor.max_lost_cycles {
+        } else if self.c.lost_streak >= self.sh.cfg.monitor.max_lost_cycles {
             if self.holdover_enabled() {
                 self.holdover_start(self.silence_since(), HoldoverCause::Silence);
                 let _ = self.holdover_expired(now);
             } else {
-                self.fault(
-                    now,
-                    Error::Timeout {
-                        state: State::Cyclic,
-                    },
-                );
+                self.fail(Error::Timeout {
+                    state: State::Cyclic,
+                });
             }
         }
     }
@@ -555,7 +580,7 @@ mod tests {
                 m.sh.line.sys_count += 1;
             }
         }
-        m.sh.cyc.rr = rr;
+        m.phase.cyclic_mut().unwrap().rr = rr;
         m.sh.inflight.next_index = next;
         m
     }
@@ -646,11 +671,16 @@ mod tests {
                 let f = eth.ecat_frame_unvalidated().unwrap().into_inner();
                 let n_sent = m.sh.inflight.fresh_len().unwrap();
                 let mut c = m.clone();
-                match c.cyclic_block_reply(T + 1, f, n_sent) {
+                match c
+                    .in_cyclic(T + 1, |cx| cx.cyclic_block_reply(T + 1, f, n_sent))
+                    .unwrap()
+                {
                     Some(true) => block_taken += 1,
                     Some(false) => panic!("block path refused its own reply"),
                     None => {
-                        assert!(c.cyclic_pattern_reply(T + 1, f, n_sent));
+                        assert!(c
+                            .in_cyclic(T + 1, |cx| cx.cyclic_pattern_reply(T + 1, f, n_sent))
+                            .unwrap());
                         pattern_taken += 1;
                     }
                 }
@@ -661,7 +691,8 @@ mod tests {
                 let mut c = m.clone();
                 let eth = EthernetFrame::new_checked(&v[..]).unwrap();
                 if let Some(f) = eth.ecat_frame_unvalidated() {
-                    if c.cyclic_fast(T + 1, f.into_inner()) {
+                    if c.in_cyclic(T + 1, |cx| cx.cyclic_fast(T + 1, f.into_inner())) == Some(true)
+                    {
                         fast_taken += 1;
                     }
                 }
@@ -673,7 +704,10 @@ mod tests {
                     let before = format!("{a:?}");
                     let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
                     let f = eth.ecat_frame_unvalidated().unwrap();
-                    assert!(!a.cyclic_fast(T + 2, f.into_inner()));
+                    assert_eq!(
+                        a.in_cyclic(T + 2, |cx| cx.cyclic_fast(T + 2, f.into_inner())),
+                        Some(false)
+                    );
                     assert_eq!(format!("{a:?}"), before);
                 }
                 cases += 1;
@@ -701,7 +735,9 @@ mod tests {
         }
         let before = m1.clone();
         let frmw = m1.frmw_op(T);
-        let block = m1.push_cycle_block(&mut b1, frmw);
+        let block = m1
+            .in_cyclic(T, |cx| cx.push_cycle_block(&mut b1, frmw))
+            .unwrap();
         if !block {
             assert_eq!(
                 m1.control_state(),
@@ -709,11 +745,17 @@ mod tests {
                 "declined block changed the machine"
             );
             assert_eq!(b1.datagram_count(), usize::from(caller));
-            let each = m1.push_cycle_each(&mut b1, frmw);
-            let each2 = m2.push_cycle_each(&mut b2, frmw);
+            let each = m1
+                .in_cyclic(T, |cx| cx.push_cycle_each(&mut b1, frmw))
+                .unwrap();
+            let each2 = m2
+                .in_cyclic(T, |cx| cx.push_cycle_each(&mut b2, frmw))
+                .unwrap();
             assert_eq!(each, each2);
         } else {
-            assert!(m2.push_cycle_each(&mut b2, frmw));
+            assert!(m2
+                .in_cyclic(T, |cx| cx.push_cycle_each(&mut b2, frmw))
+                .unwrap());
         }
         assert_eq!(b1.datagram_count(), b2.datagram_count());
         assert_eq!(b1.len(), b2.len());

@@ -8,10 +8,10 @@
 //!
 //! Oracle tests compare each path with the general one (`cyclic.rs` tests).
 
-use crate::dc::cyclic::{diff_reply, rr_after};
+use crate::dc::cyclic::{diff_reply, rr_after, CyclicCx};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::{index_after, Machine};
+use crate::dc::machine::index_after;
 use crate::dc::request::{Op, Payload, Pending, Tag};
 use crate::wire::register::reg;
 use crate::wire::{
@@ -24,7 +24,7 @@ const FPRD_LEN: usize = 4 + DATAGRAM_OVERHEAD;
 /// The M bit of a datagram's length word, in the first 8 header bytes read as a `u64`.
 const MORE_BIT: u64 = 1 << 63;
 
-impl<const N: usize> Machine<N> {
+impl<const N: usize> CyclicCx<'_, N> {
     /// The cycle's fixed datagrams (FRMW, BRD 0x092C, BRD 0x0130, the round robin's FPRD
     /// 0x092C) written as one block: the same bytes, indexes, in-flight entries and
     /// round-robin cursor as pushing them one by one with `push_op` (the fallback in
@@ -60,7 +60,11 @@ impl<const N: usize> Machine<N> {
         let Some((fixed_slots, rr_slots)) = self.sh.inflight.entries.split_at_mut_checked(3) else {
             return false;
         };
-        let (list, j) = self.sh.monitor.get(&self.sh.line.slaves, count, start);
+        let (list, j) = self
+            .sh
+            .scratch
+            .monitor
+            .get(&self.sh.line.slaves, count, start);
         let budget = usize::from(self.sh.cfg.monitor.slaves_per_cycle);
         let (before, after) = list.split_at(j.min(list.len()));
         let k = budget.min(list.len());
@@ -69,7 +73,7 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         let new_rr = if count == 0 || budget == 0 {
-            self.sh.cyc.rr
+            self.c.rr
         } else if budget <= list.len() {
             // The budget-th read: list[j + budget − 1], wrapped.
             let at = j.wrapping_add(budget).wrapping_sub(1);
@@ -198,7 +202,7 @@ impl<const N: usize> Machine<N> {
             }
             None => ok = false,
         }
-        self.sh.cyc.rr = new_rr;
+        self.c.rr = new_rr;
         self.sh.inflight.next_index = next;
         ok &= self.sh.inflight.mark_filled(n);
         // Unreachable by construction: `rest` was exactly `total` bytes, the sum of the pieces
@@ -208,8 +212,8 @@ impl<const N: usize> Machine<N> {
         // and the fault is reported instead of a panic (REQ-CONV-008).
         if !ok || !rest.is_empty() {
             self.sh.inflight.clear();
-            self.push_event(Event::Error(Error::Internal {
-                state: self.state(),
+            self.sh.push_event(Event::Error(Error::Internal {
+                state: crate::dc::State::Cyclic,
             }));
         }
         true
@@ -295,12 +299,8 @@ impl<const N: usize> Machine<N> {
         self.on_bound_reply(wkc, data);
         let (data, wkc) = data_wkc(d2);
         self.on_topology_reply(wkc, data);
-        let crate::dc::machine::Shared {
-            inflight,
-            line,
-            cyc,
-            ..
-        } = &mut self.sh;
+        let crate::dc::machine::Shared { inflight, line, .. } = &mut *self.sh;
+        let cyc = &mut *self.c;
         let reads = inflight.entries.get(3..n).unwrap_or(&[]);
         for (p, d) in reads.iter().zip(rr.chunks_exact(FPRD_LEN)) {
             if let (Some(p), Some((_, data)), Some((_, wkc))) = (

@@ -25,7 +25,7 @@
 //! A failed check is a typed fault ([`Error::ResumeCheckFailed`]) and the usual
 //! re-initialisation; a passed one resumes monitoring and lock detection where they were.
 
-use crate::dc::cyclic::Remeasure;
+use crate::dc::cyclic::{CyclicCx, Remeasure};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::Machine;
@@ -103,7 +103,7 @@ pub(crate) struct Holdover {
 /// AL status bit 0: set in INIT (1) and BOOT (3), the AL state codes of 0x0130 bits 3..0.
 const AL_INIT_BIT: u16 = 0x0001;
 
-impl<const N: usize> Machine<N> {
+impl<const N: usize> CyclicCx<'_, N> {
     /// Whether hold-over replaces the re-initialisation on silence (`holdover_ns` > 0).
     #[inline]
     pub(crate) fn holdover_enabled(&self) -> bool {
@@ -112,24 +112,24 @@ impl<const N: usize> Machine<N> {
 
     /// Enters hold-over (idempotent): reports it and suspends what needs every cycle.
     pub(crate) fn holdover_start(&mut self, since: u64, cause: HoldoverCause) {
-        if self.sh.cyc.holdover.is_some() {
+        if self.c.holdover.is_some() {
             return;
         }
-        self.sh.cyc.holdover = Some(Holdover {
+        self.c.holdover = Some(Holdover {
             since,
             cause,
-            al_before: self.sh.cyc.al_ok,
+            al_before: self.c.al_ok,
         });
         // A delay re-measurement cut by the silence is run again from its first step once
         // the wire is back (some 0x0928 may already be rewritten: the rerun rewrites all).
-        if self.sh.cyc.remeasure != Remeasure::Idle {
-            self.sh.cyc.remeasure = Remeasure::Idle;
-            self.sh.cyc.remeasure_requested = true;
-            self.sh.cyc.rm_cursor = 0;
-            self.sh.cyc.rm_sent_to = 0;
-            self.sh.cyc.rm_error = None;
+        if self.c.remeasure != Remeasure::Idle {
+            self.c.remeasure = Remeasure::Idle;
+            self.c.remeasure_requested = true;
+            self.c.rm_cursor = 0;
+            self.c.rm_sent_to = 0;
+            self.c.rm_error = None;
         }
-        self.push_event(Event::HoldoverStarted { since, cause });
+        self.sh.push_event(Event::HoldoverStarted { since, cause });
     }
 
     /// In hold-over and silent for longer than `holdover_ns` at `now`: re-initialise.
@@ -137,7 +137,7 @@ impl<const N: usize> Machine<N> {
     /// and the first cycle after a silence can leave up to one period after it ended: one
     /// period more is allowed, so that a silence of exactly `holdover_ns` is held over.
     pub(crate) fn holdover_expired(&mut self, now: u64) -> bool {
-        let Some(h) = self.sh.cyc.holdover else {
+        let Some(h) = self.c.holdover else {
             return false;
         };
         let silent_ns = now.saturating_sub(h.since);
@@ -149,7 +149,7 @@ impl<const N: usize> Machine<N> {
         if silent_ns <= limit {
             return false;
         }
-        self.fault(now, Error::HoldoverExpired { silent_ns });
+        self.fail(Error::HoldoverExpired { silent_ns });
         true
     }
 
@@ -159,25 +159,25 @@ impl<const N: usize> Machine<N> {
         let result = self.resume_result(h);
         match result {
             Ok(check) => {
-                self.sh.cyc.holdover = None;
-                self.sh.cyc.topo_streak = 0;
-                self.sh.cyc.wkc_streak = 0;
+                self.c.holdover = None;
+                self.c.topo_streak = 0;
+                self.c.wkc_streak = 0;
                 self.sh.stats.holdovers = self.sh.stats.holdovers.saturating_add(1);
-                self.push_event(Event::HoldoverEnded {
+                self.sh.push_event(Event::HoldoverEnded {
                     after_ns: now.saturating_sub(h.since),
                     check,
                 });
                 true
             }
             Err(failure) => {
-                self.fault(now, Error::ResumeCheckFailed { failure });
+                self.fail(Error::ResumeCheckFailed { failure });
                 false
             }
         }
     }
 
     fn resume_result(&self, h: Holdover) -> Result<ResumeCheck, ResumeFailure> {
-        let c = &self.sh.cyc;
+        let c = &*self.c;
         let found = c.topo_wkc.unwrap_or(0);
         if found != self.sh.line.count {
             return Err(ResumeFailure::SlaveCount {
@@ -225,10 +225,12 @@ impl<const N: usize> Machine<N> {
             bound_ns,
         })
     }
+}
 
+impl<const N: usize> Machine<N> {
     /// Whether the cyclic phase is in hold-over.
     pub fn in_holdover(&self) -> bool {
-        self.state() == crate::dc::State::Cyclic && self.sh.cyc.holdover.is_some()
+        self.phase.cyclic().is_some_and(|c| c.holdover.is_some())
     }
 
     /// Master time at which the running re-initialisation pause ends (`RestartWait` only).

@@ -49,6 +49,27 @@ impl<const N: usize> Line<N> {
         self.slaves.get(..usize::from(self.count)).unwrap_or(&[])
     }
 
+    /// The slave found at position `pos`.
+    pub(crate) fn slave(&self, pos: u16) -> Option<&SlaveInfo> {
+        self.slaves
+            .get(usize::from(pos))
+            .filter(|_| pos < self.count)
+    }
+
+    /// The slave found at position `pos`.
+    pub(crate) fn slave_mut(&mut self, pos: u16) -> Option<&mut SlaveInfo> {
+        let count = self.count;
+        self.slaves
+            .get_mut(usize::from(pos))
+            .filter(|_| pos < count)
+    }
+
+    /// Slaves found with receive-time latches: the working counter of a latching BWR.
+    pub(crate) fn latching_count(&self) -> u16 {
+        let n = self.found().iter().filter(|s| s.dc.has_latches()).count();
+        u16::try_from(n).unwrap_or(u16::MAX)
+    }
+
     /// Back to [`new`](Self::new) in place (nothing of size `N` on the stack).
     pub(crate) fn clear(&mut self) {
         self.slaves.fill(SlaveInfo::EMPTY);

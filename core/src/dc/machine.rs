@@ -1,12 +1,10 @@
 //! [`Machine`]: the sans-IO DC bring-up and cyclic state machine.
 
 use crate::dc::config::{Config, ConfigError};
-use crate::dc::cyclic::CyclicState;
 use crate::dc::error::Error;
 use crate::dc::event::{Event, EventQueue};
 use crate::dc::line::Line;
 use crate::dc::measure::LatchRounds;
-use crate::dc::monitor::MonitorList;
 use crate::dc::phase::Phase;
 use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::scratch::Scratch;
@@ -89,6 +87,24 @@ impl StepProgress {
     };
 }
 
+/// Re-initialisation bookkeeping: the backoff's exponent and where `Stats::lock_frames` counts
+/// from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) struct Restarts {
+    /// Re-initialisations since the last lock (or `start`): the backoff's exponent.
+    pub(crate) streak: u8,
+    /// `Stats::frames_sent` at the last `start` or re-initialisation.
+    pub(crate) frames_at_start: u64,
+}
+
+impl Restarts {
+    /// None yet.
+    pub(crate) const NONE: Restarts = Restarts {
+        streak: 0,
+        frames_at_start: 0,
+    };
+}
+
 /// One item of a request step.
 pub(crate) enum Item {
     /// Send this datagram.
@@ -124,6 +140,39 @@ pub struct Machine<const N: usize> {
 }
 
 impl<const N: usize> Shared<N> {
+    /// Gives up the frame in flight: its datagrams are forgotten (a late reply is foreign)
+    /// and the reply timer stops.
+    pub(crate) fn stop_awaiting(&mut self) {
+        self.inflight.clear();
+        self.timers.stop(Timer::Reply);
+    }
+
+    /// The next datagram index of the configured range.
+    pub(crate) fn alloc_index(&mut self) -> u8 {
+        let i = self.inflight.next_index;
+        self.inflight.next_index = index_after(i, self.cfg.index_first, self.cfg.index_count);
+        i
+    }
+
+    /// Emits `op` into `b` and records it in flight; false if it did not fit.
+    pub(crate) fn push_op(&mut self, b: &mut FrameBuilder<'_>, op: Op, tag: Tag) -> bool {
+        if !self.inflight.has_room() {
+            return false;
+        }
+        let index = self.alloc_index();
+        if op.emit(b, index).is_err() {
+            return false;
+        }
+        self.inflight.insert(Pending {
+            index,
+            command: op.command,
+            register: op.register(),
+            station: op.station(),
+            len: op.len,
+            tag,
+        })
+    }
+
     /// Queues an event, counting it in `Stats::events_dropped` when the queue is full.
     pub(crate) fn push_event(&mut self, e: Event) {
         if !self.events.push(e) {
@@ -149,16 +198,12 @@ pub(crate) struct Shared<const N: usize> {
     pub(crate) stats: Stats,
     /// Master time of the last transmission of a request step.
     pub(crate) last_sent: u64,
-    pub(crate) frames_at_start: u64,
+    /// Re-initialisation bookkeeping.
+    pub(crate) restarts: Restarts,
     /// The delay measurement's rounds (`dc/measure.rs`).
     pub(crate) latch: LatchRounds<N>,
-    pub(crate) cyc: CyclicState,
-    /// The round robin's slave list (a cache of `slaves`, see `dc/monitor.rs`).
-    pub(crate) monitor: MonitorList<N>,
     /// The t_Diff measurement's own data (`dc/tdiff.rs`).
     pub(crate) tdiff: Tdiff<N>,
-    /// Re-initialisations since the last lock (or `start`): the backoff's exponent.
-    pub(crate) restart_streak: u8,
     /// Working tables of the computations (`dc/scratch.rs`).
     pub(crate) scratch: Scratch<N>,
 }
@@ -222,12 +267,9 @@ impl<const N: usize> Machine<N> {
             events,
             stats,
             last_sent,
-            frames_at_start,
+            restarts,
             latch,
-            cyc,
-            monitor,
             tdiff,
-            restart_streak,
             scratch,
         } = sh;
         *c = cfg;
@@ -239,12 +281,10 @@ impl<const N: usize> Machine<N> {
         *events = EventQueue::new();
         *stats = Stats::ZERO;
         *last_sent = 0;
-        *frames_at_start = 0;
+        *restarts = Restarts::NONE;
         latch.clear();
-        *cyc = CyclicState::IDLE;
-        monitor.clear();
+        scratch.monitor.clear();
         tdiff.forget();
-        *restart_streak = 0;
         // The working tables' other contents are overwritten before they are read.
         scratch.topo.clear();
         scratch.round.clear();
@@ -264,12 +304,9 @@ impl<const N: usize> Machine<N> {
                 events: EventQueue::new(),
                 stats: Stats::ZERO,
                 last_sent: 0,
-                frames_at_start: 0,
+                restarts: Restarts::NONE,
                 latch: LatchRounds::new(),
-                cyc: CyclicState::IDLE,
-                monitor: MonitorList::new(),
                 tdiff: Tdiff::new(),
-                restart_streak: 0,
                 scratch: Scratch::new(),
             },
         }
@@ -280,8 +317,8 @@ impl<const N: usize> Machine<N> {
     /// Starts (or restarts) the bring-up from `CountSlaves`.
     pub fn start(&mut self, _now: SystemTime) {
         self.reset();
-        self.sh.restart_streak = 0;
-        self.sh.frames_at_start = self.sh.stats.frames_sent;
+        self.sh.restarts.streak = 0;
+        self.sh.restarts.frames_at_start = self.sh.stats.frames_sent;
         self.enter(State::CountSlaves);
     }
 
@@ -295,8 +332,8 @@ impl<const N: usize> Machine<N> {
     /// "continuous propagation delay measurement"). It runs in spare room of the following
     /// cycles and rewrites only 0x0928 (REQ-DC-107). Ignored outside `Cyclic`.
     pub fn request_delay_measurement(&mut self) {
-        if self.state() == State::Cyclic {
-            self.sh.cyc.remeasure_requested = true;
+        if let Some(c) = self.phase.cyclic_mut() {
+            c.remeasure_requested = true;
         }
     }
 
@@ -360,16 +397,18 @@ impl<const N: usize> Machine<N> {
     }
     /// Whether cyclic operation is locked.
     pub fn is_locked(&self) -> bool {
-        self.state() == State::Cyclic && self.sh.cyc.locked && self.sh.cyc.holdover.is_none()
+        self.phase
+            .cyclic()
+            .is_some_and(|c| c.locked && c.holdover.is_none())
     }
     /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
     pub fn diff_bound_ns(&self) -> Option<u32> {
-        self.sh.cyc.bound_ns
+        self.phase.cyclic().and_then(|c| c.bound_ns)
     }
     /// Reference system time returned by the last cyclic FRMW (64 bit; for a 32-bit reference,
     /// extended around the master's clock).
     pub fn reference_time(&self) -> Option<SystemTime> {
-        self.sh.cyc.ref_time.map(SystemTime)
+        self.phase.cyclic().and_then(|c| c.ref_time).map(SystemTime)
     }
     /// System time of the first SYNC0 pulse programmed in the last bring-up.
     pub fn sync_start(&self) -> Option<SystemTime> {
@@ -381,11 +420,9 @@ impl<const N: usize> Machine<N> {
         self.sh.timers.is_set(Timer::Reply)
     }
 
-    /// Gives up the frame in flight: its datagrams are forgotten (a late reply is foreign)
-    /// and the reply timer stops.
+    /// Gives up the frame in flight (`Shared::stop_awaiting`).
     pub(crate) fn stop_awaiting(&mut self) {
-        self.sh.inflight.clear();
-        self.sh.timers.stop(Timer::Reply);
+        self.sh.stop_awaiting();
     }
     // ----- output ---------------------------------------------------------------------------
 
@@ -461,7 +498,7 @@ impl<const N: usize> Machine<N> {
         if self.sh.timers.expired(Timer::Reply, at) {
             self.sh.stats.timeouts = self.sh.stats.timeouts.saturating_add(1);
             if self.state() == State::Cyclic {
-                self.cyclic_lost(now);
+                self.in_cyclic(now, |cx| cx.cyclic_lost(now));
             } else {
                 self.stop_awaiting();
                 let e = self.sh.step.error.take().unwrap_or(Error::Timeout {
@@ -471,7 +508,7 @@ impl<const N: usize> Machine<N> {
             }
         }
         if self.sh.timers.expired(Timer::Restart, at) {
-            self.sh.frames_at_start = self.sh.stats.frames_sent;
+            self.sh.restarts.frames_at_start = self.sh.stats.frames_sent;
             self.enter(State::CountSlaves);
         }
     }
@@ -499,7 +536,7 @@ impl<const N: usize> Machine<N> {
         // pass (same result as the general path below, which handles everything else).
         if fast && self.state() == State::Cyclic && self.is_awaiting_reply() {
             if let Some(frame) = eth.ecat_frame_unvalidated() {
-                if self.cyclic_fast(now, frame.into_inner()) {
+                if self.in_cyclic(now, |cx| cx.cyclic_fast(now, frame.into_inner())) == Some(true) {
                     return self.replies_done(now);
                 }
             }
@@ -539,7 +576,7 @@ impl<const N: usize> Machine<N> {
         if self.is_awaiting_reply() && self.sh.inflight.is_empty() {
             self.sh.timers.stop(Timer::Reply);
             if self.state() == State::Cyclic {
-                self.cyclic_complete(now);
+                self.in_cyclic(now, |cx| cx.cyclic_complete(now));
             } else if self.state().is_request_step() {
                 self.step_complete(now);
             }
@@ -586,11 +623,10 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn fault(&mut self, now: u64, e: Error) {
         self.push_event(Event::Error(e));
         self.stop_awaiting();
-        self.sh.cyc = CyclicState::default();
         if self.sh.cfg.auto_restart {
             self.sh.stats.restarts = self.sh.stats.restarts.saturating_add(1);
             let wake = SystemTime(now.saturating_add(self.restart_delay()));
-            self.sh.restart_streak = self.sh.restart_streak.saturating_add(1);
+            self.sh.restarts.streak = self.sh.restarts.streak.saturating_add(1);
             self.enter(State::RestartWait);
             if self.state() == State::RestartWait {
                 self.sh.timers.set(Timer::Restart, wake);
@@ -606,7 +642,7 @@ impl<const N: usize> Machine<N> {
     fn restart_delay(&self) -> u64 {
         let base = self.sh.cfg.restart_delay_ns;
         let factor = 1u64
-            .checked_shl(u32::from(self.sh.restart_streak.min(40)))
+            .checked_shl(u32::from(self.sh.restarts.streak.min(40)))
             .unwrap_or(u64::MAX);
         base.saturating_mul(factor)
             .min(self.sh.cfg.restart_backoff_max_ns.max(base))
@@ -631,35 +667,15 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn alloc_index(&mut self) -> u8 {
-        let i = self.sh.inflight.next_index;
-        self.sh.inflight.next_index =
-            index_after(i, self.sh.cfg.index_first, self.sh.cfg.index_count);
-        i
-    }
-
-    /// Emits `op` into `b` and records it in flight; false if it did not fit.
     pub(crate) fn push_op(&mut self, b: &mut FrameBuilder<'_>, op: Op, tag: Tag) -> bool {
-        if !self.sh.inflight.has_room() {
-            return false;
-        }
-        let index = self.alloc_index();
-        if op.emit(b, index).is_err() {
-            return false;
-        }
-        self.sh.inflight.insert(Pending {
-            index,
-            command: op.command,
-            register: op.register(),
-            station: op.station(),
-            len: op.len,
-            tag,
-        })
+        self.sh.push_op(b, op, tag)
     }
 
     fn fill(&mut self, now: u64, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
         if self.state() == State::Cyclic {
-            return self.fill_cyclic(now, b, into_caller);
+            return self
+                .in_cyclic(now, |cx| cx.fill_cyclic(now, b, into_caller))
+                .unwrap_or(false);
         }
         if !self.state().is_request_step() || self.is_awaiting_reply() {
             return false;
@@ -669,7 +685,9 @@ impl<const N: usize> Machine<N> {
         // between two sends.
         for _ in 0..64u8 {
             if !self.state().is_request_step() {
-                return self.state() == State::Cyclic && self.fill_cyclic(now, b, into_caller);
+                return self
+                    .in_cyclic(now, |cx| cx.fill_cyclic(now, b, into_caller))
+                    .unwrap_or(false);
             }
             let count = self.item_count();
             while self.sh.step.cursor < count
@@ -730,7 +748,8 @@ impl<const N: usize> Machine<N> {
     fn on_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
         // The cyclic path first (neither guard below holds in `Cyclic`).
         if self.state() == State::Cyclic {
-            return self.on_cyclic_reply(now, p, wkc, data);
+            self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
+            return;
         }
         match p.tag {
             Tag::Item(i) if self.state().is_request_step() => {
@@ -743,7 +762,9 @@ impl<const N: usize> Machine<N> {
                     self.sh.step.error.get_or_insert(e);
                 }
             }
-            _ if self.state() == State::Cyclic => self.on_cyclic_reply(now, p, wkc, data),
+            _ if self.state() == State::Cyclic => {
+                self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
+            }
             _ => {}
         }
     }
@@ -764,36 +785,17 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// Expected-WKC check shared by every step.
+    /// Expected-WKC check shared by every step ([`expect_wkc`]).
     pub(crate) fn expect_wkc(&self, p: Pending, expected: u16, actual: u16) -> Result<(), Error> {
-        if expected == actual {
-            Ok(())
-        } else {
-            Err(Error::Wkc {
-                command: p.command,
-                station: p.station,
-                register: p.register,
-                expected,
-                actual,
-            })
-        }
+        expect_wkc(p, expected, actual)
     }
 
     pub(crate) fn slave(&self, pos: u16) -> Option<&SlaveInfo> {
-        self.sh
-            .line
-            .slaves
-            .get(usize::from(pos))
-            .filter(|_| pos < self.sh.line.count)
+        self.sh.line.slave(pos)
     }
 
     pub(crate) fn slave_mut(&mut self, pos: u16) -> Option<&mut SlaveInfo> {
-        let count = self.sh.line.count;
-        self.sh
-            .line
-            .slaves
-            .get_mut(usize::from(pos))
-            .filter(|_| pos < count)
+        self.sh.line.slave_mut(pos)
     }
 
     /// Positions `0..count`, as u16.
@@ -815,3 +817,18 @@ pub(crate) fn index_after(i: u8, first: u8, count: u8) -> u8 {
 
 /// Compile-time guard: the index range must be able to hold two frames' worth of datagrams.
 const _: () = assert!(MAX_INFLIGHT <= 64);
+
+/// Expected-WKC check shared by every step.
+pub(crate) fn expect_wkc(p: Pending, expected: u16, actual: u16) -> Result<(), Error> {
+    if expected == actual {
+        Ok(())
+    } else {
+        Err(Error::Wkc {
+            command: p.command,
+            station: p.station,
+            register: p.register,
+            expected,
+            actual,
+        })
+    }
+}

@@ -80,7 +80,7 @@ impl<const N: usize> Machine<N> {
             State::LatchTrigger => {
                 // Every slave with latches must have seen the write; slaves without DC may or
                 // may not count it, so the WKC lies between the two.
-                let latching = self.latching_count();
+                let latching = self.sh.line.latching_count();
                 if wkc < latching || wkc > self.sh.line.count {
                     return Err(crate::dc::error::Error::Wkc {
                         command: p.command,
@@ -115,18 +115,12 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// Slaves with receive-time latches.
-    pub(crate) fn latching_count(&self) -> u16 {
-        let n = self.slaves().iter().filter(|s| s.dc.has_latches()).count();
-        u16::try_from(n).unwrap_or(u16::MAX)
-    }
-
     pub(crate) fn measure_done(&mut self) -> Result<State, Error> {
         match self.state() {
             State::LatchReadBefore => Ok(State::LatchTrigger),
             State::LatchTrigger => Ok(State::LatchReadAfter),
             State::LatchReadAfter => {
-                self.add_latch_round()?;
+                self.sh.add_latch_round()?;
                 self.sh.latch.round = self.sh.latch.round.saturating_add(1);
                 if self.sh.latch.round < self.sh.cfg.latch_rounds {
                     return Ok(State::LatchReadBefore);
@@ -145,7 +139,7 @@ impl<const N: usize> Machine<N> {
         let applied = self.apply_delays();
         self.sh.latch.sum.clear();
         let max_seen = applied?;
-        self.compute_offsets()?;
+        self.sh.compute_offsets()?;
         self.push_event(Event::DelaysMeasured {
             max_delay_ns: max_seen,
         });

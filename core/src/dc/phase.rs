@@ -7,6 +7,7 @@
 //! behind. Within a phase, moving from one step to the next keeps the data (the drift gate
 //! counts across its bursts and checks).
 
+use crate::dc::cyclic::CyclicState;
 use crate::dc::drift::DriftGate;
 use crate::dc::state::State;
 
@@ -72,7 +73,8 @@ pub(crate) enum Phase {
     /// The convergence gate lives as long as the drift compensation.
     Drift(DriftStep, DriftGate),
     Activation(ActivationStep),
-    Cyclic,
+    /// Cyclic operation's bookkeeping, hold-over and re-measurement (`dc/cyclic.rs`).
+    Cyclic(CyclicState),
     RestartWait,
     Failed,
 }
@@ -115,7 +117,7 @@ impl Phase {
                 ActivationStep::ProgramSync => State::ProgramSync,
                 ActivationStep::ActivateSync => State::ActivateSync,
             },
-            Phase::Cyclic => State::Cyclic,
+            Phase::Cyclic(_) => State::Cyclic,
             Phase::RestartWait => State::RestartWait,
             Phase::Failed => State::Failed,
         }
@@ -159,7 +161,10 @@ impl Phase {
             State::ClearActivation => Phase::Activation(ActivationStep::ClearActivation),
             State::ProgramSync => Phase::Activation(ActivationStep::ProgramSync),
             State::ActivateSync => Phase::Activation(ActivationStep::ActivateSync),
-            State::Cyclic => Phase::Cyclic,
+            State::Cyclic => match self {
+                Phase::Cyclic(c) => Phase::Cyclic(c),
+                _ => Phase::Cyclic(CyclicState::IDLE),
+            },
             State::RestartWait => Phase::RestartWait,
             State::Failed => Phase::Failed,
         }
@@ -177,6 +182,22 @@ impl Phase {
     pub(crate) fn drift_gate_mut(&mut self) -> Option<&mut DriftGate> {
         match self {
             Phase::Drift(_, gate) => Some(gate),
+            _ => None,
+        }
+    }
+
+    /// Cyclic operation's data, in `Cyclic`.
+    pub(crate) fn cyclic(&self) -> Option<&CyclicState> {
+        match self {
+            Phase::Cyclic(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// Cyclic operation's data, in `Cyclic`.
+    pub(crate) fn cyclic_mut(&mut self) -> Option<&mut CyclicState> {
+        match self {
+            Phase::Cyclic(c) => Some(c),
             _ => None,
         }
     }

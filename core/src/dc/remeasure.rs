@@ -4,10 +4,10 @@
 //! never touched here: a delay change is slewed by the ESC, an offset change would step the
 //! clock (Lambert, IgH patch 0009).
 
-use crate::dc::cyclic::Remeasure;
+use crate::dc::cyclic::{CyclicCx, Remeasure};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::Machine;
+use crate::dc::machine::expect_wkc;
 use crate::dc::measure::port_times;
 use crate::dc::request::{Op, Pending, Tag};
 use crate::wire::register::reg;
@@ -16,10 +16,10 @@ use crate::wire::FrameBuilder;
 /// Re-measurement datagrams per cycle at most. ecdc choice: 8 keeps the cyclic frame small.
 const PER_CYCLE: u16 = 8;
 
-impl<const N: usize> Machine<N> {
+impl<const N: usize> CyclicCx<'_, N> {
     fn remeasure_op(&self, pos: u16) -> Option<Op> {
-        let s = self.slave(pos)?;
-        match self.sh.cyc.remeasure {
+        let s = self.sh.line.slave(pos)?;
+        match self.c.remeasure {
             Remeasure::Idle => None,
             Remeasure::Trigger => Some(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
             Remeasure::Before if s.dc.has_latches() => {
@@ -36,7 +36,7 @@ impl<const N: usize> Machine<N> {
     }
 
     fn remeasure_len(&self) -> u16 {
-        match self.sh.cyc.remeasure {
+        match self.c.remeasure {
             Remeasure::Idle => 0,
             Remeasure::Trigger => 1,
             _ => self.sh.line.count,
@@ -44,33 +44,33 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn fill_remeasure(&mut self, _now: u64, b: &mut FrameBuilder<'_>) {
-        if self.sh.cyc.remeasure == Remeasure::Idle {
-            if !self.sh.cyc.remeasure_requested {
+        if self.c.remeasure == Remeasure::Idle {
+            if !self.c.remeasure_requested {
                 return;
             }
-            self.sh.cyc.remeasure_requested = false;
-            self.sh.cyc.remeasure = Remeasure::Before;
-            self.sh.cyc.rm_cursor = 0;
-            self.sh.cyc.rm_error = None;
+            self.c.remeasure_requested = false;
+            self.c.remeasure = Remeasure::Before;
+            self.c.rm_cursor = 0;
+            self.c.rm_error = None;
         }
         let len = self.remeasure_len();
-        let mut pos = self.sh.cyc.rm_cursor;
+        let mut pos = self.c.rm_cursor;
         let mut pushed = 0u16;
         while pos < len && pushed < PER_CYCLE {
             if let Some(op) = self.remeasure_op(pos) {
-                if !self.push_op(b, op, Tag::CycRemeasure(pos)) {
+                if !self.sh.push_op(b, op, Tag::CycRemeasure(pos)) {
                     break;
                 }
                 pushed = pushed.saturating_add(1);
             }
             pos = pos.saturating_add(1);
         }
-        self.sh.cyc.rm_sent_to = pos;
+        self.c.rm_sent_to = pos;
     }
 
     pub(crate) fn remeasure_reply(&mut self, i: u16, p: Pending, wkc: u16, data: &[u8]) {
         if let Err(e) = self.remeasure_store(i, p, wkc, data) {
-            self.sh.cyc.rm_error.get_or_insert(e);
+            self.c.rm_error.get_or_insert(e);
         }
     }
 
@@ -79,9 +79,9 @@ impl<const N: usize> Machine<N> {
             station: p.station,
             register: p.register,
         };
-        match self.sh.cyc.remeasure {
+        match self.c.remeasure {
             Remeasure::Trigger => {
-                let latching = self.latching_count();
+                let latching = self.sh.line.latching_count();
                 if wkc < latching || wkc > self.sh.line.count {
                     return Err(Error::Wkc {
                         command: p.command,
@@ -93,10 +93,10 @@ impl<const N: usize> Machine<N> {
                 }
             }
             Remeasure::Before | Remeasure::After => {
-                self.expect_wkc(p, 1, wkc)?;
+                expect_wkc(p, 1, wkc)?;
                 let t = port_times(data).ok_or(bad)?;
-                let after = self.sh.cyc.remeasure == Remeasure::After;
-                if let Some(s) = self.slave_mut(i) {
+                let after = self.c.remeasure == Remeasure::After;
+                if let Some(s) = self.sh.line.slave_mut(i) {
                     if after {
                         s.times_after = t;
                     } else {
@@ -104,31 +104,31 @@ impl<const N: usize> Machine<N> {
                     }
                 }
             }
-            Remeasure::Write => self.expect_wkc(p, 1, wkc)?,
+            Remeasure::Write => expect_wkc(p, 1, wkc)?,
             Remeasure::Idle => {}
         }
         Ok(())
     }
 
     /// Called when a cycle came back complete: move the re-measurement on.
-    pub(crate) fn remeasure_advance(&mut self, now: u64) {
-        if self.sh.cyc.remeasure == Remeasure::Idle {
+    pub(crate) fn remeasure_advance(&mut self) {
+        if self.c.remeasure == Remeasure::Idle {
             return;
         }
-        self.sh.cyc.rm_cursor = self.sh.cyc.rm_sent_to;
-        if self.sh.cyc.rm_cursor < self.remeasure_len() {
+        self.c.rm_cursor = self.c.rm_sent_to;
+        if self.c.rm_cursor < self.remeasure_len() {
             return;
         }
-        self.sh.cyc.rm_cursor = 0;
-        self.sh.cyc.rm_sent_to = 0;
-        self.sh.cyc.remeasure = match self.sh.cyc.remeasure {
+        self.c.rm_cursor = 0;
+        self.c.rm_sent_to = 0;
+        self.c.remeasure = match self.c.remeasure {
             Remeasure::Before => Remeasure::Trigger,
             Remeasure::Trigger => Remeasure::After,
             Remeasure::After => match self.remeasure_compute() {
                 Ok(()) => Remeasure::Write,
                 Err(e) => {
-                    self.sh.cyc.remeasure = Remeasure::Idle;
-                    return self.fault(now, e);
+                    self.c.remeasure = Remeasure::Idle;
+                    return self.fail(e);
                 }
             },
             Remeasure::Write => {
@@ -138,7 +138,7 @@ impl<const N: usize> Machine<N> {
                     max_change = max_change.max(s.delay_new.abs_diff(s.delay_ns));
                     s.delay_ns = s.delay_new;
                 }
-                self.push_event(Event::DelaysUpdated {
+                self.sh.push_event(Event::DelaysUpdated {
                     max_change_ns: max_change,
                 });
                 Remeasure::Idle
@@ -156,7 +156,7 @@ impl<const N: usize> Machine<N> {
         for s in self.sh.line.slaves.iter_mut() {
             s.delay_sum = 0;
         }
-        self.accumulate_round()?;
+        self.sh.accumulate_round()?;
         let max = self.sh.cfg.max_delay_ns;
         let count = self.sh.line.count;
         for s in self.sh.line.slaves.iter_mut().take(usize::from(count)) {

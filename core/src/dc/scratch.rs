@@ -3,10 +3,12 @@
 //! values). They live inside the machine, not on the thread's stack, so that a step of a
 //! `Machine<N>` needs a stack independent of `N` (issue #15: a bring-up of 1024 slaves within
 //! 64 KiB of stack). Nothing here carries state from one computation to the next, except the
-//! last latch round's topology and delays, which the step that follows reads.
+//! last latch round's topology and delays, which the step that follows reads, and the round
+//! robin's list, a cache checked against the slave table before each use.
 //! Only those two belong to the machine's control state (`dc/control.rs`).
 
 use crate::dc::delay::{DelayScratch, Delays};
+use crate::dc::monitor::MonitorList;
 use crate::dc::port::{Port, PortSet};
 use crate::dc::tdiff::TdiffSource;
 use crate::dc::topology::{SlaveSample, Topology};
@@ -27,6 +29,9 @@ pub(crate) struct Scratch<const N: usize> {
     pub(crate) subtree: [u16; N],
     /// t_Diff resolution: (value, source) per position.
     pub(crate) resolved: [(i32, TdiffSource); N],
+    /// The cyclic round robin's slave list: a cache of the slave table, rebuilt whenever it
+    /// might not match it (`dc/monitor.rs`).
+    pub(crate) monitor: MonitorList<N>,
 }
 
 impl<const N: usize> Scratch<N> {
@@ -43,6 +48,7 @@ impl<const N: usize> Scratch<N> {
             round: Delays::new(),
             subtree: [0; N],
             resolved: [(0, TdiffSource::Default); N],
+            monitor: MonitorList::new(),
         }
     }
 }

@@ -4,10 +4,12 @@
 
 use crate::dc::config::DriftCommand;
 use crate::dc::error::Error;
-use crate::dc::machine::{Item, Machine};
+use crate::dc::machine::{expect_wkc, Item, Machine, Shared};
 use crate::dc::phase::Phase;
 use crate::dc::request::{Op, Pending};
 use crate::dc::state::State;
+use crate::dc::timer::Timer;
+use crate::time::SystemTime;
 
 impl<const N: usize> Machine<N> {
     /// Number of items of the current step.
@@ -59,27 +61,14 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// The drift-compensation datagram to the reference's 0x0910, of the reference's width:
-    /// FRMW by station address or ARMW by position (`Config::drift_command`).
+    /// The drift-compensation datagram (`Shared::frmw_op`).
     pub(crate) fn frmw_op(&self, now: u64) -> Op {
-        let (station, width) = self
-            .slave(self.sh.line.reference)
-            .map_or((0, 8), |s| (s.station, s.dc.time_width()));
-        let reg = crate::wire::register::reg::SYSTEM_TIME;
-        match self.sh.cfg.drift_command {
-            DriftCommand::Frmw => Op::frmw(station, reg, width, now),
-            DriftCommand::Armw => Op {
-                command: crate::wire::Command::Armw,
-                address: crate::wire::Address::position(self.sh.line.reference, reg),
-                len: width,
-                payload: crate::dc::request::Payload::Le(now),
-            },
-        }
+        self.sh.frmw_op(now)
     }
 
-    /// FRMW working counter: every slave with a system time reads or writes it once.
+    /// FRMW working counter (`Shared::check_frmw`).
     pub(crate) fn check_frmw(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
-        self.expect_wkc(p, self.sh.line.sys_count, wkc)
+        self.sh.check_frmw(p, wkc)
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
@@ -96,7 +85,7 @@ impl<const N: usize> Machine<N> {
             Phase::Adjust(_) => self.adjust_item(i),
             Phase::Drift(..) => self.drift_item(now, i),
             Phase::Activation(_) => self.activation_item(i),
-            Phase::Idle | Phase::Cyclic | Phase::RestartWait | Phase::Failed => Item::Skip,
+            Phase::Idle | Phase::Cyclic(_) | Phase::RestartWait | Phase::Failed => Item::Skip,
         }
     }
 
@@ -139,7 +128,7 @@ impl<const N: usize> Machine<N> {
             Phase::Adjust(_) => self.adjust_reply(i, p, wkc, data),
             Phase::Drift(..) => self.drift_reply(i, p, wkc, data),
             Phase::Activation(_) => self.activation_reply(now, i, p, wkc, data),
-            Phase::Idle | Phase::Cyclic | Phase::RestartWait | Phase::Failed => Ok(()),
+            Phase::Idle | Phase::Cyclic(_) | Phase::RestartWait | Phase::Failed => Ok(()),
         }
     }
 
@@ -151,7 +140,11 @@ impl<const N: usize> Machine<N> {
                 self.sh.latch.round = 0;
                 self.tdiff_reset();
             }
-            State::Cyclic => self.cyclic_enter(),
+            State::Cyclic => {
+                self.sh.scratch.monitor.invalidate();
+                // The first cycle is due at once.
+                self.sh.timers.set(Timer::Cycle, SystemTime(0));
+            }
             _ => {}
         }
     }
@@ -165,11 +158,37 @@ impl<const N: usize> Machine<N> {
             Phase::Adjust(_) => self.adjust_done(),
             Phase::Drift(..) => self.drift_done(),
             Phase::Activation(_) => self.activation_done(),
-            Phase::Idle | Phase::Cyclic | Phase::RestartWait | Phase::Failed => return,
+            Phase::Idle | Phase::Cyclic(_) | Phase::RestartWait | Phase::Failed => return,
         };
         match next {
             Ok(s) => self.enter(s),
             Err(e) => self.fault(now, e),
         }
+    }
+}
+
+impl<const N: usize> Shared<N> {
+    /// The drift-compensation datagram to the reference's 0x0910, of the reference's width:
+    /// FRMW by station address or ARMW by position (`Config::drift_command`).
+    pub(crate) fn frmw_op(&self, now: u64) -> Op {
+        let (station, width) = self
+            .line
+            .slave(self.line.reference)
+            .map_or((0, 8), |s| (s.station, s.dc.time_width()));
+        let reg = crate::wire::register::reg::SYSTEM_TIME;
+        match self.cfg.drift_command {
+            DriftCommand::Frmw => Op::frmw(station, reg, width, now),
+            DriftCommand::Armw => Op {
+                command: crate::wire::Command::Armw,
+                address: crate::wire::Address::position(self.line.reference, reg),
+                len: width,
+                payload: crate::dc::request::Payload::Le(now),
+            },
+        }
+    }
+
+    /// FRMW working counter: every slave with a system time reads or writes it once.
+    pub(crate) fn check_frmw(&self, p: Pending, wkc: u16) -> Result<(), Error> {
+        expect_wkc(p, self.line.sys_count, wkc)
     }
 }

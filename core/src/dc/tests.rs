@@ -300,7 +300,7 @@ fn two_slave_line() -> Machine<4> {
 #[test]
 fn latched_ports_give_delays() {
     let mut m = two_slave_line();
-    m.accumulate_round().unwrap();
+    m.sh.accumulate_round().unwrap();
     assert_eq!(m.sh.line.slaves[0].delay_sum, 0);
     assert_eq!(m.sh.line.slaves[1].delay_sum, 605); // (1 210 + t_Diff 0) / 2, rounded half up
 }
@@ -315,14 +315,14 @@ fn stale_latch_is_not_used() {
     let mut m = two_slave_line();
     m.sh.line.slaves[0].times_after[1] = m.sh.line.slaves[0].times_before[1];
     assert!(matches!(
-        m.accumulate_round(),
+        m.sh.accumulate_round(),
         Err(Error::Measurement { .. })
     ));
     // A slave none of whose latches changed was not reached at all.
     let mut m = two_slave_line();
     m.sh.line.slaves[1].times_after = m.sh.line.slaves[1].times_before;
     assert_eq!(
-        m.accumulate_round(),
+        m.sh.accumulate_round(),
         Err(Error::Measurement { station: 0x1002 })
     );
 }
