@@ -9,7 +9,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Pending};
+use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::wire::register::reg;
@@ -72,21 +72,12 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn activation_reply(
-        &mut self,
-        now: u64,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
+    pub(crate) fn activation_reply(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
         self.expect_wkc(p, 1, wkc)?;
         match self.state() {
             State::ReadReferenceTime => {
-                let bad = Error::OutOfRange {
-                    station: p.station,
-                    register: p.register,
-                };
+                let bad = p.out_of_range();
                 let raw = le(data, usize::from(p.len)).ok_or(bad)?;
                 let r = self.slave(self.sh.line.reference).copied().ok_or(bad)?;
                 let sync = self.sh.cfg.sync.ok_or(bad)?;

@@ -7,7 +7,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Pending};
+use crate::dc::request::{le, Op, Reply};
 use crate::dc::state::State;
 use crate::wire::register::reg;
 
@@ -75,32 +75,20 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn adjust_reply(
-        &mut self,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
+    pub(crate) fn adjust_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
         self.expect_wkc(p, 1, wkc)?;
         match self.state() {
             State::ReadAlStatus if i >= self.sh.line.count => {
-                let v = le(data, usize::from(p.len)).ok_or(Error::OutOfRange {
-                    station: p.station,
-                    register: p.register,
-                })?;
+                let v = le(data, usize::from(p.len)).ok_or(p.out_of_range())?;
                 if let Some(s) = self.slave_mut(i.saturating_sub(self.sh.line.count)) {
                     s.running_offset = Some(v);
                 }
             }
             State::ReadAlStatus => {
-                let v =
-                    le(data, 2)
-                        .and_then(|v| u16::try_from(v).ok())
-                        .ok_or(Error::OutOfRange {
-                            station: p.station,
-                            register: p.register,
-                        })?;
+                let v = le(data, 2)
+                    .and_then(|v| u16::try_from(v).ok())
+                    .ok_or(p.out_of_range())?;
                 if let Some(s) = self.slave_mut(i) {
                     s.al_status = Some(v);
                 }

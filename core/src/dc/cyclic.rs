@@ -10,7 +10,7 @@ use crate::dc::event::Event;
 use crate::dc::holdover::{Holdover, HoldoverCause};
 use crate::dc::machine::{Machine, Shared};
 use crate::dc::phase::Phase;
-use crate::dc::request::{le, Op, Pending, Tag};
+use crate::dc::request::{le, Op, Pending, Reply, Tag};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::timer::Timer;
@@ -292,7 +292,12 @@ impl<const N: usize> CyclicCx<'_, N> {
                     self.c.lost_station.get_or_insert(p.station);
                 }
             }
-            Tag::CycRemeasure(i) => self.remeasure_reply(i, p, wkc, data),
+            Tag::CycRemeasure(i) => self.remeasure_reply(Reply {
+                item: i,
+                sent: p,
+                wkc,
+                data,
+            }),
             Tag::Item(_) => {}
         }
     }

@@ -5,7 +5,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Pending};
+use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::state::State;
 use crate::wire::register::{reg, DlStatus, EscFeatures};
@@ -39,13 +39,8 @@ impl<const N: usize> Machine<N> {
         self.sh.cfg.station_base.wrapping_add(pos)
     }
 
-    pub(crate) fn discovery_reply(
-        &mut self,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
+    pub(crate) fn discovery_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
         match self.state() {
             State::CountSlaves => {
                 if wkc == 0 {
@@ -74,13 +69,9 @@ impl<const N: usize> Machine<N> {
             }
             State::ReadInfo => {
                 self.expect_wkc(p, 1, wkc)?;
-                let v =
-                    le(data, 2)
-                        .and_then(|v| u16::try_from(v).ok())
-                        .ok_or(Error::OutOfRange {
-                            station: p.station,
-                            register: p.register,
-                        })?;
+                let v = le(data, 2)
+                    .and_then(|v| u16::try_from(v).ok())
+                    .ok_or(p.out_of_range())?;
                 if let Some(s) = self.slave_mut(i / 2) {
                     if i % 2 == 0 {
                         s.features = v;

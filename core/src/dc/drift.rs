@@ -10,7 +10,7 @@ use crate::dc::config::DriftCheck;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Pending, Tag};
+use crate::dc::request::{le, Op, Reply, Tag};
 use crate::dc::state::State;
 use crate::wire::register::{reg, SystemTimeDifference};
 use crate::wire::{FrameBuilder, DATAGRAM_OVERHEAD};
@@ -114,26 +114,17 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn drift_reply(
-        &mut self,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
+    pub(crate) fn drift_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
         match self.state() {
             State::DriftBurst => self.check_frmw(p, wkc),
             State::DriftCheck => {
                 // BRD 0x092C: only ESCs with a system time have the register.
                 let expected = if i == 0 { self.sh.line.sys_count } else { 1 };
                 self.expect_wkc(p, expected, wkc)?;
-                let raw =
-                    le(data, 4)
-                        .and_then(|v| u32::try_from(v).ok())
-                        .ok_or(Error::OutOfRange {
-                            station: p.station,
-                            register: p.register,
-                        })?;
+                let raw = le(data, 4)
+                    .and_then(|v| u32::try_from(v).ok())
+                    .ok_or(p.out_of_range())?;
                 let d = SystemTimeDifference::from_raw(raw);
                 if i == 0 {
                     if let Some(gate) = self.phase.drift_gate_mut() {

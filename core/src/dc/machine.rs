@@ -6,7 +6,7 @@ use crate::dc::event::{Event, EventQueue};
 use crate::dc::line::Line;
 use crate::dc::measure::LatchRounds;
 use crate::dc::phase::Phase;
-use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
+use crate::dc::request::{Inflight, Op, Pending, Reply, Tag, MAX_INFLIGHT};
 use crate::dc::scratch::Scratch;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
@@ -753,7 +753,15 @@ impl<const N: usize> Machine<N> {
         }
         match p.tag {
             Tag::Item(i) if self.state().is_request_step() => {
-                if let Err(e) = self.on_item(now, i, p, wkc, data) {
+                if let Err(e) = self.on_item(
+                    now,
+                    Reply {
+                        item: i,
+                        sent: p,
+                        wkc,
+                        data,
+                    },
+                ) {
                     self.sh.step.error.get_or_insert(e);
                 }
             }

@@ -9,7 +9,7 @@ use crate::dc::delay::Delays;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Pending};
+use crate::dc::request::{le, Op, Reply};
 use crate::dc::state::State;
 use crate::wire::register::reg;
 
@@ -65,32 +65,12 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn measure_reply(
-        &mut self,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
-        let bad = Error::OutOfRange {
-            station: p.station,
-            register: p.register,
-        };
+    pub(crate) fn measure_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
+        let bad = p.out_of_range();
         match self.state() {
             State::LatchTrigger => {
-                // Every slave with latches must have seen the write; slaves without DC may or
-                // may not count it, so the WKC lies between the two.
-                let latching = self.sh.line.latching_count();
-                if wkc < latching || wkc > self.sh.line.count {
-                    return Err(crate::dc::error::Error::Wkc {
-                        command: p.command,
-                        station: 0,
-                        register: p.register,
-                        expected: latching,
-                        actual: wkc,
-                    });
-                }
-                Ok(())
+                p.check_latch_wkc(wkc, self.sh.line.latching_count(), self.sh.line.count)
             }
             State::LatchReadBefore | State::LatchReadAfter => {
                 self.expect_wkc(p, 1, wkc)?;

@@ -9,7 +9,7 @@ use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::expect_wkc;
 use crate::dc::measure::port_times;
-use crate::dc::request::{Op, Pending, Tag};
+use crate::dc::request::{Op, Reply, Tag};
 use crate::wire::register::reg;
 use crate::wire::FrameBuilder;
 
@@ -68,29 +68,18 @@ impl<const N: usize> CyclicCx<'_, N> {
         self.c.rm_sent_to = pos;
     }
 
-    pub(crate) fn remeasure_reply(&mut self, i: u16, p: Pending, wkc: u16, data: &[u8]) {
-        if let Err(e) = self.remeasure_store(i, p, wkc, data) {
+    pub(crate) fn remeasure_reply(&mut self, r: Reply<'_>) {
+        if let Err(e) = self.remeasure_store(r) {
             self.c.rm_error.get_or_insert(e);
         }
     }
 
-    fn remeasure_store(&mut self, i: u16, p: Pending, wkc: u16, data: &[u8]) -> Result<(), Error> {
-        let bad = Error::OutOfRange {
-            station: p.station,
-            register: p.register,
-        };
+    fn remeasure_store(&mut self, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
+        let bad = p.out_of_range();
         match self.c.remeasure {
             Remeasure::Trigger => {
-                let latching = self.sh.line.latching_count();
-                if wkc < latching || wkc > self.sh.line.count {
-                    return Err(Error::Wkc {
-                        command: p.command,
-                        station: 0,
-                        register: p.register,
-                        expected: latching,
-                        actual: wkc,
-                    });
-                }
+                p.check_latch_wkc(wkc, self.sh.line.latching_count(), self.sh.line.count)?;
             }
             Remeasure::Before | Remeasure::After => {
                 expect_wkc(p, 1, wkc)?;

@@ -6,6 +6,7 @@
 //! its command, register (ADO), station (for FP commands) and length equal the request's
 //! (REQ-DC-113); anything else in a frame is someone else's datagram and is counted, not used.
 
+use crate::dc::error::Error;
 #[cfg(test)]
 use crate::wire::Datagram;
 use crate::wire::{Address, Command, FrameBuilder, HeaderPattern};
@@ -363,6 +364,50 @@ impl Inflight {
                 .position(|e| e.is_some_and(|p| p.matches_header(d)))?,
         };
         self.take_at(pos)
+    }
+}
+
+/// One matched reply to an item of a request step: the item's number, the datagram as sent,
+/// and what came back.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reply<'a> {
+    pub(crate) item: u16,
+    pub(crate) sent: Pending,
+    pub(crate) wkc: u16,
+    pub(crate) data: &'a [u8],
+}
+
+impl<'a> Reply<'a> {
+    /// (item, datagram as sent, working counter, data).
+    pub(crate) const fn parts(self) -> (u16, Pending, u16, &'a [u8]) {
+        (self.item, self.sent, self.wkc, self.data)
+    }
+}
+
+impl Pending {
+    /// The error for a value read from (or meant for) this datagram's register that is out of
+    /// range.
+    pub(crate) const fn out_of_range(&self) -> Error {
+        Error::OutOfRange {
+            station: self.station,
+            register: self.register,
+        }
+    }
+
+    /// The working counter of a latching BWR (0x0900): every slave with latches must have seen
+    /// the write; slaves without DC may or may not count it, so the count lies between
+    /// `latching` and `all`.
+    pub(crate) fn check_latch_wkc(&self, wkc: u16, latching: u16, all: u16) -> Result<(), Error> {
+        if wkc < latching || wkc > all {
+            return Err(Error::Wkc {
+                command: self.command,
+                station: 0,
+                register: self.register,
+                expected: latching,
+                actual: wkc,
+            });
+        }
+        Ok(())
     }
 }
 

@@ -6,7 +6,7 @@ use crate::dc::config::DriftCommand;
 use crate::dc::error::Error;
 use crate::dc::machine::{expect_wkc, Item, Machine, Shared};
 use crate::dc::phase::Phase;
-use crate::dc::request::{Op, Pending};
+use crate::dc::request::{Op, Pending, Reply};
 use crate::dc::state::State;
 use crate::dc::timer::Timer;
 use crate::time::SystemTime;
@@ -104,30 +104,23 @@ impl<const N: usize> Machine<N> {
         let _ = i;
     }
 
-    pub(crate) fn on_item(
-        &mut self,
-        now: u64,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
+    pub(crate) fn on_item(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
         if self.state() == State::CountSlaves && self.sh.tdiff.recovering {
-            return match i {
+            return match r.item {
                 0 => {
                     self.tdiff_recover_reply();
                     Ok(())
                 }
-                _ => self.discovery_reply(0, p, wkc, data),
+                _ => self.discovery_reply(Reply { item: 0, ..r }),
             };
         }
         match self.phase {
-            Phase::Discovery(_) => self.discovery_reply(i, p, wkc, data),
-            Phase::Tdiff(_) => self.tdiff_reply(i, p, wkc, data),
-            Phase::Measure(_) => self.measure_reply(i, p, wkc, data),
-            Phase::Adjust(_) => self.adjust_reply(i, p, wkc, data),
-            Phase::Drift(..) => self.drift_reply(i, p, wkc, data),
-            Phase::Activation(_) => self.activation_reply(now, i, p, wkc, data),
+            Phase::Discovery(_) => self.discovery_reply(r),
+            Phase::Tdiff(_) => self.tdiff_reply(r),
+            Phase::Measure(_) => self.measure_reply(r),
+            Phase::Adjust(_) => self.adjust_reply(r),
+            Phase::Drift(..) => self.drift_reply(r),
+            Phase::Activation(_) => self.activation_reply(now, r),
             Phase::Idle | Phase::Cyclic(_) | Phase::RestartWait | Phase::Failed => Ok(()),
         }
     }

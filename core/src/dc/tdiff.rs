@@ -38,7 +38,7 @@ use crate::dc::machine::{Item, Machine};
 use crate::dc::measure::port_times;
 use crate::dc::offset::offset_write_permitted;
 use crate::dc::port::{Port, PortSet};
-use crate::dc::request::{le, Op, Pending};
+use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::topology::{Latches, SlaveSample};
@@ -437,33 +437,16 @@ impl<const N: usize> Machine<N> {
         (all, latching)
     }
 
-    pub(crate) fn tdiff_reply(
-        &mut self,
-        i: u16,
-        p: Pending,
-        wkc: u16,
-        data: &[u8],
-    ) -> Result<(), Error> {
+    pub(crate) fn tdiff_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
+        let (i, p, wkc, data) = r.parts();
         let Some(w) = self.tdiff_work(i) else {
             return Ok(());
         };
-        let bad = Error::OutOfRange {
-            station: p.station,
-            register: p.register,
-        };
+        let bad = p.out_of_range();
         if w == Work::Trigger {
             // REQ-DC-125: the slaves behind a closed port are cut off and do not count.
             let (all, latching) = self.tdiff_reachable();
-            if wkc < latching || wkc > all {
-                return Err(Error::Wkc {
-                    command: p.command,
-                    station: 0,
-                    register: p.register,
-                    expected: latching,
-                    actual: wkc,
-                });
-            }
-            return Ok(());
+            return p.check_latch_wkc(wkc, latching, all);
         }
         self.expect_wkc(p, 1, wkc)?;
         let word = || le(data, 2).and_then(|v| u16::try_from(v).ok()).ok_or(bad);
