@@ -12,7 +12,27 @@ use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
+use crate::dc::work::PerSlave;
 use crate::wire::register::reg;
+
+/// The writes of `ProgramSync`, per SYNC slave.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum SyncWrite {
+    /// 0x0990, the slave's exact width.
+    StartTime,
+    /// 0x09A0.
+    Sync0Cycle,
+    /// 0x09A4.
+    Sync1Cycle,
+}
+
+impl PerSlave for SyncWrite {
+    const ALL: &'static [Self] = &[
+        SyncWrite::StartTime,
+        SyncWrite::Sync0Cycle,
+        SyncWrite::Sync1Cycle,
+    ];
+}
 
 /// Whether a slave gets its SYNC unit programmed: it has a system time and is provably not
 /// running (same rule as the offset step, REQ-DC-103).
@@ -36,28 +56,31 @@ impl<const N: usize> Machine<N> {
                 }
                 _ => Item::Skip,
             },
-            State::ProgramSync => match self.slave(i / 3) {
-                Some(s) if sync_target(s) => Item::Send(match i % 3 {
-                    0 => Op::fpwr(
-                        s.station,
-                        reg::SYNC0_START_TIME,
-                        s.dc.time_width(),
-                        self.sh.line.sync_start,
-                    ),
-                    1 => Op::fpwr(
-                        s.station,
-                        reg::SYNC0_CYCLE,
-                        4,
-                        u64::from(sync.sync0_cycle_ns),
-                    ),
-                    _ => Op::fpwr(
-                        s.station,
-                        reg::SYNC1_CYCLE,
-                        4,
-                        u64::from(sync.sync1_cycle_ns),
-                    ),
-                }),
-                _ => Item::Skip,
+            State::ProgramSync => match SyncWrite::of(i) {
+                Some((pos, write)) => match self.slave(pos) {
+                    Some(s) if sync_target(s) => Item::Send(match write {
+                        SyncWrite::StartTime => Op::fpwr(
+                            s.station,
+                            reg::SYNC0_START_TIME,
+                            s.dc.time_width(),
+                            self.sh.line.sync_start,
+                        ),
+                        SyncWrite::Sync0Cycle => Op::fpwr(
+                            s.station,
+                            reg::SYNC0_CYCLE,
+                            4,
+                            u64::from(sync.sync0_cycle_ns),
+                        ),
+                        SyncWrite::Sync1Cycle => Op::fpwr(
+                            s.station,
+                            reg::SYNC1_CYCLE,
+                            4,
+                            u64::from(sync.sync1_cycle_ns),
+                        ),
+                    }),
+                    _ => Item::Skip,
+                },
+                None => Item::Skip,
             },
             State::ActivateSync => match self.slave(i) {
                 Some(s) if sync_target(s) => Item::Send(Op::fpwr(

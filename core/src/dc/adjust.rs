@@ -9,7 +9,34 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::state::State;
+use crate::dc::work::PerSlave;
 use crate::wire::register::reg;
+
+/// The writes of `WriteOffsets`, per slave with a system time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum DcWrite {
+    /// 0x0920 (exact width), only where the offset may be stepped.
+    Offset,
+    /// 0x0928.
+    Delay,
+}
+
+impl PerSlave for DcWrite {
+    const ALL: &'static [Self] = &[DcWrite::Offset, DcWrite::Delay];
+}
+
+/// The writes of `ResetLoops`, per slave whose offset was written (0x0934 before 0x0930).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum LoopReset {
+    /// 0x0934.
+    FilterDepths,
+    /// 0x0930.
+    SpeedCounterStart,
+}
+
+impl PerSlave for LoopReset {
+    const ALL: &'static [Self] = &[LoopReset::FilterDepths, LoopReset::SpeedCounterStart];
+}
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
@@ -33,43 +60,43 @@ impl<const N: usize> Machine<N> {
                 }
                 _ => Item::Skip,
             },
-            State::WriteOffsets => match self.slave(i / 2) {
-                Some(s) if s.dc.has_system_time() => {
-                    if i % 2 == 0 {
+            State::WriteOffsets => match DcWrite::of(i) {
+                Some((pos, write)) => match self.slave(pos) {
+                    Some(s) if s.dc.has_system_time() => match write {
                         // REQ-DC-103: never step the system time of a (possibly) running slave.
-                        if s.may_step_offset() {
+                        DcWrite::Offset if s.may_step_offset() => {
                             let w = s.dc.time_width();
                             Item::Send(Op::fpwr(s.station, reg::SYSTEM_TIME_OFFSET, w, s.offset))
-                        } else {
-                            Item::Skip
                         }
-                    } else {
-                        Item::Send(Op::fpwr(
+                        DcWrite::Offset => Item::Skip,
+                        DcWrite::Delay => Item::Send(Op::fpwr(
                             s.station,
                             reg::SYSTEM_TIME_DELAY,
                             4,
                             u64::from(s.delay_ns),
-                        ))
-                    }
-                }
-                _ => Item::Skip,
+                        )),
+                    },
+                    _ => Item::Skip,
+                },
+                None => Item::Skip,
             },
-            State::ResetLoops => match self.slave(i / 2) {
-                Some(s) if s.offset_written => {
-                    if i % 2 == 0 {
-                        let v = u64::from(self.sh.cfg.filter_depths);
-                        Item::Send(Op::fpwr(
-                            s.station,
-                            reg::SYSTEM_TIME_DIFF_FILTER_DEPTH,
-                            2,
-                            v,
-                        ))
-                    } else {
-                        let v = u64::from(self.sh.cfg.speed_counter_start);
-                        Item::Send(Op::fpwr(s.station, reg::SPEED_COUNTER_START, 2, v))
+            State::ResetLoops => match LoopReset::of(i) {
+                Some((pos, write)) => match self.slave(pos) {
+                    Some(s) if s.offset_written => {
+                        let (register, v) = match write {
+                            LoopReset::FilterDepths => (
+                                reg::SYSTEM_TIME_DIFF_FILTER_DEPTH,
+                                self.sh.cfg.filter_depths,
+                            ),
+                            LoopReset::SpeedCounterStart => {
+                                (reg::SPEED_COUNTER_START, self.sh.cfg.speed_counter_start)
+                            }
+                        };
+                        Item::Send(Op::fpwr(s.station, register, 2, u64::from(v)))
                     }
-                }
-                _ => Item::Skip,
+                    _ => Item::Skip,
+                },
+                None => Item::Skip,
             },
             _ => Item::Skip,
         }
@@ -93,9 +120,11 @@ impl<const N: usize> Machine<N> {
                     s.al_status = Some(v);
                 }
             }
-            State::WriteOffsets if i % 2 == 0 => {
-                if let Some(s) = self.slave_mut(i / 2) {
-                    s.offset_written = true;
+            State::WriteOffsets => {
+                if let Some((pos, DcWrite::Offset)) = DcWrite::of(i) {
+                    if let Some(s) = self.slave_mut(pos) {
+                        s.offset_written = true;
+                    }
                 }
             }
             _ => {}

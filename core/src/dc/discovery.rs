@@ -8,7 +8,30 @@ use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::state::State;
+use crate::dc::work::PerSlave;
 use crate::wire::register::{reg, DlStatus, EscFeatures};
+
+/// The reads of `ReadInfo`, per slave.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum InfoRead {
+    /// 0x0008.
+    Features,
+    /// 0x0110.
+    DlStatus,
+}
+
+impl PerSlave for InfoRead {
+    const ALL: &'static [Self] = &[InfoRead::Features, InfoRead::DlStatus];
+}
+
+impl InfoRead {
+    const fn register(self) -> u16 {
+        match self {
+            InfoRead::Features => reg::ESC_FEATURES,
+            InfoRead::DlStatus => reg::DL_STATUS,
+        }
+    }
+}
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn discovery_item(&self, i: u16) -> Item {
@@ -16,14 +39,13 @@ impl<const N: usize> Machine<N> {
             // BRD of the 2-byte type/revision word: every slave increments the WKC.
             State::CountSlaves => Item::Send(Op::brd(0x0000, 2)),
             State::AssignAddresses => self.station_item(i),
-            State::ReadInfo => {
-                let station = self.slave(i / 2).map_or(0, |s| s.station);
-                if i % 2 == 0 {
-                    Item::Send(Op::fprd(station, reg::ESC_FEATURES, 2))
-                } else {
-                    Item::Send(Op::fprd(station, reg::DL_STATUS, 2))
+            State::ReadInfo => match InfoRead::of(i) {
+                Some((pos, read)) => {
+                    let station = self.slave(pos).map_or(0, |s| s.station);
+                    Item::Send(Op::fprd(station, read.register(), 2))
                 }
-            }
+                None => Item::Skip,
+            },
             State::ProbeSystemTime => match self.slave(i) {
                 Some(s) if s.dc.has_latches() => {
                     Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME, 4))
@@ -72,17 +94,21 @@ impl<const N: usize> Machine<N> {
                 let v = le(data, 2)
                     .and_then(|v| u16::try_from(v).ok())
                     .ok_or(p.out_of_range())?;
-                if let Some(s) = self.slave_mut(i / 2) {
-                    if i % 2 == 0 {
-                        s.features = v;
-                        let f = EscFeatures(v);
-                        s.dc = match (f.dc_supported(), f.dc_64bit()) {
-                            (false, _) => DcKind::None,
-                            (true, false) => DcKind::Bits32,
-                            (true, true) => DcKind::Bits64,
-                        };
-                    } else {
-                        s.dl_status = v;
+                let Some((pos, read)) = InfoRead::of(i) else {
+                    return Ok(());
+                };
+                if let Some(s) = self.slave_mut(pos) {
+                    match read {
+                        InfoRead::Features => {
+                            s.features = v;
+                            let f = EscFeatures(v);
+                            s.dc = match (f.dc_supported(), f.dc_64bit()) {
+                                (false, _) => DcKind::None,
+                                (true, false) => DcKind::Bits32,
+                                (true, true) => DcKind::Bits64,
+                            };
+                        }
+                        InfoRead::DlStatus => s.dl_status = v,
                     }
                 }
                 Ok(())

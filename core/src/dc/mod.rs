@@ -41,6 +41,7 @@ pub mod tdiff;
 #[cfg(test)]
 mod tests;
 mod timer;
+mod work;
 
 pub use config::{
     Config, ConfigError, DriftCheck, DriftCommand, DriftConfig, MonitorConfig, SyncConfig,

@@ -2,13 +2,17 @@
 //! how each reply is checked and stored, and where the step goes when done. The per-step logic
 //! lives in `discovery.rs`, `measure.rs`, `adjust.rs`, `drift.rs` and `activation.rs`.
 
+use crate::dc::activation::SyncWrite;
+use crate::dc::adjust::{DcWrite, LoopReset};
 use crate::dc::config::DriftCommand;
+use crate::dc::discovery::InfoRead;
 use crate::dc::error::Error;
 use crate::dc::machine::{expect_wkc, Item, Machine, Shared};
 use crate::dc::phase::Phase;
 use crate::dc::request::{Op, Pending, Reply};
 use crate::dc::state::State;
 use crate::dc::timer::Timer;
+use crate::dc::work::PerSlave;
 use crate::time::SystemTime;
 
 impl<const N: usize> Machine<N> {
@@ -29,11 +33,12 @@ impl<const N: usize> Machine<N> {
             | State::LatchReadAfter
             | State::ClearActivation
             | State::ActivateSync => n,
-            // ReadAlStatus: AL status of every slave, then 0x0920 of the running ones.
-            State::ReadInfo | State::ReadAlStatus | State::WriteOffsets | State::ResetLoops => {
-                n.saturating_mul(2)
-            }
-            State::ProgramSync => n.saturating_mul(3),
+            State::ReadInfo => InfoRead::items(n),
+            // AL status of every slave, then 0x0920 of the running ones.
+            State::ReadAlStatus => n.saturating_mul(2),
+            State::WriteOffsets => DcWrite::items(n),
+            State::ResetLoops => LoopReset::items(n),
+            State::ProgramSync => SyncWrite::items(n),
             State::DriftBurst => self.burst_len(),
             State::DriftCheck => n.saturating_add(1),
             State::Idle | State::Cyclic | State::RestartWait | State::Failed => 0,

@@ -42,6 +42,7 @@ use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::topology::{Latches, SlaveSample};
+use crate::dc::work::PerSlave;
 use crate::time::PortTime;
 use crate::wire::register::reg;
 
@@ -141,6 +142,21 @@ pub(crate) enum Phase {
     Base { round: u8 },
     /// `target`'s downstream ports closed, round `round`.
     Closed { target: u16, round: u8 },
+}
+
+/// The reads of `TdiffRead`, per slave.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TdiffRead {
+    /// 0x0000: ESC type and revision.
+    Ident,
+    /// 0x0130.
+    AlStatus,
+    /// 0x0100, only of a slave with latches and two or more open ports (a possible target).
+    DlControl,
+}
+
+impl PerSlave for TdiffRead {
+    const ALL: &'static [Self] = &[TdiffRead::Ident, TdiffRead::AlStatus, TdiffRead::DlControl];
 }
 
 /// One typed work item of a t_Diff request step.
@@ -308,7 +324,7 @@ impl<const N: usize> Machine<N> {
     /// Number of items of the current t_Diff step.
     pub(crate) fn tdiff_count(&self) -> u16 {
         match self.state() {
-            State::TdiffRead => self.sh.line.count.saturating_mul(3),
+            State::TdiffRead => TdiffRead::items(self.sh.line.count),
             State::TdiffLatch => self
                 .sh
                 .line
@@ -324,12 +340,13 @@ impl<const N: usize> Machine<N> {
         let off = self.tdiff_cfg().mode == TdiffMode::Off;
         match self.state() {
             State::TdiffRead if !off => {
-                let pos = i / 3;
+                let (pos, read) = TdiffRead::of(i)?;
                 let s = self.slave(pos)?;
-                match i % 3 {
-                    0 => Some(Work::Ident(pos)),
-                    1 => Some(Work::AlStatus(pos)),
-                    _ => (s.dc.has_latches() && PortSet::from_dl_status(s.dl_status).len() >= 2)
+                match read {
+                    TdiffRead::Ident => Some(Work::Ident(pos)),
+                    TdiffRead::AlStatus => Some(Work::AlStatus(pos)),
+                    TdiffRead::DlControl => (s.dc.has_latches()
+                        && PortSet::from_dl_status(s.dl_status).len() >= 2)
                         .then_some(Work::ReadDlControl(pos)),
                 }
             }
