@@ -3,7 +3,7 @@
 //!
 //! One engine serves every loop; adapters turn their measurement into an error θ (ns,
 //! REQ-CONV-007: measured − target, positive = the controlled clock is ahead) and turn the
-//! engine's command back into their actuator's units ([`super::master`], [`super::ptp`]).
+//! engine's command back into their actuator's units ([`super::master`], `servo::ptp`).
 //! [`Servo::update`] is a pure function of (state, input, config): no clock reads, no
 //! allocation, no floating point, so a log replays bit-exactly (REQ-SERVO-090).
 //!

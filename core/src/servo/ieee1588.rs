@@ -102,7 +102,8 @@ pub fn compound_ppb(a: i64, b: i64) -> i64 {
 /// Rate-ratio estimator over `n` sync periods (seed eq. 6: the numerator and denominator are
 /// master and slave elapsed time over n adjustment periods). A timestamp error of e ns at
 /// either end of the baseline moves the ratio by about e/(n·h₀), so longer baselines shrink it
-/// as 1/n. The PTP servo runs it before its offset loop ([`super::ptp`], REQ-SERVO-124).
+/// as 1/n. The PTP servo runs it before its offset loop (`servo::ptp`, feature `ptp`;
+/// REQ-SERVO-124).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RateEstimator {
     periods: u32,

@@ -12,11 +12,15 @@
 //! - [`gate`]: median/MAD outlier gate; [`lock`]: lock detector with hysteresis;
 //! - [`engine`]: the generic mode machine (acquire → track, steps, blanking, holdover);
 //! - [`master`]: master-follows-reference (wake-up deadline correction, whole-period steps);
-//! - [`refclock`]: reference-follows-master (value and schedule of the FPWR to 0x0910);
+//! - `refclock` (feature `refclock`): reference-follows-master (value and schedule of the FPWR
+//!   to 0x0910), for masters that distribute their own time instead of the reference's;
 //! - [`ieee1588`]: offset, mean path delay, rate ratio (seed 004 eq. 1–6);
 //! - [`filter`]: the seed 004 two-pole offset filter (eq. 7–9);
 //! - [`counter`]: counter self-compensation with carry (seed 004 eq. 15–18);
-//! - [`ptp`]: an IEEE 1588 slave-clock servo built from the above.
+//! - `ptp` (feature `ptp`): an IEEE 1588 slave-clock servo built from the above.
+//!
+//! The two feature-gated modules are not needed to run DC: the machine uses [`master`]'s
+//! direction (the master follows the reference) and its own drift compensation.
 
 pub mod carry;
 pub mod counter;
@@ -30,7 +34,9 @@ pub mod ieee1588;
 pub mod lock;
 pub mod master;
 pub mod pi;
+#[cfg(any(test, feature = "ptp"))]
 pub mod ptp;
+#[cfg(any(test, feature = "refclock"))]
 pub mod refclock;
 #[cfg(test)]
 mod test_rng;

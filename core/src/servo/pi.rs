@@ -4,7 +4,8 @@
 //! Units: the error θ is in ns (REQ-CONV-007: measured − target, positive = the controlled clock
 //! is ahead). The command y and the integrator I are "ns of retard per nominal interval" in Q32
 //! (ns · 2^32): positive y slows the controlled clock / delays the next wake-up by y ns.
-//! Adapters convert y into a deadline correction ([`super::master`]) or ppb ([`super::ptp`]).
+//! Adapters convert y into a deadline correction ([`super::master`]) or ppb (`servo::ptp`,
+//! feature `ptp`).
 //!
 //! Position form (REQ-SERVO-010):
 //!   v = Kp·θ + I + Ki·θ,   y = clamp(v, ±y_max),
