@@ -3,6 +3,23 @@
 //!
 //! Pipeline: discover → latch receive times → delays → offsets → static drift compensation →
 //! SYNC0/SYNC1 start → cyclic drift compensation and monitoring.
+//!
+//! The machine ([`Machine`], `machine.rs`) is its phase and the parts every phase shares:
+//!
+//! - `phase.rs`: the `Phase` enum, one variant per phase holding that phase's own data (the
+//!   drift gate, cyclic operation's bookkeeping), with typed steps; [`State`] (`state.rs`) is
+//!   its observable projection and the one transition table;
+//! - the shared parts (`machine::Shared`): configuration, the line (`line.rs`: slave table,
+//!   reference, running domain, SYNC start), the in-flight table (`request.rs`), the timer
+//!   table (`timer.rs`), events (`event.rs`), counters, restart bookkeeping, and the tables too
+//!   large for a phase value (`measure.rs`'s latch rounds, `tdiff.rs`'s plan, `scratch.rs`);
+//! - request steps (`steps.rs` dispatches by phase; `work.rs` maps items to slaves): discovery
+//!   (`discovery.rs`, `stations.rs`), t_Diff (`tdiff.rs`), delays (`measure.rs`), offsets
+//!   (`adjust.rs`), drift (`drift.rs`), SYNC (`activation.rs`); `bridge.rs` feeds the replies to
+//!   the pure maths below;
+//! - cyclic operation (`cyclic.rs`, run through a `CyclicCx`: its data and the shared parts),
+//!   its fast paths (`cyclic_fast.rs`, `monitor.rs`), hold-over (`holdover.rs`) and delay
+//!   re-measurement (`remeasure.rs`).
 
 // --- DC maths: pure functions the machine calls ---
 pub mod delay;
