@@ -8,13 +8,12 @@
 use crate::dc::delay::Delays;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Reply};
+use crate::dc::line::Line;
+use crate::dc::machine::{expect_wkc, Item, Machine};
+use crate::dc::request::{Op, Reply};
+use crate::dc::slave::{LatchRead, SlaveInfo};
 use crate::dc::state::State;
 use crate::wire::register::reg;
-
-/// Bytes of one full latch read: 0x0900..0x091F (4 port times, system time, EPU time).
-const LATCH_BLOCK: u16 = 32;
 
 /// The bring-up's delay measurement rounds.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -46,51 +45,30 @@ impl<const N: usize> LatchRounds<N> {
 }
 
 impl<const N: usize> Machine<N> {
+    fn latch_item(&self, i: u16, read: LatchRead) -> Item {
+        self.slave(i)
+            .and_then(|s| latch_read(s, read))
+            .map_or(Item::Skip, Item::Send)
+    }
+
     pub(crate) fn measure_item(&self, i: u16) -> Item {
         match self.state() {
-            State::LatchTrigger => Item::Send(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
-            State::LatchReadBefore => match self.slave(i) {
-                Some(s) if s.dc.has_latches() => {
-                    Item::Send(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, 16))
-                }
-                _ => Item::Skip,
-            },
-            State::LatchReadAfter => match self.slave(i) {
-                Some(s) if s.dc.has_latches() => {
-                    Item::Send(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, LATCH_BLOCK))
-                }
-                _ => Item::Skip,
-            },
+            State::LatchTrigger => Item::Send(LATCH_TRIGGER),
+            State::LatchReadBefore => self.latch_item(i, LatchRead::Before),
+            State::LatchReadAfter => self.latch_item(i, LatchRead::After),
             _ => Item::Skip,
         }
     }
 
     pub(crate) fn measure_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
-        let (i, p, wkc, data) = r.parts();
-        let bad = p.out_of_range();
         match self.state() {
             State::LatchTrigger => {
-                p.check_latch_wkc(wkc, self.sh.line.latching_count(), self.sh.line.count)
+                let line = &self.sh.line;
+                r.sent
+                    .check_latch_wkc(r.wkc, line.latching_count(), line.count)
             }
-            State::LatchReadBefore | State::LatchReadAfter => {
-                self.expect_wkc(p, 1, wkc)?;
-                let t = port_times(data).ok_or(bad)?;
-                let after = self.state() == State::LatchReadAfter;
-                let epu = if after {
-                    data.get(24..32).and_then(|d| le(d, 8)).ok_or(bad)?
-                } else {
-                    0
-                };
-                if let Some(s) = self.slave_mut(i) {
-                    if after {
-                        s.times_after = t;
-                        s.epu_time = epu;
-                    } else {
-                        s.times_before = t;
-                    }
-                }
-                Ok(())
-            }
+            State::LatchReadBefore => store_latch_reply(&mut self.sh.line, r, LatchRead::Before),
+            State::LatchReadAfter => store_latch_reply(&mut self.sh.line, r, LatchRead::After),
             _ => Ok(()),
         }
     }
@@ -164,14 +142,24 @@ impl<const N: usize> Machine<N> {
     }
 }
 
-/// The four 32-bit port receive times 0x0900..0x090F (ports 0..3) at the start of a latch
-/// read's data, little-endian (REQ-DC-020); `None` when fewer than 16 bytes came back.
-pub(crate) fn port_times(data: &[u8]) -> Option<[u32; 4]> {
-    let mut t = [0u32; 4];
-    for (k, slot) in t.iter_mut().enumerate() {
-        let at = k.saturating_mul(4);
-        let v = data.get(at..at.saturating_add(4)).and_then(|d| le(d, 4))?;
-        *slot = u32::try_from(v).ok()?;
+/// The latching write: BWR 0x0900 (REQ-DC-101), 4 bytes of zeros.
+pub(crate) const LATCH_TRIGGER: Op = Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4);
+
+/// The read of `s`'s receive-time block, for a slave with latches.
+pub(crate) fn latch_read(s: &SlaveInfo, read: LatchRead) -> Option<Op> {
+    s.dc.has_latches()
+        .then(|| Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, read.len()))
+}
+
+/// A reply to [`latch_read`] (working counter 1), stored into the slave's entry (REQ-DC-020).
+pub(crate) fn store_latch_reply<const N: usize>(
+    line: &mut Line<N>,
+    r: Reply<'_>,
+    read: LatchRead,
+) -> Result<(), Error> {
+    expect_wkc(r.sent, 1, r.wkc)?;
+    match line.slave_mut(r.item) {
+        Some(s) => s.store_latches(read, r.data).ok_or(r.sent.out_of_range()),
+        None => Ok(()),
     }
-    Some(t)
 }

@@ -8,8 +8,9 @@ use crate::dc::cyclic::{CyclicCx, Remeasure};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::expect_wkc;
-use crate::dc::measure::port_times;
+use crate::dc::measure::{latch_read, store_latch_reply, LATCH_TRIGGER};
 use crate::dc::request::{Op, Reply, Tag};
+use crate::dc::slave::LatchRead;
 use crate::wire::register::reg;
 use crate::wire::FrameBuilder;
 
@@ -21,13 +22,9 @@ impl<const N: usize> CyclicCx<'_, N> {
         let s = self.sh.line.slave(pos)?;
         match self.c.remeasure {
             Remeasure::Idle => None,
-            Remeasure::Trigger => Some(Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4)),
-            Remeasure::Before if s.dc.has_latches() => {
-                Some(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, 16))
-            }
-            Remeasure::After if s.dc.has_latches() => {
-                Some(Op::fprd(s.station, reg::RECEIVE_TIME_PORT0, 32))
-            }
+            Remeasure::Trigger => Some(LATCH_TRIGGER),
+            Remeasure::Before => latch_read(s, LatchRead::Before),
+            Remeasure::After => latch_read(s, LatchRead::After),
             Remeasure::Write if s.dc.has_system_time() && s.delay_ns != s.delay_new => Some(
                 Op::fpwr(s.station, reg::SYSTEM_TIME_DELAY, 4, u64::from(s.delay_new)),
             ),
@@ -75,25 +72,15 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     fn remeasure_store(&mut self, r: Reply<'_>) -> Result<(), Error> {
-        let (i, p, wkc, data) = r.parts();
-        let bad = p.out_of_range();
+        let line = &mut self.sh.line;
         match self.c.remeasure {
             Remeasure::Trigger => {
-                p.check_latch_wkc(wkc, self.sh.line.latching_count(), self.sh.line.count)?;
+                r.sent
+                    .check_latch_wkc(r.wkc, line.latching_count(), line.count)?;
             }
-            Remeasure::Before | Remeasure::After => {
-                expect_wkc(p, 1, wkc)?;
-                let t = port_times(data).ok_or(bad)?;
-                let after = self.c.remeasure == Remeasure::After;
-                if let Some(s) = self.sh.line.slave_mut(i) {
-                    if after {
-                        s.times_after = t;
-                    } else {
-                        s.times_before = t;
-                    }
-                }
-            }
-            Remeasure::Write => expect_wkc(p, 1, wkc)?,
+            Remeasure::Before => store_latch_reply(line, r, LatchRead::Before)?,
+            Remeasure::After => store_latch_reply(line, r, LatchRead::After)?,
+            Remeasure::Write => expect_wkc(r.sent, 1, r.wkc)?,
             Remeasure::Idle => {}
         }
         Ok(())

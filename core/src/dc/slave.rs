@@ -2,6 +2,8 @@
 //! [`crate::dc::Machine::slaves`], so users can see delays, offsets and the last 0x092C value
 //! (the per-slave report of a failed convergence gate).
 
+use crate::wire::register::ReceiveTimes;
+
 /// DC capability from ESC features 0x0008 and the system-time probe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum DcKind {
@@ -148,5 +150,42 @@ mod tests {
             assert_eq!(k.has_system_time(), system_time, "{k:?}");
             assert_eq!(k.time_width(), width, "{k:?}");
         }
+    }
+}
+
+/// Which read of the receive-time block (0x0900..) a reply is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum LatchRead {
+    /// Before the latching write: the four port times (16 bytes), for stale-latch detection.
+    Before,
+    /// After it: the whole 32-byte block (port times, system time, EPU time).
+    After,
+}
+
+impl LatchRead {
+    /// Bytes read from 0x0900.
+    pub(crate) const fn len(self) -> u16 {
+        match self {
+            LatchRead::Before => 16,
+            LatchRead::After => 32,
+        }
+    }
+}
+
+const _: () = assert!(ReceiveTimes::PORTS_LEN == 16 && ReceiveTimes::LEN == 32);
+
+impl SlaveInfo {
+    /// Stores a read of the receive-time block into `times_before`, or into `times_after` and
+    /// `epu_time`. `None`, with nothing stored, when `data` is shorter than the read.
+    pub(crate) fn store_latches(&mut self, read: LatchRead, data: &[u8]) -> Option<()> {
+        match read {
+            LatchRead::Before => self.times_before = ReceiveTimes::parse_ports(data).ok()?,
+            LatchRead::After => {
+                let t = ReceiveTimes::parse(data).ok()?;
+                self.times_after = t.port;
+                self.epu_time = t.epu;
+            }
+        }
+        Some(())
     }
 }

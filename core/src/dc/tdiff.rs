@@ -35,7 +35,7 @@ use crate::dc::config::{TdiffConfig, TdiffMode};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::measure::port_times;
+use crate::dc::measure::LATCH_TRIGGER;
 use crate::dc::offset::offset_write_permitted;
 use crate::dc::port::{Port, PortSet};
 use crate::dc::request::{le, Op, Reply};
@@ -44,7 +44,7 @@ use crate::dc::state::State;
 use crate::dc::topology::{Latches, SlaveSample};
 use crate::dc::work::PerSlave;
 use crate::time::PortTime;
-use crate::wire::register::reg;
+use crate::wire::register::{reg, ReceiveTimes};
 
 /// ESC type (0x0000) and revision (0x0001), read as one little-endian word.
 const ESC_TYPE: u16 = 0x0000;
@@ -384,7 +384,7 @@ impl<const N: usize> Machine<N> {
             Work::Ident(pos) => Op::fprd(station(pos), ESC_TYPE, 2),
             Work::AlStatus(pos) => Op::fprd(station(pos), reg::AL_STATUS, 2),
             Work::ReadDlControl(pos) => Op::fprd(station(pos), DL_CONTROL, 2),
-            Work::Trigger => Op::bwr_zero(reg::RECEIVE_TIME_PORT0, 4),
+            Work::Trigger => LATCH_TRIGGER,
             Work::ReadPorts(pos) => Op::fprd(station(pos), reg::RECEIVE_TIME_PORT0, 16),
             Work::Close(pos) => {
                 let original = self.sh.tdiff.dl_control.get(usize::from(pos)).copied();
@@ -487,7 +487,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
             Work::ReadPorts(pos) => {
-                let t = port_times(data).ok_or(bad)?;
+                let t = ReceiveTimes::parse_ports(data).map_err(|_| bad)?;
                 if let Some(slot) = self.sh.tdiff.cur.get_mut(usize::from(pos)) {
                     *slot = t;
                 }

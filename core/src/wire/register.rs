@@ -420,20 +420,32 @@ impl ReceiveTimes {
     /// Length of the block.
     pub const LEN: usize = 32;
 
+    /// Length of the port receive times that start the block (0x0900..0x090F).
+    pub const PORTS_LEN: usize = 16;
+
     /// Decodes from at least 32 bytes starting at 0x0900 ([`Error::Truncated`] otherwise).
     pub fn parse(data: &[u8]) -> Result<ReceiveTimes> {
         let b = data.get(..Self::LEN).ok_or(Error::Truncated)?;
-        let (ports, rest) = b.split_at_checked(16).ok_or(Error::Truncated)?;
+        let (ports, rest) = b
+            .split_at_checked(Self::PORTS_LEN)
+            .ok_or(Error::Truncated)?;
         let (st, epu) = rest.split_at_checked(8).ok_or(Error::Truncated)?;
-        let mut port = [0u32; 4];
-        for (p, chunk) in port.iter_mut().zip(ports.chunks_exact(4)) {
-            *p = typed::RECEIVE_TIME_PORT0.decode(chunk)?;
-        }
         Ok(ReceiveTimes {
-            port,
+            port: Self::parse_ports(ports)?,
             system_time: typed::SYSTEM_TIME.decode(st)?,
             epu: typed::RECEIVE_TIME_EPU.decode(epu)?,
         })
+    }
+
+    /// Decodes the four port receive times from at least 16 bytes starting at 0x0900 (a read
+    /// of the ports alone, or of the whole block; [`Error::Truncated`] otherwise).
+    pub fn parse_ports(data: &[u8]) -> Result<[u32; 4]> {
+        let b = data.get(..Self::PORTS_LEN).ok_or(Error::Truncated)?;
+        let mut port = [0u32; 4];
+        for (p, chunk) in port.iter_mut().zip(b.chunks_exact(4)) {
+            *p = typed::RECEIVE_TIME_PORT0.decode(chunk)?;
+        }
+        Ok(port)
     }
 
     /// Encodes into the first 32 bytes of `out` ([`Error::Truncated`] if shorter).
