@@ -497,7 +497,7 @@ impl<const N: usize> Machine<N> {
         let now = now.0;
         if self.sh.timers.expired(Timer::Reply, at) {
             self.sh.stats.timeouts = self.sh.stats.timeouts.saturating_add(1);
-            if self.state() == State::Cyclic {
+            if self.phase.is_cyclic() {
                 self.in_cyclic(now, |cx| cx.cyclic_lost(now));
             } else {
                 self.stop_awaiting();
@@ -534,7 +534,7 @@ impl<const N: usize> Machine<N> {
         }
         // In `Cyclic`, a reply frame laid out exactly as sent takes one validating, matching
         // pass (same result as the general path below, which handles everything else).
-        if fast && self.state() == State::Cyclic && self.is_awaiting_reply() {
+        if fast && self.phase.is_cyclic() && self.is_awaiting_reply() {
             if let Some(frame) = eth.ecat_frame_unvalidated() {
                 if self.in_cyclic(now, |cx| cx.cyclic_fast(now, frame.into_inner())) == Some(true) {
                     return self.replies_done(now);
@@ -575,7 +575,7 @@ impl<const N: usize> Machine<N> {
     fn replies_done(&mut self, now: u64) {
         if self.is_awaiting_reply() && self.sh.inflight.is_empty() {
             self.sh.timers.stop(Timer::Reply);
-            if self.state() == State::Cyclic {
+            if self.phase.is_cyclic() {
                 self.in_cyclic(now, |cx| cx.cyclic_complete(now));
             } else if self.state().is_request_step() {
                 self.step_complete(now);
@@ -672,7 +672,7 @@ impl<const N: usize> Machine<N> {
     }
 
     fn fill(&mut self, now: u64, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
-        if self.state() == State::Cyclic {
+        if self.phase.is_cyclic() {
             return self
                 .in_cyclic(now, |cx| cx.fill_cyclic(now, b, into_caller))
                 .unwrap_or(false);
@@ -747,7 +747,7 @@ impl<const N: usize> Machine<N> {
     #[inline]
     fn on_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
         // The cyclic path first (neither guard below holds in `Cyclic`).
-        if self.state() == State::Cyclic {
+        if self.phase.is_cyclic() {
             self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
             return;
         }
@@ -770,7 +770,7 @@ impl<const N: usize> Machine<N> {
                     self.sh.step.error.get_or_insert(e);
                 }
             }
-            _ if self.state() == State::Cyclic => {
+            _ if self.phase.is_cyclic() => {
                 self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
             }
             _ => {}

@@ -170,6 +170,12 @@ impl Phase {
         }
     }
 
+    /// In `Cyclic` (cheaper than comparing [`Phase::state`], on the per-cycle path).
+    #[inline(always)]
+    pub(crate) const fn is_cyclic(&self) -> bool {
+        matches!(self, Phase::Cyclic(_))
+    }
+
     /// The drift gate, in the drift compensation.
     pub(crate) fn drift_gate(&self) -> Option<&DriftGate> {
         match self {

@@ -313,7 +313,7 @@ impl<'a> FrameBuilder<'a> {
     /// datagram count and the datagram a later push chains to. `None`, with nothing changed,
     /// if the block does not fit (the same room check as [`FrameBuilder::fits`] per datagram:
     /// the sum of their sizes within the room) or `last_at` is not inside it.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn append_block(
         &mut self,
         total: usize,
@@ -335,7 +335,7 @@ impl<'a> FrameBuilder<'a> {
     /// Takes `n` datagrams written at `start..end` (the last one at `last`) into the frame: the
     /// previous last datagram gets its M bit (bit 15 of its little-endian length word, i.e. the
     /// high byte's top bit), then the end, count, chain and EtherCAT header length follow.
-    #[inline]
+    #[inline(always)]
     fn commit(&mut self, start: usize, end: usize, last: usize, n: usize) {
         if let Some(prev) = self.last {
             let at = prev.wrapping_add(dfield::LEN_FLAGS.end.wrapping_sub(1));
@@ -351,7 +351,7 @@ impl<'a> FrameBuilder<'a> {
         self.write_header_len();
     }
 
-    #[inline]
+    #[inline(always)]
     fn write_header_len(&mut self) {
         let len = self
             .end
