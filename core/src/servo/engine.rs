@@ -582,6 +582,7 @@ mod tests {
     #[test]
     fn gear_shift_and_lock() {
         let mut s = Servo::new(cfg()).unwrap();
+        assert!(!s.is_locked(), "a new servo is not locked");
         let mut t = 0;
         for _ in 0..4 {
             s.update(sample(t, 10));
