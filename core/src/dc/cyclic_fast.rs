@@ -15,14 +15,12 @@ use crate::dc::machine::index_after;
 use crate::dc::request::{Op, Payload, Pending, Tag};
 use crate::wire::register::reg;
 use crate::wire::{
-    matches_pattern, put_small, Command, FrameBuilder, DATAGRAM_HEADER_LEN, DATAGRAM_OVERHEAD,
-    ECAT_HEADER_LEN,
+    data_and_wkc, dlpdu_header, matches_pattern, put_small, set_more, Command, FrameBuilder,
+    HeaderKey, DATAGRAM_OVERHEAD, ECAT_HEADER_LEN,
 };
 
 /// Size of one round-robin FPRD 0x092C datagram.
 const FPRD_LEN: usize = 4 + DATAGRAM_OVERHEAD;
-/// The M bit of a datagram's length word, in the first 8 header bytes read as a `u64`.
-const MORE_BIT: u64 = 1 << 63;
 
 impl<const N: usize> CyclicCx<'_, N> {
     /// The cycle's fixed datagrams (FRMW, BRD 0x092C, BRD 0x0130, the round robin's FPRD
@@ -129,11 +127,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         ];
         // The FRMW of a 64-bit reference: `put_small`'s bytes (its key is its header: FP).
         let mut ok = if frmw.command == Command::Frmw && frmw.len == 8 {
-            let [h0, h1, h2, h3, h4, h5, h6, h7] = (fixed[0].key() | MORE_BIT).to_le_bytes();
-            let [v0, v1, v2, v3, v4, v5, v6, v7] = frmw_value.to_le_bytes();
-            let bytes = [
-                h0, h1, h2, h3, h4, h5, h6, h7, 0, 0, v0, v1, v2, v3, v4, v5, v6, v7, 0, 0,
-            ];
+            let bytes = fixed[0].key().with_more(true).datagram(frmw_value);
             match core::mem::take(&mut rest).split_first_chunk_mut::<{ 8 + DATAGRAM_OVERHEAD }>() {
                 Some((d, tail)) => {
                     *d = bytes;
@@ -154,25 +148,19 @@ impl<const N: usize> CyclicCx<'_, N> {
             )
         };
         // The BRDs: `put_small`'s bytes (header with ADP 0, zero data, WKC 0).
-        let more = if k > 0 { MORE_BIT } else { 0 };
-        let bound = u128::from(fixed[1].key() | MORE_BIT).to_le_bytes();
-        let topo = u128::from(fixed[2].key() | more).to_le_bytes();
         match core::mem::take(&mut rest).split_first_chunk_mut::<{ 4 + DATAGRAM_OVERHEAD }>() {
             Some((d, tail)) => {
-                *d = bound;
+                *d = fixed[1].key().with_more(true).datagram(0);
                 rest = tail;
             }
             None => ok = false,
         }
-        match (
-            core::mem::take(&mut rest).split_first_chunk_mut::<{ 2 + DATAGRAM_OVERHEAD }>(),
-            topo.first_chunk::<{ 2 + DATAGRAM_OVERHEAD }>(),
-        ) {
-            (Some((d, tail)), Some(t)) => {
-                *d = *t;
+        match core::mem::take(&mut rest).split_first_chunk_mut::<{ 2 + DATAGRAM_OVERHEAD }>() {
+            Some((d, tail)) => {
+                *d = fixed[2].key().with_more(k > 0).datagram(0);
                 rest = tail;
             }
-            _ => ok = false,
+            None => ok = false,
         }
         for (slot, p) in fixed_slots.iter_mut().zip(fixed) {
             *slot = Some(p);
@@ -193,11 +181,11 @@ impl<const N: usize> CyclicCx<'_, N> {
                         len: 4,
                         tag: Tag::CycDiff(pos),
                     };
-                    d.copy_from_slice(&u128::from(p.key() | MORE_BIT).to_le_bytes());
+                    d.copy_from_slice(&p.key().with_more(true).datagram::<FPRD_LEN>(0));
                     *slot = Some(p);
                 }
-                if let Some(m) = reads.get_mut(reads_len.wrapping_sub(FPRD_LEN - 7)) {
-                    *m &= 0x7F;
+                if let Some(last) = reads.get_mut(reads_len.wrapping_sub(FPRD_LEN)..) {
+                    set_more(last, false);
                 }
             }
             None => ok = false,
@@ -264,10 +252,10 @@ impl<const N: usize> CyclicCx<'_, N> {
         let head = l0.wrapping_add(l1).wrapping_add(l2);
         let total = head.wrapping_add(k.wrapping_mul(FPRD_LEN));
         // Type DLPDU, reserved bit clear, exactly the length sent (≤ 32 × 20 bytes).
-        let word = u16::try_from(total).ok()? | 0x1000;
+        let header = dlpdu_header(total)?;
         let Some(region) = ecat
             .get(..ECAT_HEADER_LEN.wrapping_add(total))
-            .filter(|r| r.first_chunk::<2>() == Some(&word.to_le_bytes()))
+            .filter(|r| r.first_chunk() == Some(&header))
             .and_then(|r| r.get(ECAT_HEADER_LEN..))
         else {
             return Some(false);
@@ -293,31 +281,20 @@ impl<const N: usize> CyclicCx<'_, N> {
         }
         // Matched: route every reply in slot order (`on_cyclic_reply` for these tags).
         let len0 = p0.len;
-        let (data, wkc) = data_wkc(d0);
+        let (data, wkc) = data_and_wkc(d0);
         self.on_frmw_reply(now, len0, wkc, data);
-        let (data, wkc) = data_wkc(d1);
+        let (data, wkc) = data_and_wkc(d1);
         self.on_bound_reply(wkc, data);
-        let (data, wkc) = data_wkc(d2);
+        let (data, wkc) = data_and_wkc(d2);
         self.on_topology_reply(wkc, data);
         let crate::dc::machine::Shared { inflight, line, .. } = &mut *self.sh;
         let cyc = &mut *self.c;
         let reads = inflight.entries.get(3..n).unwrap_or(&[]);
         for (p, d) in reads.iter().zip(rr.chunks_exact(FPRD_LEN)) {
-            if let (Some(p), Some((_, data)), Some((_, wkc))) = (
-                p,
-                d.split_first_chunk::<DATAGRAM_HEADER_LEN>(),
-                d.split_last_chunk::<2>(),
-            ) {
-                if let (Tag::CycDiff(pos), Some(raw)) = (p.tag, data.first_chunk::<4>()) {
-                    diff_reply(
-                        &mut line.slaves,
-                        line.count,
-                        cyc,
-                        pos,
-                        p.station,
-                        u16::from_le_bytes(*wkc),
-                        *raw,
-                    );
+            let (data, wkc) = data_and_wkc(d);
+            if let (Some(p), Some(raw)) = (p, data.first_chunk::<4>()) {
+                if let Tag::CycDiff(pos) = p.tag {
+                    diff_reply(&mut line.slaves, line.count, cyc, pos, p.station, wkc, *raw);
                 }
             }
         }
@@ -347,7 +324,7 @@ impl<const N: usize> CyclicCx<'_, N> {
                 break;
             };
             rest = tail;
-            let (data, wkc) = data_wkc(d);
+            let (data, wkc) = data_and_wkc(d);
             self.on_cyclic_reply(now, p, wkc, data);
         }
         self.sh.inflight.took_all(n);
@@ -360,10 +337,8 @@ impl<const N: usize> CyclicCx<'_, N> {
 /// M on all but the last (every bit compared: FP commands keep their station).
 #[inline]
 fn fprds_match(rr: &[u8], fprds: &[Option<Pending>]) -> bool {
-    /// Command, register and length bits of a key.
-    const FIXED: u64 = 0xFFFF_FFFF_0000_00FF;
-    const FPRD: u64 =
-        Command::Fprd.code() as u64 | (reg::SYSTEM_TIME_DIFFERENCE as u64) << 32 | 4 << 48;
+    const FIXED: u64 = HeaderKey::COMMAND | HeaderKey::ADO | HeaderKey::LEN_WORD;
+    const FPRD: HeaderKey = HeaderKey::new(Command::Fprd, 0, 0, reg::SYSTEM_TIME_DIFFERENCE, 4);
     let mut rest = rr;
     let mut left = fprds.len();
     let mut ok = true;
@@ -373,21 +348,13 @@ fn fprds_match(rr: &[u8], fprds: &[Option<Pending>]) -> bool {
         };
         rest = tail;
         left = left.wrapping_sub(1);
-        let more = if left > 0 { MORE_BIT } else { 0 };
-        let [h0, h1, h2, h3, h4, h5, h6, h7, ..] = *d;
-        let got = u64::from_le_bytes([h0, h1, h2, h3, h4, h5, h6, h7]);
+        let Some(h) = d.first_chunk() else {
+            return false;
+        };
         let key = p.key();
-        ok &= key & FIXED == FPRD && matches!(p.tag, Tag::CycDiff(_)) && got == key | more;
+        ok &= key.agrees(FPRD, FIXED)
+            && matches!(p.tag, Tag::CycDiff(_))
+            && HeaderKey::of(h) == key.with_more(left > 0);
     }
     ok && rest.is_empty()
-}
-
-/// A datagram's data (between the header and the WKC) and its working counter.
-#[inline]
-fn data_wkc(d: &[u8]) -> (&[u8], u16) {
-    let body = d.get(DATAGRAM_HEADER_LEN..).unwrap_or(&[]);
-    match body.split_last_chunk::<2>() {
-        Some((data, wkc)) => (data, u16::from_le_bytes(*wkc)),
-        None => (&[], 0),
-    }
 }

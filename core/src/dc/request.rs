@@ -9,7 +9,7 @@
 use crate::dc::error::Error;
 #[cfg(test)]
 use crate::wire::Datagram;
-use crate::wire::{Address, Command, FrameBuilder, HeaderPattern};
+use crate::wire::{Address, Command, FrameBuilder, HeaderKey, HeaderPattern};
 
 /// Most datagrams of the machine in one frame. Per-slave steps on bigger networks take several
 /// frames. ecdc choice: 32 datagrams of up to 44 bytes fit one 1 498-byte EtherCAT payload.
@@ -181,12 +181,14 @@ impl Pending {
     /// Command, index, station, register and length in the order and width of a datagram
     /// header's first 8 bytes read as a little-endian `u64` (M, C and reserved bits clear).
     #[inline]
-    pub(crate) fn key(&self) -> u64 {
-        u64::from(self.command.code())
-            | u64::from(self.index) << 8
-            | u64::from(self.station) << 16
-            | u64::from(self.register) << 32
-            | u64::from(self.len) << 48
+    pub(crate) const fn key(&self) -> HeaderKey {
+        HeaderKey::new(
+            self.command,
+            self.index,
+            self.station,
+            self.register,
+            self.len,
+        )
     }
 
     /// The reply header this entry accepts, for [`crate::wire::matches_pattern`]: command,
@@ -194,33 +196,34 @@ impl Pending {
     /// fields.
     #[inline]
     pub(crate) fn pattern(&self) -> HeaderPattern {
-        let fp = matches!(
+        HeaderPattern {
+            want: self.key().0,
+            mask: self.compared() & !HeaderKey::LEN_WORD,
+            len: self.len,
+        }
+    }
+
+    /// The header bits a reply must share with the request: command, index, register and data
+    /// length, and the station for FP commands (a position or broadcast address is changed by
+    /// the slaves).
+    #[inline(always)]
+    const fn compared(&self) -> u64 {
+        let fixed = HeaderKey::COMMAND_INDEX | HeaderKey::ADO | HeaderKey::LEN;
+        if matches!(
             self.command,
             Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
-        );
-        HeaderPattern {
-            want: self.key(),
-            mask: if fp {
-                0xFFFF_FFFF_FFFF
-            } else {
-                0xFFFF_0000_FFFF
-            },
-            len: self.len,
+        ) {
+            fixed | HeaderKey::ADP
+        } else {
+            fixed
         }
     }
 
     /// [`Pending::matches`] on a datagram's 10 header bytes.
     #[inline]
     pub(crate) fn matches_header(&self, h: &[u8; 10]) -> bool {
-        let [cmd, idx, p0, p1, o0, o1, l0, l1, _, _] = *h;
-        idx == self.index
-            && cmd == self.command.code()
-            && u16::from_le_bytes([o0, o1]) == self.register
-            && u16::from_le_bytes([l0, l1]) & 0x07FF == self.len
-            && (!matches!(
-                self.command,
-                Command::Fprd | Command::Fpwr | Command::Fprw | Command::Frmw
-            ) || u16::from_le_bytes([p0, p1]) == self.station)
+        h.first_chunk::<8>()
+            .is_some_and(|h| self.key().agrees(HeaderKey::of(h), self.compared()))
     }
 }
 

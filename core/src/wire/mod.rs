@@ -57,6 +57,7 @@ mod datagram;
 mod error;
 mod ethernet;
 mod frame;
+mod key;
 pub mod register;
 
 pub use address::Address;
@@ -68,6 +69,7 @@ pub use error::{Error, Result};
 pub use ethernet::{EthernetFrame, HEADER_LEN as ETHERNET_HEADER_LEN};
 pub(crate) use frame::{matches_pattern, HeaderPattern};
 pub use frame::{DatagramOffsets, Datagrams, DatagramsMut, EcatFrame, FrameType, ECAT_HEADER_LEN};
+pub(crate) use key::{data_and_wkc, dlpdu_header, set_more, HeaderKey};
 
 /// EtherType of EtherCAT (big-endian on the wire like every EtherType). REQ-WIRE-001
 pub const ETHERTYPE_ETHERCAT: u16 = 0x88A4;
