@@ -134,7 +134,7 @@ pub(crate) enum Plan {
 
 /// Which latch the step is in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub(crate) enum Phase {
+pub(crate) enum Latch {
     /// The read before the first trigger (stale-latch reference).
     #[default]
     Pre,
@@ -181,7 +181,7 @@ pub(crate) enum Work {
 /// The t_Diff phase's data (REQ-DC-120..126).
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub(crate) struct Tdiff<const N: usize> {
-    pub(crate) phase: Phase,
+    pub(crate) latch: Latch,
     /// A slave is in SAFE-OP/OP (or an unknown state): no port is closed.
     running: bool,
     plan: [Plan; N],
@@ -217,7 +217,7 @@ pub(crate) struct Tdiff<const N: usize> {
 impl<const N: usize> Tdiff<N> {
     pub(crate) const fn new() -> Self {
         Tdiff {
-            phase: Phase::Pre,
+            latch: Latch::Pre,
             running: false,
             plan: [Plan::Skip; N],
             dl_control: [0; N],
@@ -238,7 +238,7 @@ impl<const N: usize> Tdiff<N> {
     /// closed is reopened by the next bring-up whatever the configuration (REQ-DC-124).
     pub(crate) fn forget(&mut self) {
         let Tdiff {
-            phase,
+            latch,
             running,
             plan,
             dl_control,
@@ -253,7 +253,7 @@ impl<const N: usize> Tdiff<N> {
             kept,
             kept_count,
         } = self;
-        *phase = Phase::Pre;
+        *latch = Latch::Pre;
         *running = false;
         plan.fill(Plan::Skip);
         dl_control.fill(0);
@@ -269,7 +269,7 @@ impl<const N: usize> Tdiff<N> {
     }
 
     fn clear(&mut self) {
-        self.phase = Phase::Pre;
+        self.latch = Latch::Pre;
         self.running = false;
         self.plan.fill(Plan::Skip);
         self.closed = 0;
@@ -355,8 +355,8 @@ impl<const N: usize> Machine<N> {
             }
             State::TdiffLatch => {
                 let s = self.slave(i)?;
-                match self.sh.tdiff.phase {
-                    Phase::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
+                match self.sh.tdiff.latch {
+                    Latch::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
                         Plan::Measure { parent, .. } if parent == i => Some(Work::ReadPorts(i)),
                         _ => None,
                     },
@@ -364,11 +364,11 @@ impl<const N: usize> Machine<N> {
                 }
             }
             State::TdiffTrigger => Some(Work::Trigger),
-            State::TdiffClose | State::TdiffRestore => match self.sh.tdiff.phase {
-                Phase::Closed { target, .. } if self.state() == State::TdiffClose => {
+            State::TdiffClose | State::TdiffRestore => match self.sh.tdiff.latch {
+                Latch::Closed { target, .. } if self.state() == State::TdiffClose => {
                     Some(Work::Close(target))
                 }
-                Phase::Closed { target, .. } => Some(Work::Restore(target)),
+                Latch::Closed { target, .. } => Some(Work::Restore(target)),
                 _ => None,
             },
             _ => None,
@@ -424,17 +424,17 @@ impl<const N: usize> Machine<N> {
     /// not happen.
     fn tdiff_chained(&self) -> bool {
         let c = self.tdiff_cfg();
-        match self.sh.tdiff.phase {
-            Phase::Pre => true,
-            Phase::Base { round } => round.saturating_add(1) < c.base_rounds,
-            Phase::Closed { round, .. } => round.saturating_add(1) < c.rounds,
+        match self.sh.tdiff.latch {
+            Latch::Pre => true,
+            Latch::Base { round } => round.saturating_add(1) < c.base_rounds,
+            Latch::Closed { round, .. } => round.saturating_add(1) < c.rounds,
         }
     }
 
     /// Slaves (all, latching) that the current trigger can reach.
     fn tdiff_reachable(&self) -> (u16, u16) {
-        let cut = match self.sh.tdiff.phase {
-            Phase::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
+        let cut = match self.sh.tdiff.latch {
+            Latch::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
                 Plan::Measure { end, .. } => Some((target, end)),
                 Plan::Skip | Plan::Done { .. } => None,
             },
@@ -517,7 +517,7 @@ impl<const N: usize> Machine<N> {
                 if self.sh.tdiff.running {
                     return Ok(self.tdiff_finish());
                 }
-                self.sh.tdiff.phase = Phase::Pre;
+                self.sh.tdiff.latch = Latch::Pre;
                 Ok(State::TdiffLatch)
             }
             State::TdiffTrigger => Ok(State::TdiffLatch),
@@ -525,7 +525,7 @@ impl<const N: usize> Machine<N> {
             State::TdiffClose => Ok(State::TdiffTrigger),
             State::TdiffRestore => {
                 self.sh.tdiff.pending = None;
-                if let Phase::Closed { target, .. } = self.sh.tdiff.phase {
+                if let Latch::Closed { target, .. } = self.sh.tdiff.latch {
                     let c = self.tdiff_cfg();
                     let base = self
                         .sh
@@ -563,7 +563,7 @@ impl<const N: usize> Machine<N> {
     fn tdiff_next(&mut self, from: u16) -> State {
         match self.sh.tdiff.next_target(from) {
             Some(t) => {
-                self.sh.tdiff.phase = Phase::Closed {
+                self.sh.tdiff.latch = Latch::Closed {
                     target: t,
                     round: 0,
                 };
@@ -583,14 +583,14 @@ impl<const N: usize> Machine<N> {
         let stale = |m: &Self, pos: u16| Error::Measurement {
             station: m.slave(pos).map_or(0, |s| s.station),
         };
-        match self.sh.tdiff.phase {
-            Phase::Pre => {
+        match self.sh.tdiff.latch {
+            Latch::Pre => {
                 self.sh.tdiff.prev = self.sh.tdiff.cur;
-                self.sh.tdiff.phase = Phase::Base { round: 0 };
+                self.sh.tdiff.latch = Latch::Base { round: 0 };
                 // The read step carried the first trigger (`tdiff_chained`).
                 Ok(State::TdiffLatch)
             }
-            Phase::Base { round } => {
+            Latch::Base { round } => {
                 if round == 0 {
                     self.tdiff_plan()?;
                     if self.sh.tdiff.next_target(0).is_none() {
@@ -639,13 +639,13 @@ impl<const N: usize> Machine<N> {
                 self.sh.tdiff.prev = self.sh.tdiff.cur;
                 let next = round.saturating_add(1);
                 if next < base_rounds {
-                    self.sh.tdiff.phase = Phase::Base { round: next };
+                    self.sh.tdiff.latch = Latch::Base { round: next };
                     return Ok(State::TdiffLatch);
                 }
                 self.tdiff_rate_correct();
                 Ok(self.tdiff_next(0))
             }
-            Phase::Closed { target, round } => {
+            Latch::Closed { target, round } => {
                 let Plan::Measure { parent, q, p, .. } = self.sh.tdiff.plan_of(target) else {
                     return Ok(self.tdiff_next(target.saturating_add(1)));
                 };
@@ -662,7 +662,7 @@ impl<const N: usize> Machine<N> {
                 }
                 let next = round.saturating_add(1);
                 if next < rounds {
-                    self.sh.tdiff.phase = Phase::Closed {
+                    self.sh.tdiff.latch = Latch::Closed {
                         target,
                         round: next,
                     };
