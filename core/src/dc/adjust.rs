@@ -10,7 +10,7 @@ use crate::dc::machine::{Item, Machine};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
-use crate::wire::register::reg;
+use crate::wire::register::{reg, typed};
 
 /// The writes of `WriteOffsets`, per slave with a system time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -113,9 +113,9 @@ impl<const N: usize> Machine<N> {
                 }
             }
             State::ReadAlStatus => {
-                let v = le(data, 2)
-                    .and_then(|v| u16::try_from(v).ok())
-                    .ok_or(p.out_of_range())?;
+                let v = typed::AL_STATUS
+                    .decode(data)
+                    .map_err(|_| p.out_of_range())?;
                 if let Some(s) = self.slave_mut(i) {
                     s.al_status = Some(v);
                 }

@@ -5,11 +5,11 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Reply};
+use crate::dc::request::{Op, Reply};
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
-use crate::wire::register::{reg, DlStatus, EscFeatures};
+use crate::wire::register::{reg, typed, DlStatus, EscFeatures};
 
 /// The reads of `ReadInfo`, per slave.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -91,12 +91,14 @@ impl<const N: usize> Machine<N> {
             }
             State::ReadInfo => {
                 self.expect_wkc(p, 1, wkc)?;
-                let v = le(data, 2)
-                    .and_then(|v| u16::try_from(v).ok())
-                    .ok_or(p.out_of_range())?;
                 let Some((pos, read)) = InfoRead::of(i) else {
                     return Ok(());
                 };
+                let v = match read {
+                    InfoRead::Features => typed::ESC_FEATURES.decode(data),
+                    InfoRead::DlStatus => typed::DL_STATUS.decode(data),
+                }
+                .map_err(|_| p.out_of_range())?;
                 if let Some(s) = self.slave_mut(pos) {
                     match read {
                         InfoRead::Features => {

@@ -10,9 +10,9 @@ use crate::dc::config::DriftCheck;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Reply, Tag};
+use crate::dc::request::{Op, Reply, Tag};
 use crate::dc::state::State;
-use crate::wire::register::{reg, SystemTimeDifference};
+use crate::wire::register::{reg, typed, SystemTimeDifference};
 use crate::wire::{FrameBuilder, DATAGRAM_OVERHEAD};
 
 /// The convergence gate's running data (REQ-DC-104).
@@ -122,9 +122,9 @@ impl<const N: usize> Machine<N> {
                 // BRD 0x092C: only ESCs with a system time have the register.
                 let expected = if i == 0 { self.sh.line.sys_count } else { 1 };
                 self.expect_wkc(p, expected, wkc)?;
-                let raw = le(data, 4)
-                    .and_then(|v| u32::try_from(v).ok())
-                    .ok_or(p.out_of_range())?;
+                let raw = typed::SYSTEM_TIME_DIFFERENCE
+                    .decode(data)
+                    .map_err(|_| p.out_of_range())?;
                 let d = SystemTimeDifference::from_raw(raw);
                 if i == 0 {
                     if let Some(gate) = self.phase.drift_gate_mut() {

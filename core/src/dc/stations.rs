@@ -3,8 +3,8 @@
 
 use crate::dc::error::Error;
 use crate::dc::machine::{Item, Machine};
-use crate::dc::request::{le, Op, Payload, Pending};
-use crate::wire::register::reg;
+use crate::dc::request::{Op, Payload, Pending};
+use crate::wire::register::{reg, typed};
 use crate::wire::{Address, Command};
 
 /// How the bring-up gets each slave's configured station address (0x0010).
@@ -50,7 +50,7 @@ impl<const N: usize> Machine<N> {
                     station: 0,
                     register: p.register,
                 };
-                let station = le(data, 2).and_then(|v| u16::try_from(v).ok()).ok_or(bad)?;
+                let station = typed::STATION_ADDRESS.decode(data).map_err(|_| bad)?;
                 let taken = (0..i).any(|q| self.slave(q).is_some_and(|s| s.station == station));
                 if station == 0 || taken {
                     return Err(Error::OutOfRange {
