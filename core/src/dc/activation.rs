@@ -9,6 +9,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
+use crate::dc::phase::{ActivationStep, Phase};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
@@ -45,18 +46,20 @@ impl<const N: usize> Machine<N> {
         let Some(sync) = self.sh.cfg.sync else {
             return Item::Skip;
         };
-        match self.state() {
-            State::ReadReferenceTime => match self.slave(self.sh.line.reference) {
-                Some(r) => Item::Send(Op::fprd(r.station, reg::SYSTEM_TIME, r.dc.time_width())),
-                None => Item::Skip,
-            },
-            State::ClearActivation => match self.slave(i) {
+        match self.phase {
+            Phase::Activation(ActivationStep::ReadReferenceTime) => {
+                match self.slave(self.sh.line.reference) {
+                    Some(r) => Item::Send(Op::fprd(r.station, reg::SYSTEM_TIME, r.dc.time_width())),
+                    None => Item::Skip,
+                }
+            }
+            Phase::Activation(ActivationStep::ClearActivation) => match self.slave(i) {
                 Some(s) if sync_target(s) => {
                     Item::Send(Op::fpwr(s.station, reg::SYNC_ACTIVATION, 1, 0))
                 }
                 _ => Item::Skip,
             },
-            State::ProgramSync => match SyncWrite::of(i) {
+            Phase::Activation(ActivationStep::ProgramSync) => match SyncWrite::of(i) {
                 Some((pos, write)) => match self.slave(pos) {
                     Some(s) if sync_target(s) => Item::Send(match write {
                         SyncWrite::StartTime => Op::fpwr(
@@ -82,7 +85,7 @@ impl<const N: usize> Machine<N> {
                 },
                 None => Item::Skip,
             },
-            State::ActivateSync => match self.slave(i) {
+            Phase::Activation(ActivationStep::ActivateSync) => match self.slave(i) {
                 Some(s) if sync_target(s) => Item::Send(Op::fpwr(
                     s.station,
                     reg::CYCLIC_UNIT_CONTROL,
@@ -98,8 +101,8 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn activation_reply(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
         self.expect_wkc(p, 1, wkc)?;
-        match self.state() {
-            State::ReadReferenceTime => {
+        match self.phase {
+            Phase::Activation(ActivationStep::ReadReferenceTime) => {
                 let bad = p.out_of_range();
                 let raw = le(data, usize::from(p.len)).ok_or(bad)?;
                 let r = self.slave(self.sh.line.reference).copied().ok_or(bad)?;
@@ -107,7 +110,7 @@ impl<const N: usize> Machine<N> {
                 self.sh.line.sync_start =
                     self.sh.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
             }
-            State::ActivateSync => {
+            Phase::Activation(ActivationStep::ActivateSync) => {
                 if let Some(s) = self.slave_mut(i) {
                     s.sync_programmed = true;
                 }
@@ -118,11 +121,11 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn activation_done(&mut self) -> Result<State, Error> {
-        match self.state() {
-            State::ReadReferenceTime => Ok(State::ClearActivation),
-            State::ClearActivation => Ok(State::ProgramSync),
-            State::ProgramSync => Ok(State::ActivateSync),
-            State::ActivateSync => {
+        match self.phase {
+            Phase::Activation(ActivationStep::ReadReferenceTime) => Ok(State::ClearActivation),
+            Phase::Activation(ActivationStep::ClearActivation) => Ok(State::ProgramSync),
+            Phase::Activation(ActivationStep::ProgramSync) => Ok(State::ActivateSync),
+            Phase::Activation(ActivationStep::ActivateSync) => {
                 let n = self.slaves().iter().filter(|s| s.sync_programmed).count();
                 let slaves = u16::try_from(n).unwrap_or(u16::MAX);
                 self.push_event(Event::SyncStarted {

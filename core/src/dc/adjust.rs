@@ -7,6 +7,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
+use crate::dc::phase::{AdjustStep, Phase};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
@@ -40,27 +41,31 @@ impl PerSlave for LoopReset {
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
-        match self.state() {
-            State::ReadAlStatus if i < self.sh.line.count => match self.slave(i) {
-                Some(s) if s.dc.has_system_time() => {
-                    Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
+        match self.phase {
+            Phase::Adjust(AdjustStep::ReadAlStatus) if i < self.sh.line.count => {
+                match self.slave(i) {
+                    Some(s) if s.dc.has_system_time() => {
+                        Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
+                    }
+                    _ => Item::Skip,
                 }
-                _ => Item::Skip,
-            },
+            }
             // REQ-DC-131: the offset of every slave whose offset stays, after every AL status
             // of the step is in (`max_per_frame` keeps the two halves in separate frames).
-            State::ReadAlStatus => match self.slave(i.saturating_sub(self.sh.line.count)) {
-                Some(s) if s.dc.has_system_time() && s.al_status.is_some() => {
-                    if s.may_step_offset() {
-                        Item::Skip
-                    } else {
-                        let w = s.dc.time_width();
-                        Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME_OFFSET, w))
+            Phase::Adjust(AdjustStep::ReadAlStatus) => {
+                match self.slave(i.saturating_sub(self.sh.line.count)) {
+                    Some(s) if s.dc.has_system_time() && s.al_status.is_some() => {
+                        if s.may_step_offset() {
+                            Item::Skip
+                        } else {
+                            let w = s.dc.time_width();
+                            Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME_OFFSET, w))
+                        }
                     }
+                    _ => Item::Skip,
                 }
-                _ => Item::Skip,
-            },
-            State::WriteOffsets => match DcWrite::of(i) {
+            }
+            Phase::Adjust(AdjustStep::WriteOffsets) => match DcWrite::of(i) {
                 Some((pos, write)) => match self.slave(pos) {
                     Some(s) if s.dc.has_system_time() => match write {
                         // REQ-DC-103: never step the system time of a (possibly) running slave.
@@ -80,7 +85,7 @@ impl<const N: usize> Machine<N> {
                 },
                 None => Item::Skip,
             },
-            State::ResetLoops => match LoopReset::of(i) {
+            Phase::Adjust(AdjustStep::ResetLoops) => match LoopReset::of(i) {
                 Some((pos, write)) => match self.slave(pos) {
                     Some(s) if s.offset_written => {
                         let (register, v) = match write {
@@ -105,14 +110,14 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
         self.expect_wkc(p, 1, wkc)?;
-        match self.state() {
-            State::ReadAlStatus if i >= self.sh.line.count => {
+        match self.phase {
+            Phase::Adjust(AdjustStep::ReadAlStatus) if i >= self.sh.line.count => {
                 let v = le(data, usize::from(p.len)).ok_or(p.out_of_range())?;
                 if let Some(s) = self.slave_mut(i.saturating_sub(self.sh.line.count)) {
                     s.running_offset = Some(v);
                 }
             }
-            State::ReadAlStatus => {
+            Phase::Adjust(AdjustStep::ReadAlStatus) => {
                 let v = typed::AL_STATUS
                     .decode(data)
                     .map_err(|_| p.out_of_range())?;
@@ -120,7 +125,7 @@ impl<const N: usize> Machine<N> {
                     s.al_status = Some(v);
                 }
             }
-            State::WriteOffsets => {
+            Phase::Adjust(AdjustStep::WriteOffsets) => {
                 if let Some((pos, DcWrite::Offset)) = DcWrite::of(i) {
                     if let Some(s) = self.slave_mut(pos) {
                         s.offset_written = true;
@@ -133,8 +138,8 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn adjust_done(&mut self) -> Result<State, Error> {
-        match self.state() {
-            State::ReadAlStatus => {
+        match self.phase {
+            Phase::Adjust(AdjustStep::ReadAlStatus) => {
                 self.sh.anchor_on_running_domain()?;
                 for s in self.sh.line.slaves.iter_mut() {
                     s.offset_written = false;
@@ -142,7 +147,7 @@ impl<const N: usize> Machine<N> {
                 }
                 Ok(State::WriteOffsets)
             }
-            State::WriteOffsets => {
+            Phase::Adjust(AdjustStep::WriteOffsets) => {
                 let mut written = 0u16;
                 let mut skipped = 0u16;
                 for s in self.slaves().iter().filter(|s| s.dc.has_system_time()) {
@@ -158,7 +163,7 @@ impl<const N: usize> Machine<N> {
                 });
                 Ok(State::ResetLoops)
             }
-            State::ResetLoops => Ok(State::DriftBurst),
+            Phase::Adjust(AdjustStep::ResetLoops) => Ok(State::DriftBurst),
             _ => Ok(self.state()),
         }
     }

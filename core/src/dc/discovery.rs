@@ -5,6 +5,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
+use crate::dc::phase::{DiscoveryStep, Phase};
 use crate::dc::request::{Op, Reply};
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::state::State;
@@ -35,18 +36,18 @@ impl InfoRead {
 
 impl<const N: usize> Machine<N> {
     pub(crate) fn discovery_item(&self, i: u16) -> Item {
-        match self.state() {
+        match self.phase {
             // BRD of the 2-byte type/revision word: every slave increments the WKC.
-            State::CountSlaves => Item::Send(Op::brd(0x0000, 2)),
-            State::AssignAddresses => self.station_item(i),
-            State::ReadInfo => match InfoRead::of(i) {
+            Phase::Discovery(DiscoveryStep::CountSlaves) => Item::Send(Op::brd(0x0000, 2)),
+            Phase::Discovery(DiscoveryStep::AssignAddresses) => self.station_item(i),
+            Phase::Discovery(DiscoveryStep::ReadInfo) => match InfoRead::of(i) {
                 Some((pos, read)) => {
                     let station = self.slave(pos).map_or(0, |s| s.station);
                     Item::Send(Op::fprd(station, read.register(), 2))
                 }
                 None => Item::Skip,
             },
-            State::ProbeSystemTime => match self.slave(i) {
+            Phase::Discovery(DiscoveryStep::ProbeSystemTime) => match self.slave(i) {
                 Some(s) if s.dc.has_latches() => {
                     Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME, 4))
                 }
@@ -63,8 +64,8 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn discovery_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
-        match self.state() {
-            State::CountSlaves => {
+        match self.phase {
+            Phase::Discovery(DiscoveryStep::CountSlaves) => {
                 if wkc == 0 {
                     return Err(Error::NoSlaves);
                 }
@@ -81,7 +82,7 @@ impl<const N: usize> Machine<N> {
                 }
                 Ok(())
             }
-            State::AssignAddresses => {
+            Phase::Discovery(DiscoveryStep::AssignAddresses) => {
                 self.expect_wkc(p, 1, wkc)?;
                 let station = self.station_reply(i, p, data)?;
                 if let Some(s) = self.slave_mut(i) {
@@ -89,7 +90,7 @@ impl<const N: usize> Machine<N> {
                 }
                 Ok(())
             }
-            State::ReadInfo => {
+            Phase::Discovery(DiscoveryStep::ReadInfo) => {
                 self.expect_wkc(p, 1, wkc)?;
                 let Some((pos, read)) = InfoRead::of(i) else {
                     return Ok(());
@@ -115,7 +116,7 @@ impl<const N: usize> Machine<N> {
                 }
                 Ok(())
             }
-            State::ProbeSystemTime => {
+            Phase::Discovery(DiscoveryStep::ProbeSystemTime) => {
                 // IgH `fsm_slave_scan.c`: WKC 1 = system time present, 0 = latches only.
                 if wkc > 1 {
                     return self.expect_wkc(p, 1, wkc);
@@ -132,10 +133,10 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn discovery_done(&mut self) -> Result<State, Error> {
-        match self.state() {
-            State::CountSlaves => Ok(State::AssignAddresses),
-            State::AssignAddresses => Ok(State::ReadInfo),
-            State::ReadInfo => {
+        match self.phase {
+            Phase::Discovery(DiscoveryStep::CountSlaves) => Ok(State::AssignAddresses),
+            Phase::Discovery(DiscoveryStep::AssignAddresses) => Ok(State::ReadInfo),
+            Phase::Discovery(DiscoveryStep::ReadInfo) => {
                 // A slave's own entry port must show a link, or the DL status is garbage.
                 for pos in self.positions() {
                     if let Some(s) = self.slave(pos) {
@@ -149,7 +150,7 @@ impl<const N: usize> Machine<N> {
                 }
                 Ok(State::ProbeSystemTime)
             }
-            State::ProbeSystemTime => {
+            Phase::Discovery(DiscoveryStep::ProbeSystemTime) => {
                 let mut sys = 0u16;
                 // implements: REQ-DC-003
                 let mut reference = None;

@@ -10,6 +10,7 @@ use crate::dc::config::DriftCheck;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
+use crate::dc::phase::{DriftStep, Phase};
 use crate::dc::request::{Op, Reply, Tag};
 use crate::dc::state::State;
 use crate::wire::register::{reg, typed, SystemTimeDifference};
@@ -55,7 +56,9 @@ impl<const N: usize> Machine<N> {
     /// burst waits `check_pause_ns` after the previous frame (REQ-DC-104).
     pub(crate) fn pace_until(&self) -> u64 {
         let last_of_burst = self.burst_len().saturating_sub(1);
-        if self.state() == State::DriftBurst && self.sh.step.cursor == last_of_burst {
+        if matches!(self.phase, Phase::Drift(DriftStep::Burst, _))
+            && self.sh.step.cursor == last_of_burst
+        {
             self.sh
                 .last_sent
                 .saturating_add(self.sh.cfg.drift.check_pause_ns)
@@ -67,7 +70,7 @@ impl<const N: usize> Machine<N> {
     /// In `DriftCheck`, whether check datagram `op` still leaves room in the frame for the
     /// closing FRMW (always true in other states).
     pub(crate) fn drift_check_room(&self, now: u64, b: &FrameBuilder<'_>, op: Op) -> bool {
-        self.state() != State::DriftCheck
+        !matches!(self.phase, Phase::Drift(DriftStep::Check, _))
             || b.fits(
                 usize::from(op.len)
                     .saturating_add(DATAGRAM_OVERHEAD)
@@ -82,7 +85,9 @@ impl<const N: usize> Machine<N> {
     /// fresh one; a check of one frame (short networks) has none and reads exactly the Δt of
     /// the check pause.
     pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
-        if self.state() == State::DriftCheck && self.push_op(b, self.frmw_op(now), Tag::Frmw) {
+        if matches!(self.phase, Phase::Drift(DriftStep::Check, _))
+            && self.push_op(b, self.frmw_op(now), Tag::Frmw)
+        {
             if let Some(gate) = self.phase.drift_gate_mut() {
                 gate.frames = gate.frames.saturating_add(1);
             }
@@ -90,9 +95,9 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn drift_item(&self, now: u64, i: u16) -> Item {
-        match self.state() {
-            State::DriftBurst => Item::Send(self.frmw_op(now)),
-            State::DriftCheck => {
+        match self.phase {
+            Phase::Drift(DriftStep::Burst, _) => Item::Send(self.frmw_op(now)),
+            Phase::Drift(DriftStep::Check, _) => {
                 let check = self.sh.cfg.drift.check;
                 if i == 0 {
                     if check == DriftCheck::PerSlave {
@@ -116,9 +121,9 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn drift_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
-        match self.state() {
-            State::DriftBurst => self.check_frmw(p, wkc),
-            State::DriftCheck => {
+        match self.phase {
+            Phase::Drift(DriftStep::Burst, _) => self.check_frmw(p, wkc),
+            Phase::Drift(DriftStep::Check, _) => {
                 // BRD 0x092C: only ESCs with a system time have the register.
                 let expected = if i == 0 { self.sh.line.sys_count } else { 1 };
                 self.expect_wkc(p, expected, wkc)?;
@@ -140,9 +145,9 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn drift_done(&mut self) -> Result<State, Error> {
-        match self.state() {
-            State::DriftBurst => Ok(State::DriftCheck),
-            State::DriftCheck => self.drift_judge(),
+        match self.phase {
+            Phase::Drift(DriftStep::Burst, _) => Ok(State::DriftCheck),
+            Phase::Drift(DriftStep::Check, _) => self.drift_judge(),
             _ => Ok(self.state()),
         }
     }

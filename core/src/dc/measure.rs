@@ -10,6 +10,7 @@ use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::line::Line;
 use crate::dc::machine::{expect_wkc, Item, Machine};
+use crate::dc::phase::{MeasureStep, Phase};
 use crate::dc::request::{Op, Reply};
 use crate::dc::slave::{LatchRead, SlaveInfo};
 use crate::dc::state::State;
@@ -52,32 +53,36 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn measure_item(&self, i: u16) -> Item {
-        match self.state() {
-            State::LatchTrigger => Item::Send(LATCH_TRIGGER),
-            State::LatchReadBefore => self.latch_item(i, LatchRead::Before),
-            State::LatchReadAfter => self.latch_item(i, LatchRead::After),
+        match self.phase {
+            Phase::Measure(MeasureStep::Trigger) => Item::Send(LATCH_TRIGGER),
+            Phase::Measure(MeasureStep::ReadBefore) => self.latch_item(i, LatchRead::Before),
+            Phase::Measure(MeasureStep::ReadAfter) => self.latch_item(i, LatchRead::After),
             _ => Item::Skip,
         }
     }
 
     pub(crate) fn measure_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
-        match self.state() {
-            State::LatchTrigger => {
+        match self.phase {
+            Phase::Measure(MeasureStep::Trigger) => {
                 let line = &self.sh.line;
                 r.sent
                     .check_latch_wkc(r.wkc, line.latching_count(), line.count)
             }
-            State::LatchReadBefore => store_latch_reply(&mut self.sh.line, r, LatchRead::Before),
-            State::LatchReadAfter => store_latch_reply(&mut self.sh.line, r, LatchRead::After),
+            Phase::Measure(MeasureStep::ReadBefore) => {
+                store_latch_reply(&mut self.sh.line, r, LatchRead::Before)
+            }
+            Phase::Measure(MeasureStep::ReadAfter) => {
+                store_latch_reply(&mut self.sh.line, r, LatchRead::After)
+            }
             _ => Ok(()),
         }
     }
 
     pub(crate) fn measure_done(&mut self) -> Result<State, Error> {
-        match self.state() {
-            State::LatchReadBefore => Ok(State::LatchTrigger),
-            State::LatchTrigger => Ok(State::LatchReadAfter),
-            State::LatchReadAfter => {
+        match self.phase {
+            Phase::Measure(MeasureStep::ReadBefore) => Ok(State::LatchTrigger),
+            Phase::Measure(MeasureStep::Trigger) => Ok(State::LatchReadAfter),
+            Phase::Measure(MeasureStep::ReadAfter) => {
                 self.sh.add_latch_round()?;
                 self.sh.latch.round = self.sh.latch.round.saturating_add(1);
                 if self.sh.latch.round < self.sh.cfg.latch_rounds {
