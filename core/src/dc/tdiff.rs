@@ -37,6 +37,7 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::measure::LATCH_TRIGGER;
 use crate::dc::offset::offset_write_permitted;
+use crate::dc::phase::{Phase, TdiffStep};
 use crate::dc::port::{Port, PortSet};
 use crate::dc::request::{le, Op, Reply};
 use crate::dc::slave::SlaveInfo;
@@ -323,14 +324,16 @@ impl<const N: usize> Machine<N> {
 
     /// Number of items of the current t_Diff step.
     pub(crate) fn tdiff_count(&self) -> u16 {
-        match self.state() {
-            State::TdiffRead => TdiffRead::items(self.sh.line.count),
-            State::TdiffLatch => self
+        match self.phase {
+            Phase::Tdiff(TdiffStep::Read) => TdiffRead::items(self.sh.line.count),
+            Phase::Tdiff(TdiffStep::Latch) => self
                 .sh
                 .line
                 .count
                 .saturating_add(u16::from(self.tdiff_chained())),
-            State::TdiffTrigger | State::TdiffClose | State::TdiffRestore => 1,
+            Phase::Tdiff(TdiffStep::Trigger)
+            | Phase::Tdiff(TdiffStep::Close)
+            | Phase::Tdiff(TdiffStep::Restore) => 1,
             _ => 0,
         }
     }
@@ -338,8 +341,8 @@ impl<const N: usize> Machine<N> {
     /// The typed work item `i` of the current step, `None` when there is nothing to send.
     fn tdiff_work(&self, i: u16) -> Option<Work> {
         let off = self.tdiff_cfg().mode == TdiffMode::Off;
-        match self.state() {
-            State::TdiffRead if !off => {
+        match self.phase {
+            Phase::Tdiff(TdiffStep::Read) if !off => {
                 let (pos, read) = TdiffRead::of(i)?;
                 let s = self.slave(pos)?;
                 match read {
@@ -350,10 +353,10 @@ impl<const N: usize> Machine<N> {
                         .then_some(Work::ReadDlControl(pos)),
                 }
             }
-            State::TdiffLatch if i == self.sh.line.count => {
+            Phase::Tdiff(TdiffStep::Latch) if i == self.sh.line.count => {
                 self.tdiff_chained().then_some(Work::Trigger)
             }
-            State::TdiffLatch => {
+            Phase::Tdiff(TdiffStep::Latch) => {
                 let s = self.slave(i)?;
                 match self.sh.tdiff.latch {
                     Latch::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
@@ -363,14 +366,18 @@ impl<const N: usize> Machine<N> {
                     _ => s.dc.has_latches().then_some(Work::ReadPorts(i)),
                 }
             }
-            State::TdiffTrigger => Some(Work::Trigger),
-            State::TdiffClose | State::TdiffRestore => match self.sh.tdiff.latch {
-                Latch::Closed { target, .. } if self.state() == State::TdiffClose => {
-                    Some(Work::Close(target))
+            Phase::Tdiff(TdiffStep::Trigger) => Some(Work::Trigger),
+            Phase::Tdiff(TdiffStep::Close) | Phase::Tdiff(TdiffStep::Restore) => {
+                match self.sh.tdiff.latch {
+                    Latch::Closed { target, .. }
+                        if matches!(self.phase, Phase::Tdiff(TdiffStep::Close)) =>
+                    {
+                        Some(Work::Close(target))
+                    }
+                    Latch::Closed { target, .. } => Some(Work::Restore(target)),
+                    _ => None,
                 }
-                Latch::Closed { target, .. } => Some(Work::Restore(target)),
-                _ => None,
-            },
+            }
             _ => None,
         }
     }
@@ -499,13 +506,16 @@ impl<const N: usize> Machine<N> {
 
     /// Retry target of a failed t_Diff step: a failed trigger or read latches again.
     pub(crate) fn tdiff_retry_state(&self) -> Option<State> {
-        matches!(self.state(), State::TdiffTrigger | State::TdiffLatch)
-            .then_some(State::TdiffTrigger)
+        matches!(
+            self.phase,
+            Phase::Tdiff(TdiffStep::Trigger | TdiffStep::Latch)
+        )
+        .then_some(State::TdiffTrigger)
     }
 
     pub(crate) fn tdiff_done(&mut self) -> Result<State, Error> {
-        match self.state() {
-            State::TdiffRead => {
+        match self.phase {
+            Phase::Tdiff(TdiffStep::Read) => {
                 if self.tdiff_cfg().mode == TdiffMode::Off {
                     return Ok(self.tdiff_finish());
                 }
@@ -520,10 +530,10 @@ impl<const N: usize> Machine<N> {
                 self.sh.tdiff.latch = Latch::Pre;
                 Ok(State::TdiffLatch)
             }
-            State::TdiffTrigger => Ok(State::TdiffLatch),
-            State::TdiffLatch => self.tdiff_latch_done(),
-            State::TdiffClose => Ok(State::TdiffTrigger),
-            State::TdiffRestore => {
+            Phase::Tdiff(TdiffStep::Trigger) => Ok(State::TdiffLatch),
+            Phase::Tdiff(TdiffStep::Latch) => self.tdiff_latch_done(),
+            Phase::Tdiff(TdiffStep::Close) => Ok(State::TdiffTrigger),
+            Phase::Tdiff(TdiffStep::Restore) => {
                 self.sh.tdiff.pending = None;
                 if let Latch::Closed { target, .. } = self.sh.tdiff.latch {
                     let c = self.tdiff_cfg();
