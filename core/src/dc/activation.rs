@@ -42,6 +42,16 @@ fn sync_target(s: &SlaveInfo) -> bool {
 }
 
 impl<const N: usize> Machine<N> {
+    /// Items of a SYNC step.
+    pub(crate) fn activation_count(&self, step: ActivationStep) -> u16 {
+        let n = self.sh.line.count;
+        match step {
+            ActivationStep::ReadReferenceTime => 1,
+            ActivationStep::ClearActivation | ActivationStep::ActivateSync => n,
+            ActivationStep::ProgramSync => SyncWrite::items(n),
+        }
+    }
+
     pub(crate) fn activation_item(&self, i: u16) -> Item {
         let Some(sync) = self.sh.cfg.sync else {
             return Item::Skip;

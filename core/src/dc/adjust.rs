@@ -40,6 +40,17 @@ impl PerSlave for LoopReset {
 }
 
 impl<const N: usize> Machine<N> {
+    /// Items of an offset step.
+    pub(crate) fn adjust_count(&self, step: AdjustStep) -> u16 {
+        let n = self.sh.line.count;
+        match step {
+            // AL status of every slave, then 0x0920 of the running ones.
+            AdjustStep::ReadAlStatus => n.saturating_mul(2),
+            AdjustStep::WriteOffsets => DcWrite::items(n),
+            AdjustStep::ResetLoops => LoopReset::items(n),
+        }
+    }
+
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
         match self.phase {
             Phase::Adjust(AdjustStep::ReadAlStatus) if i < self.sh.line.count => {

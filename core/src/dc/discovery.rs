@@ -35,6 +35,16 @@ impl InfoRead {
 }
 
 impl<const N: usize> Machine<N> {
+    /// Items of a discovery step.
+    pub(crate) fn discovery_count(&self, step: DiscoveryStep) -> u16 {
+        let n = self.sh.line.count;
+        match step {
+            DiscoveryStep::CountSlaves => 1u16.saturating_add(u16::from(self.sh.tdiff.recovering)),
+            DiscoveryStep::AssignAddresses | DiscoveryStep::ProbeSystemTime => n,
+            DiscoveryStep::ReadInfo => InfoRead::items(n),
+        }
+    }
+
     pub(crate) fn discovery_item(&self, i: u16) -> Item {
         match self.phase {
             // BRD of the 2-byte type/revision word: every slave increments the WKC.

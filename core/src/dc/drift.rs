@@ -40,6 +40,14 @@ impl DriftGate {
 }
 
 impl<const N: usize> Machine<N> {
+    /// Items of a drift step: the burst's FRMWs, or the bound and every slave's 0x092C.
+    pub(crate) fn drift_count(&self, step: DriftStep) -> u16 {
+        match step {
+            DriftStep::Burst => self.burst_len(),
+            DriftStep::Check => self.sh.line.count.saturating_add(1),
+        }
+    }
+
     /// Frames of the current burst: `burst_frames` back to back while the gate has not passed
     /// yet; once a check passed, single paused frames, so the remaining `consecutive − 1` checks
     /// watch the loops at the cyclic sample rate they will run at (a loop held tight by

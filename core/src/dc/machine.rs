@@ -721,7 +721,7 @@ impl<const N: usize> Machine<N> {
                     {
                         break;
                     }
-                    self.before_send(now, self.sh.step.cursor);
+                    self.before_send(now);
                     sent = sent.saturating_add(1);
                     self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
                 }

@@ -46,6 +46,14 @@ impl<const N: usize> LatchRounds<N> {
 }
 
 impl<const N: usize> Machine<N> {
+    /// Items of a delay measurement step.
+    pub(crate) fn measure_count(&self, step: MeasureStep) -> u16 {
+        match step {
+            MeasureStep::Trigger => 1,
+            MeasureStep::ReadBefore | MeasureStep::ReadAfter => self.sh.line.count,
+        }
+    }
+
     fn latch_item(&self, i: u16, read: LatchRead) -> Item {
         self.slave(i)
             .and_then(|s| latch_read(s, read))

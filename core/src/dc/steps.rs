@@ -2,66 +2,47 @@
 //! how each reply is checked and stored, and where the step goes when done. The per-step logic
 //! lives in `discovery.rs`, `measure.rs`, `adjust.rs`, `drift.rs` and `activation.rs`.
 
-use crate::dc::activation::SyncWrite;
-use crate::dc::adjust::{DcWrite, LoopReset};
 use crate::dc::config::DriftCommand;
-use crate::dc::discovery::InfoRead;
 use crate::dc::error::Error;
 use crate::dc::machine::{expect_wkc, Item, Machine, Shared};
-use crate::dc::phase::Phase;
+use crate::dc::phase::{AdjustStep, DiscoveryStep, DriftStep, MeasureStep, Phase};
 use crate::dc::request::{Op, Pending, Reply};
 use crate::dc::state::State;
 use crate::dc::timer::Timer;
-use crate::dc::work::PerSlave;
 use crate::time::SystemTime;
 
 impl<const N: usize> Machine<N> {
     /// Number of items of the current step.
     pub(crate) fn item_count(&self) -> u16 {
-        let n = self.sh.line.count;
-        match self.state() {
-            State::CountSlaves => 1u16.saturating_add(u16::from(self.sh.tdiff.recovering)),
-            State::LatchTrigger | State::ReadReferenceTime => 1,
-            State::TdiffRead
-            | State::TdiffLatch
-            | State::TdiffTrigger
-            | State::TdiffClose
-            | State::TdiffRestore => self.tdiff_count(),
-            State::AssignAddresses
-            | State::ProbeSystemTime
-            | State::LatchReadBefore
-            | State::LatchReadAfter
-            | State::ClearActivation
-            | State::ActivateSync => n,
-            State::ReadInfo => InfoRead::items(n),
-            // AL status of every slave, then 0x0920 of the running ones.
-            State::ReadAlStatus => n.saturating_mul(2),
-            State::WriteOffsets => DcWrite::items(n),
-            State::ResetLoops => LoopReset::items(n),
-            State::ProgramSync => SyncWrite::items(n),
-            State::DriftBurst => self.burst_len(),
-            State::DriftCheck => n.saturating_add(1),
-            State::Idle | State::Cyclic | State::RestartWait | State::Failed => 0,
+        match self.phase {
+            Phase::Discovery(step) => self.discovery_count(step),
+            Phase::Tdiff(_) => self.tdiff_count(),
+            Phase::Measure(step) => self.measure_count(step),
+            Phase::Adjust(step) => self.adjust_count(step),
+            Phase::Drift(step, _) => self.drift_count(step),
+            Phase::Activation(step) => self.activation_count(step),
+            Phase::Idle | Phase::Cyclic(_) | Phase::RestartWait | Phase::Failed => 0,
         }
     }
 
     /// Most items per frame: one FRMW per frame in a burst (each frame is one loop sample).
     pub(crate) fn max_per_frame(&self) -> usize {
-        match self.state() {
+        match self.phase {
             // The restore of an interrupted t_Diff measurement goes alone, before the count.
-            State::CountSlaves if self.sh.tdiff.recovering => 1,
-            State::DriftBurst => 1,
+            Phase::Discovery(DiscoveryStep::CountSlaves) if self.sh.tdiff.recovering => 1,
+            Phase::Drift(DriftStep::Burst, _) => 1,
             // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two:
             // a frame from the AL half ends with its last AL read.
-            State::ReadAlStatus if self.sh.step.cursor < self.sh.line.count => self
-                .slaves()
-                .iter()
-                .skip(usize::from(self.sh.step.cursor))
-                .filter(|s| s.dc.has_system_time())
-                .count()
-                .max(1),
+            Phase::Adjust(AdjustStep::ReadAlStatus) if self.sh.step.cursor < self.sh.line.count => {
+                self.slaves()
+                    .iter()
+                    .skip(usize::from(self.sh.step.cursor))
+                    .filter(|s| s.dc.has_system_time())
+                    .count()
+                    .max(1)
+            }
             // One entry stays free for the FRMW that closes every check frame.
-            State::DriftCheck => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
+            Phase::Drift(DriftStep::Check, _) => crate::dc::request::MAX_INFLIGHT.saturating_sub(1),
             _ => usize::MAX,
         }
     }
@@ -77,7 +58,7 @@ impl<const N: usize> Machine<N> {
     }
 
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
-        if self.state() == State::CountSlaves && self.sh.tdiff.recovering {
+        if self.phase == Phase::Discovery(DiscoveryStep::CountSlaves) && self.sh.tdiff.recovering {
             return match i {
                 0 => self.tdiff_recover_item(),
                 _ => self.discovery_item(0),
@@ -94,23 +75,20 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// Hook right before item `i` goes out (the latch trigger samples master time here).
-    pub(crate) fn before_send(&mut self, now: u64, i: u16) {
-        if self.state() == State::LatchTrigger {
+    /// Hook right before an item goes out (the latch trigger samples master time here).
+    pub(crate) fn before_send(&mut self, now: u64) {
+        if self.phase == Phase::Measure(MeasureStep::Trigger) {
             // REQ-DC-102: master time sampled *before* the latching BWR leaves.
             self.sh.latch.trigger_time = now;
         }
-        if self.state() == State::DriftBurst {
+        if let Phase::Drift(DriftStep::Burst, gate) = &mut self.phase {
             // One FRMW per burst frame: one loop sample in every slave.
-            if let Some(gate) = self.phase.drift_gate_mut() {
-                gate.frames = gate.frames.saturating_add(1);
-            }
+            gate.frames = gate.frames.saturating_add(1);
         }
-        let _ = i;
     }
 
     pub(crate) fn on_item(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
-        if self.state() == State::CountSlaves && self.sh.tdiff.recovering {
+        if self.phase == Phase::Discovery(DiscoveryStep::CountSlaves) && self.sh.tdiff.recovering {
             return match r.item {
                 0 => {
                     self.tdiff_recover_reply();
