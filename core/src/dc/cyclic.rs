@@ -34,7 +34,7 @@ pub(crate) enum Remeasure {
     Write,
 }
 
-/// Per-cycle bookkeeping.
+/// Per-cycle bookkeeping; its `Default` is a cycle run not started.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub(crate) struct CyclicState {
     pub(crate) cycles: u32,
@@ -73,37 +73,6 @@ pub(crate) struct CyclicState {
     pub(crate) cycle_bound_ns: Option<u32>,
 }
 
-impl CyclicState {
-    /// Nothing cyclic yet (the `Default`), usable in a `const` context.
-    pub(crate) const IDLE: CyclicState = CyclicState {
-        cycles: 0,
-        rr: 0,
-        lost_streak: 0,
-        wkc_streak: 0,
-        topo_streak: 0,
-        locked: false,
-        good_streak: 0,
-        bad_streak: 0,
-        not_locked_reported: false,
-        bound_ns: None,
-        ref_time: None,
-        frmw_wkc: None,
-        bound_wkc: None,
-        topo_wkc: None,
-        lost_station: None,
-        sent_at: 0,
-        remeasure_requested: false,
-        remeasure: Remeasure::Idle,
-        rm_cursor: 0,
-        rm_sent_to: 0,
-        rm_error: None,
-        holdover: None,
-        last_good: 0,
-        al_status: None,
-        al_ok: None,
-        cycle_bound_ns: None,
-    };
-}
 
 /// Cyclic operation at work: its own data and the machine's shared parts. A fault found here
 /// ends the cyclic phase, so it is only recorded ([`CyclicCx::fail`]); the machine carries it

@@ -126,7 +126,7 @@ impl Phase {
     /// The phase of state `to`, entered from `self`: a step of the same phase keeps the
     /// phase's data, any other phase starts afresh. A new drift check starts without a bound
     /// read.
-    pub(crate) const fn enter(self, to: State) -> Phase {
+    pub(crate) fn enter(self, to: State) -> Phase {
         match to {
             State::Idle => Phase::Idle,
             State::CountSlaves => Phase::Discovery(DiscoveryStep::CountSlaves),
@@ -163,7 +163,7 @@ impl Phase {
             State::ActivateSync => Phase::Activation(ActivationStep::ActivateSync),
             State::Cyclic => match self {
                 Phase::Cyclic(c) => Phase::Cyclic(c),
-                _ => Phase::Cyclic(CyclicState::IDLE),
+                _ => Phase::Cyclic(CyclicState::default()),
             },
             State::RestartWait => Phase::RestartWait,
             State::Failed => Phase::Failed,

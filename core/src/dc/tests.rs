@@ -429,7 +429,6 @@ fn running_offsets_read_after_al_states_and_anchor_the_others() {
 #[test]
 fn const_defaults_match_default() {
     use crate::dc::config::{DriftConfig, MonitorConfig, SyncConfig, TdiffConfig};
-    use crate::dc::cyclic::CyclicState;
     use crate::dc::machine::Stats;
     use crate::dc::slave::SlaveInfo;
     assert_eq!(Config::DEFAULT, Config::default());
@@ -439,7 +438,6 @@ fn const_defaults_match_default() {
     assert_eq!(TdiffConfig::DEFAULT, TdiffConfig::default());
     assert_eq!(SlaveInfo::EMPTY, SlaveInfo::default());
     assert_eq!(Stats::ZERO, Stats::default());
-    assert_eq!(CyclicState::IDLE, CyclicState::default());
     assert_eq!(
         std::format!("{:?}", Machine::<4>::idle()),
         std::format!("{:?}", machine())
