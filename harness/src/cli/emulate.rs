@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 
-use super::link_args::{LinkArgs, RtArgs};
+use super::link_args::RtLinkArgs;
 use super::validate;
 use crate::emu::scenario::MAX_SLAVES;
 use crate::emu::yardstick::{SlaveReport, SyncReport, Yardstick, YardstickOpts};
@@ -26,9 +26,7 @@ pub enum Engine {
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
-    pub link: LinkArgs,
-    #[command(flatten)]
-    pub rt: RtArgs,
+    pub io: RtLinkArgs,
     /// Slave model.
     #[arg(long, value_enum, default_value_t = Engine::Esc)]
     pub engine: Engine,
@@ -60,7 +58,7 @@ pub struct Args {
 /// Runs `ecdc emulate`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     // Every input is checked before the interface is touched.
-    validate::cpu("--cpu", args.rt.cpu)?;
+    validate::cpu("--cpu", args.io.rt.cpu)?;
     let scenario = match args.engine {
         Engine::Esc => Some(load_scenario(args)?),
         Engine::Reflect => {
@@ -79,10 +77,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let stop = sys::install_stop_handler().context("installing the signal handler")?;
     let mut sock = args
+        .io
         .link
         .open(crate::runtime::socket::FULL_PAYLOAD, false)
         .map_err(anyhow::Error::new)?;
-    let rt = args.rt.apply();
+    let rt = args.io.rt.apply();
     let until = args
         .duration
         .map(|s| clock::now_ns().saturating_add((s.max(0.0) * 1e9) as u64));
@@ -106,7 +105,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Engine::Reflect => {
             eprintln!(
                 "ecdc emulate: serving 1 reflecting slave on {} ({}); Ctrl-C to stop",
-                args.link.iface,
+                args.io.link.iface,
                 rt.describe()
             );
             let s = serve::serve(&mut sock, &mut Reflector, stop, until, spin, |c, _| {
@@ -134,7 +133,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             };
             eprintln!(
                 "ecdc emulate: serving {n} emulated ESCs on {} ({}); Ctrl-C to stop",
-                args.link.iface,
+                args.io.link.iface,
                 rt.describe()
             );
             let s = serve::serve(&mut sock, &mut esc, stop, until, spin, |c, r| {

@@ -48,6 +48,16 @@ impl LinkArgs {
     }
 }
 
+/// The interface and real-time options of the subcommands that run a cyclic loop on a link
+/// (`emulate`, `run`, `rtt`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct RtLinkArgs {
+    #[command(flatten)]
+    pub link: LinkArgs,
+    #[command(flatten)]
+    pub rt: RtArgs,
+}
+
 /// Real-time options.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RtArgs {

@@ -10,7 +10,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context;
 use ecdc_core::wire::{Address, Command, FrameBuilder};
 
-use super::link_args::{LinkArgs, RtArgs};
+use super::link_args::RtLinkArgs;
 use super::validate::{self, CYCLE_US};
 use crate::runtime::clock;
 use crate::runtime::cyclic::{self, CycleConfig, CycleReport, CycleTask, LoopSummary};
@@ -23,9 +23,7 @@ use crate::runtime::transport::{Counters, Reply, Transport};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
-    pub link: LinkArgs,
-    #[command(flatten)]
-    pub rt: RtArgs,
+    pub io: RtLinkArgs,
     /// Back-to-back round trips, 0..=100000000 (0 to skip).
     #[arg(long, default_value_t = 10_000, allow_negative_numbers = true,
           value_parser = validate::u64_in(0, MAX_PROBES))]
@@ -142,11 +140,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "--count 0 and --cycles 0: nothing to measure; give at least one of them > 0",
         ));
     }
-    validate::cpu("--cpu", args.rt.cpu)?;
+    validate::cpu("--cpu", args.io.rt.cpu)?;
     let stop = sys::install_stop_handler().context("installing the Ctrl-C handler")?;
-    let sock = args.link.open(60, true).map_err(anyhow::Error::new)?;
+    let sock = args.io.link.open(60, true).map_err(anyhow::Error::new)?;
     let info = sock.info().clone();
-    let rt = args.rt.apply();
+    let rt = args.io.rt.apply();
     let mut transport = Transport::new(sock, args.source_mac);
 
     let back_to_back = if args.count > 0 {
@@ -186,7 +184,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let report = Report {
         iface: info.name.clone(),
         rt: rt.describe(),
-        wait: args.link.wait,
+        wait: args.io.link.wait,
         qdisc_bypass: info.qdisc_bypass,
         back_to_back,
         cyclic,

@@ -10,7 +10,7 @@ use ecdc_core::dc::{Config, DcKind, Event, Machine, State};
 use ecdc_core::servo::master::{MasterConfig, MasterServo};
 use ecdc_core::wire::MASTER_MAC;
 
-use super::link_args::{LinkArgs, RtArgs};
+use super::link_args::RtLinkArgs;
 use super::scan::{print_slaves, report_slaves, ScannedSlave, MAX_SLAVES};
 use super::validate::{self, CYCLE_US};
 use crate::runtime::bringup::{self, Limits, Outcome, Progress, Until};
@@ -26,9 +26,7 @@ use crate::runtime::transport::{Counters, Transport};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
-    pub link: LinkArgs,
-    #[command(flatten)]
-    pub rt: RtArgs,
+    pub io: RtLinkArgs,
     /// Cycle time, us (also the SYNC0 cycle), 100..=100000.
     #[arg(long, default_value_t = 1000, allow_negative_numbers = true,
           value_parser = validate::u64_in(CYCLE_US.0, CYCLE_US.1))]
@@ -294,7 +292,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     if let Some(p) = &args.pcap {
         validate::out_file("--pcap", p)?;
     }
-    validate::cpu("--cpu", args.rt.cpu)
+    validate::cpu("--cpu", args.io.rt.cpu)
 }
 
 /// Runs `ecdc run`.
@@ -303,6 +301,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let cycle_ns = args.cycle_us * 1000;
     let stop = sys::install_stop_handler().context("installing the Ctrl-C handler")?;
     let sock: RawSocket = args
+        .io
         .link
         .open(FULL_PAYLOAD, true)
         .map_err(anyhow::Error::new)?;
@@ -311,7 +310,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             .with_context(|| format!("creating {}", path.display()))?,
         None => CaptureLink::passthrough(sock),
     };
-    let rt = args.rt.apply();
+    let rt = args.io.rt.apply();
     let mut t = Transport::new(link, MASTER_MAC);
 
     let mut cfg = Config::default();
@@ -353,7 +352,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             &mut m,
             &mut t,
             &dc,
-            &args.link.iface,
+            &args.io.link.iface,
             Until::Cyclic,
             &Limits {
                 timeout_ns: if args.max_restarts.is_some() {
@@ -432,8 +431,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 args.max_restarts.unwrap_or(0)
             );
         }
-        if !bringup::has_carrier(&args.link.iface) && args.max_restarts.is_none() {
-            anyhow::bail!("interface {} lost carrier; giving up", args.link.iface);
+        if !bringup::has_carrier(&args.io.link.iface) && args.max_restarts.is_none() {
+            anyhow::bail!("interface {} lost carrier; giving up", args.io.link.iface);
         }
         bar.borrow_mut().line(&format!(
             "cyclic operation ended by the DC machine; bringing DC up again (re-initialisation {reinits})"
@@ -450,7 +449,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let stats = *m.stats();
     let summary = RunSummary {
-        iface: args.link.iface.clone(),
+        iface: args.io.link.iface.clone(),
         rt: rt.describe(),
         cycle_us: args.cycle_us,
         slaves: m.slaves().len(),
