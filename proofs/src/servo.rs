@@ -16,7 +16,7 @@ use ecdc_core::servo::filter::{OffsetFilter, FILTER_FRAC, FILTER_X_MAX};
 use ecdc_core::servo::gains::PiGains;
 use ecdc_core::servo::lock::{LockConfig, LockDetector};
 use ecdc_core::servo::master::{MasterInput, MasterServo};
-use ecdc_core::servo::pi::{pi_step, PiLimits, THETA_MAX};
+use ecdc_core::servo::pi::{pi_step, PiLimits, PiStep, THETA_MAX};
 use ecdc_core::servo::Verdict;
 use ecdc_spec::servo as spec;
 
@@ -38,19 +38,29 @@ pub fn prop_pi_step_bounded(kp: i64, ki: i64, y_max: i64, i_max: i64, i: i64, th
         "|I'| = {} > I_max = {i_max}",
         s.integrator
     );
-    let (y, i2, sat) = spec::pi_step(
-        i128::from(kp),
-        i128::from(ki),
-        i128::from(y_max),
-        i128::from(i_max),
-        i128::from(i),
-        i128::from(theta),
-    );
     assert_eq!(
-        (i128::from(s.y), i128::from(s.integrator), s.saturated),
-        (y, i2, sat),
+        widened(s),
+        spec_pi_step(kp, ki, y_max, i_max, i, theta),
         "kernel differs from the i128 rule (an intermediate wrapped?)"
     );
+}
+
+/// The spec's i128 rule for the kernel's inputs: (y, I', saturated).
+fn spec_pi_step(
+    kp: i64,
+    ki: i64,
+    y_max: i64,
+    i_max: i64,
+    i: i64,
+    theta: i64,
+) -> (i128, i128, bool) {
+    let w = i128::from;
+    spec::pi_step(w(kp), w(ki), w(y_max), w(i_max), w(i), w(theta))
+}
+
+/// A kernel step as the spec states it: (y, I', saturated) in i128.
+fn widened(s: PiStep) -> (i128, i128, bool) {
+    (i128::from(s.y), i128::from(s.integrator), s.saturated)
 }
 
 /// P5 overflow side-conditions of the kernel, stated with checked arithmetic: with admissible
@@ -410,17 +420,9 @@ pub fn prop_pi_step_matches_spec(
         return false;
     };
     let s = pi_step(g, lim, i, theta);
-    let want = spec::pi_step(
-        i128::from(kp),
-        i128::from(ki),
-        i128::from(y_max),
-        i128::from(i_max),
-        i128::from(i),
-        i128::from(theta),
-    );
     assert_eq!(
-        (i128::from(s.y), i128::from(s.integrator), s.saturated),
-        want,
+        widened(s),
+        spec_pi_step(kp, ki, y_max, i_max, i, theta),
         "pi_step differs from the i128 rule (kp {kp} ki {ki} y_max {y_max} i_max {i_max} i {i} \
          theta {theta})"
     );

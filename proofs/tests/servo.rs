@@ -7,7 +7,7 @@
 use ecdc_core::servo::filter::OffsetFilter;
 use ecdc_core::servo::gains::{PiGains, Pole, ONE};
 use ecdc_core::servo::ieee1588::{mean_path_delay, offset_from_master, rate_ratio_ppb, Exchange};
-use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterOutput, MasterServo};
 use ecdc_core::servo::{Mode, PiLimits};
 use ecdc_proofs::servo as p;
 use ecdc_spec::servo as spec;
@@ -291,38 +291,20 @@ proptest! {
 // verifies: REQ-SERVO-050
 #[test]
 fn master_gate_rejects_outliers() {
-    let p = 1_000_000i128;
-    let mut m = MasterServo::new(MasterConfig::for_period(1_000_000).unwrap()).unwrap();
-    let mut plant = spec::MasterPlant {
-        period_ns: p,
-        drift_ppb: 60_000,
-        theta_e9: 0,
-    };
-    let (mut app, mut local) = (1u64 << 45, 0u64);
+    let mut r = MasterRig::new();
     let mut worst = 0;
     for k in 0..6000 {
         let outlier = if k > 3000 && k % 50 == 0 { 200_000 } else { 0 };
-        let reference = (app as i128 - plant.theta_ns() - outlier) as u64;
-        let out = m.update(MasterInput::Sample {
-            local_ns: local,
-            app_ns: app,
-            ref_ns: reference,
-        });
-        plant.advance(
-            i128::from(out.deadline_correction_ns),
-            i128::from(out.app_time_step_ns),
-        );
-        app = (app as i128 + i128::from(out.app_time_step_ns) + p) as u64;
-        local += p as u64;
+        r.step(r.sample(outlier));
         if k > 3000 {
-            assert!(m.is_locked(), "lost lock at {k}");
-            worst = worst.max(plant.theta_ns().abs());
+            assert!(r.m.is_locked(), "lost lock at {k}");
+            worst = worst.max(r.plant.theta_ns().abs());
         }
     }
     assert!(
-        m.counters().rejected >= 55,
+        r.m.counters().rejected >= 55,
         "rejected {}",
-        m.counters().rejected
+        r.m.counters().rejected
     );
     assert!(worst <= 2, "worst {worst}");
 }
@@ -332,45 +314,70 @@ fn master_gate_rejects_outliers() {
 // verifies: REQ-SERVO-071, REQ-SERVO-103
 #[test]
 fn master_holdover_keeps_rate() {
-    let p = 1_000_000i128;
-    let mut m = MasterServo::new(MasterConfig::for_period(1_000_000).unwrap()).unwrap();
-    let mut plant = spec::MasterPlant {
-        period_ns: p,
-        drift_ppb: 60_000,
-        theta_e9: 0,
-    };
-    let (mut app, mut local) = (1u64 << 45, 0u64);
+    let mut r = MasterRig::new();
     for k in 0..5000 {
         let lost = (4000..4050).contains(&k);
-        let input = if lost {
-            MasterInput::Lost
-        } else {
-            MasterInput::Sample {
-                local_ns: local,
-                app_ns: app,
-                ref_ns: (app as i128 - plant.theta_ns()) as u64,
-            }
-        };
-        let out = m.update(input);
+        let input = if lost { MasterInput::Lost } else { r.sample(0) };
+        let out = r.step(input);
         if lost {
             assert_eq!(out.engine.mode, Mode::Holdover);
         }
-        plant.advance(
-            i128::from(out.deadline_correction_ns),
-            i128::from(out.app_time_step_ns),
-        );
-        app = (app as i128 + i128::from(out.app_time_step_ns) + p) as u64;
-        local += p as u64;
         if k == 4049 {
             assert!(
-                plant.theta_ns().abs() <= 50,
+                r.plant.theta_ns().abs() <= 50,
                 "holdover error {}",
-                plant.theta_ns()
+                r.plant.theta_ns()
             );
         }
     }
-    assert!(m.is_locked());
-    assert_eq!(m.counters().held, 50);
+    assert!(r.m.is_locked());
+    assert_eq!(r.m.counters().held, 50);
+}
+
+/// The master servo at a 1 ms period driving the spec's plant, whose clock drifts by 60 ppm.
+struct MasterRig {
+    m: MasterServo,
+    plant: spec::MasterPlant,
+    app: u64,
+    local: u64,
+}
+
+impl MasterRig {
+    const PERIOD_NS: i128 = 1_000_000;
+
+    fn new() -> Self {
+        MasterRig {
+            m: MasterServo::new(MasterConfig::for_period(1_000_000).unwrap()).unwrap(),
+            plant: spec::MasterPlant {
+                period_ns: Self::PERIOD_NS,
+                drift_ppb: 60_000,
+                theta_e9: 0,
+            },
+            app: 1 << 45,
+            local: 0,
+        }
+    }
+
+    /// The reference's answer to this cycle's FRMW, `error_ns` early.
+    fn sample(&self, error_ns: i128) -> MasterInput {
+        MasterInput::Sample {
+            local_ns: self.local,
+            app_ns: self.app,
+            ref_ns: (self.app as i128 - self.plant.theta_ns() - error_ns) as u64,
+        }
+    }
+
+    /// One cycle: the servo's update, the plant following its output, the clocks one period on.
+    fn step(&mut self, input: MasterInput) -> MasterOutput {
+        let out = self.m.update(input);
+        self.plant.advance(
+            i128::from(out.deadline_correction_ns),
+            i128::from(out.app_time_step_ns),
+        );
+        self.app = (self.app as i128 + i128::from(out.app_time_step_ns) + Self::PERIOD_NS) as u64;
+        self.local += Self::PERIOD_NS as u64;
+        out
+    }
 }
 
 /// REQ-SERVO-002 refusal examples (the linuxptp corner) and acceptance of the defaults.
