@@ -156,3 +156,27 @@ pub fn run(seed: u64, iterations: u64, harness: fn()) -> Report {
         covered,
     }
 }
+
+/// Runs each of `harnesses` `iterations` times (seeds `seed`, `seed + 1`, … in order) and
+/// panics unless each passes more than `min_passed` runs and reaches at least one `cover!`, so
+/// a harness cannot silently test nothing. Returns the reports by harness name.
+pub fn run_all(
+    harnesses: &[(&'static str, fn())],
+    seed: u64,
+    iterations: u64,
+    min_passed: u64,
+) -> Vec<(&'static str, Report)> {
+    let mut reports = Vec::with_capacity(harnesses.len());
+    for (i, &(name, h)) in harnesses.iter().enumerate() {
+        let r = run(seed + i as u64, iterations, h);
+        assert!(
+            r.passed > min_passed,
+            "{name}: only {} runs passed ({} discarded)",
+            r.passed,
+            r.discarded
+        );
+        assert!(!r.covered.is_empty(), "{name}: no cover! reached: {r:?}");
+        reports.push((name, r));
+    }
+    reports
+}

@@ -156,14 +156,5 @@ fn parse_calendar(s: &str) -> Option<u64> {
 /// every `cover!` in them must be reached, so a harness cannot silently test nothing.
 #[test]
 fn num_kani_harnesses_under_shim() {
-    for (i, (name, h)) in p::KANI_HARNESSES.iter().enumerate() {
-        let r = kani_shim::run(0xECDC_0000 + i as u64, 20_000, *h);
-        assert!(
-            r.passed > 10_000,
-            "{name}: only {} runs passed ({} discarded)",
-            r.passed,
-            r.discarded
-        );
-        assert!(!r.covered.is_empty(), "{name}: no cover! reached: {r:?}");
-    }
+    kani_shim::run_all(p::KANI_HARNESSES, 0xECDC_0000, 20_000, 10_000);
 }
