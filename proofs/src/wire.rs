@@ -376,6 +376,26 @@ pub fn registers_target(data: &[u8]) {
     }
 }
 
+/// A register parsed from `bytes` against the little-endian value of its leading bytes: the
+/// same raw value, then `body` on it; or `Truncated` exactly when the bytes are too short.
+fn leading_value_agrees<P: core::fmt::Debug, R: Copy + PartialEq + core::fmt::Debug>(
+    register: &str,
+    width: &str,
+    parsed: Result<P, Error>,
+    leading: Option<R>,
+    raw: impl Fn(&P) -> R,
+    body: impl Fn(R),
+) {
+    match (parsed, leading) {
+        (Ok(p), Some(v)) => {
+            assert_eq!(raw(&p), v);
+            body(v);
+        }
+        (Err(e), None) => assert_eq!(e, Error::Truncated),
+        (got, want) => panic!("{register} parse {got:?} vs leading {width} {want:?}"),
+    }
+}
+
 /// REQ-WIRE-071..074 on ANY byte string read back from a slave: the register parsers never
 /// panic, fail with `Truncated` exactly when the bytes are shorter than the register, and
 /// otherwise decode the little-endian value of the leading bytes (0x0008, 0x0110, 0x092C agree
@@ -393,30 +413,30 @@ pub fn register_bytes_any(bytes: &[u8]) {
         Some(u64::from_le_bytes(bytes.get(at..at + 8)?.try_into().ok()?))
     };
 
-    match (EscFeatures::parse(bytes), word(0)) {
-        (Ok(f), Some(w)) => {
-            assert_eq!(f.raw(), w);
-            esc_features_word(w);
-        }
-        (Err(e), None) => assert_eq!(e, Error::Truncated),
-        (got, want) => panic!("0x0008 parse {got:?} vs leading word {want:?}"),
-    }
-    match (DlStatus::parse(bytes), word(0)) {
-        (Ok(s), Some(w)) => {
-            assert_eq!(s.raw(), w);
-            dl_status_word(w);
-        }
-        (Err(e), None) => assert_eq!(e, Error::Truncated),
-        (got, want) => panic!("0x0110 parse {got:?} vs leading word {want:?}"),
-    }
-    match (SystemTimeDifference::parse(bytes), dword(0)) {
-        (Ok(d), Some(raw)) => {
-            assert_eq!(d.raw(), raw);
-            system_time_difference(raw, i64::from(raw as i32));
-        }
-        (Err(e), None) => assert_eq!(e, Error::Truncated),
-        (got, want) => panic!("0x092C parse {got:?} vs leading dword {want:?}"),
-    }
+    leading_value_agrees(
+        "0x0008",
+        "word",
+        EscFeatures::parse(bytes),
+        word(0),
+        |f| f.raw(),
+        esc_features_word,
+    );
+    leading_value_agrees(
+        "0x0110",
+        "word",
+        DlStatus::parse(bytes),
+        word(0),
+        |s| s.raw(),
+        dl_status_word,
+    );
+    leading_value_agrees(
+        "0x092C",
+        "dword",
+        SystemTimeDifference::parse(bytes),
+        dword(0),
+        |d| d.raw(),
+        |raw| system_time_difference(raw, i64::from(raw as i32)),
+    );
     match ReceiveTimes::parse(bytes) {
         Err(e) => {
             assert_eq!(e, Error::Truncated);

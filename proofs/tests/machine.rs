@@ -36,6 +36,14 @@ proptest! {
     }
 }
 
+/// The next state of the xorshift64 generator the script tests draw their bytes from.
+fn xorshift(x: &mut u64) -> u64 {
+    *x ^= *x << 13;
+    *x ^= *x >> 7;
+    *x ^= *x << 17;
+    *x
+}
+
 /// P6 on fully arbitrary bytes (no structure at all).
 // verifies: P6
 #[test]
@@ -44,10 +52,7 @@ fn machine_script_arbitrary_bytes() {
     for _ in 0..300 {
         let mut v = Vec::new();
         for _ in 0..600 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            v.push(x as u8);
+            v.push(xorshift(&mut x) as u8);
         }
         assert_eq!(run_script(&v).map(|_| ()), Ok(()));
     }
@@ -78,15 +83,10 @@ fn modelled_random_scripts() {
     for _ in 0..200 {
         let mut s = Vec::new();
         for _ in 0..5 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            s.push(x as u8);
+            s.push(xorshift(&mut x) as u8);
         }
         for _ in 0..300 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
+            xorshift(&mut x);
             match x % 16 {
                 0 => s.extend_from_slice(&[5, 20, 0]),
                 1 => s.extend_from_slice(&[4, 0, 0x80]),
