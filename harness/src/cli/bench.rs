@@ -598,28 +598,27 @@ pub fn markdown_report(rep: &DcReport) -> String {
             r.crystal_ppm_max
         ));
         out.push_str(&markdown(&HEADERS, 1, &rows(r, false)));
-        if let Some(l) = r.frame_loss_rate {
-            let lost: Vec<String> = r
+        // "name value, name value, …" of one per-scheme count.
+        let per_scheme = |count: fn(&SchemeResult) -> String| {
+            let items: Vec<String> = r
                 .schemes
                 .iter()
-                .map(|s| format!("{} {}", s.name, opt(s.frames_lost)))
+                .map(|s| format!("{} {}", s.name, count(s)))
                 .collect();
+            items.join(", ")
+        };
+        if let Some(l) = r.frame_loss_rate {
             out.push_str(&format!(
                 "\nFrame loss rate {l}; frames lost per scheme (all kinds of frames): {}.\n",
-                lost.join(", ")
+                per_scheme(|s| opt(s.frames_lost))
             ));
         }
         if let Some(k) = r.dc32_slaves {
-            let wraps: Vec<String> = r
-                .schemes
-                .iter()
-                .map(|s| format!("{} {}", s.name, opt(s.ref_wraps_in_window)))
-                .collect();
             out.push_str(&format!(
                 "\n{k} slaves with a 32-bit system time; clock errors involving one and SYNC0 \
                  pulses are compared on the low 32 bits. Wraps of the reference's 32-bit system \
                  time inside the steady-state window: {}.\n",
-                wraps.join(", ")
+                per_scheme(|s| opt(s.ref_wraps_in_window))
             ));
         }
         let errs: Vec<String> = r
