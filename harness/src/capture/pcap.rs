@@ -898,22 +898,27 @@ mod tests {
             PcapReader::new(&junk[..]),
             Err(PcapError::BadMagic(0))
         ));
-        let mut raw_ip = Vec::new();
-        raw_ip.extend_from_slice(&MAGIC_MICROS.to_le_bytes());
-        raw_ip.extend_from_slice(&[2, 0, 4, 0]);
-        raw_ip.resize(20, 0);
-        raw_ip.extend_from_slice(&101u32.to_le_bytes());
+        // A classic global header: magic, version 2.4, zone and sigfigs 0, snaplen, linktype.
+        let header = |magic: [u8; 4], version: [u8; 4], snaplen: [u8; 4], linktype: [u8; 4]| {
+            [magic, version, [0; 4], [0; 4], snaplen, linktype].concat()
+        };
+        let raw_ip = header(
+            MAGIC_MICROS.to_le_bytes(),
+            [2, 0, 4, 0],
+            [0; 4],
+            101u32.to_le_bytes(),
+        );
         assert!(matches!(
             PcapReader::new(&raw_ip[..]),
             Err(PcapError::UnsupportedLinktype(101))
         ));
         // big-endian header is accepted
-        let mut be = Vec::new();
-        be.extend_from_slice(&MAGIC_NANOS.to_be_bytes());
-        be.extend_from_slice(&[0, 2, 0, 4]);
-        be.resize(16, 0);
-        be.extend_from_slice(&SNAPLEN.to_be_bytes());
-        be.extend_from_slice(&1u32.to_be_bytes());
+        let be = header(
+            MAGIC_NANOS.to_be_bytes(),
+            [0, 2, 0, 4],
+            SNAPLEN.to_be_bytes(),
+            1u32.to_be_bytes(),
+        );
         assert_eq!(
             PcapReader::new(&be[..]).unwrap().resolution(),
             Some(TimeResolution::Nano)
