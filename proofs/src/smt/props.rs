@@ -56,15 +56,14 @@ pub fn wrapping_diff_true<const N: u32>() -> Goal {
 pub fn earliest_true_min<const N: u32, const P: usize>() -> Goal {
     let base = Sym::<N>::var("base");
     let offs: [Sym<N>; P] = core::array::from_fn(|i| Sym::var(&format!("o{i}")));
-    let act: [SymBool; P] =
-        core::array::from_fn(|i| SymBool::of(Bool::new_const(ctx(), format!("act{i}"))));
-    let half = int(1i128 << (N - 1), N);
-    let pre_terms: Vec<Bool<'static>> = offs.iter().map(|o| o.bv().bvult(&half)).collect();
-    let pre = Bool::and(ctx(), &pre_terms.iter().collect::<Vec<_>>());
+    let act = port_activity::<P>();
     let times: [Sym<N>; P] = core::array::from_fn(|i| base.wrapping_add(offs[i]));
     let (found, idx) = k::earliest(&times, &act);
     let offs: Vec<BV<'static>> = offs.iter().map(|o| o.bv().clone()).collect();
-    (pre, earliest_claim::<N, P>(&offs, &act, &found, &idx))
+    (
+        within_half_circle::<N>(&offs),
+        earliest_claim::<N, P>(&offs, &act, &found, &idx),
+    )
 }
 
 /// [`earliest_true_min`] with the port times as free leaves: a free `base` with every
@@ -72,14 +71,25 @@ pub fn earliest_true_min<const N: u32, const P: usize>() -> Goal {
 pub fn earliest_leaves<const N: u32, const P: usize>() -> Goal {
     let base = Sym::<N>::var("base");
     let times: [Sym<N>; P] = core::array::from_fn(|i| Sym::var(&format!("t{i}")));
-    let act: [SymBool; P] =
-        core::array::from_fn(|i| SymBool::of(Bool::new_const(ctx(), format!("act{i}"))));
-    let half = int(1i128 << (N - 1), N);
+    let act = port_activity::<P>();
     let offs: Vec<BV<'static>> = times.iter().map(|t| t.bv().bvsub(base.bv())).collect();
-    let pre_terms: Vec<Bool<'static>> = offs.iter().map(|o| o.bvult(&half)).collect();
-    let pre = Bool::and(ctx(), &pre_terms.iter().collect::<Vec<_>>());
     let (found, idx) = k::earliest(&times, &act);
-    (pre, earliest_claim::<N, P>(&offs, &act, &found, &idx))
+    (
+        within_half_circle::<N>(&offs),
+        earliest_claim::<N, P>(&offs, &act, &found, &idx),
+    )
+}
+
+/// One free activity flag per port, `act0` … `act{P-1}`.
+fn port_activity<const P: usize>() -> [SymBool; P] {
+    core::array::from_fn(|i| SymBool::of(Bool::new_const(ctx(), format!("act{i}"))))
+}
+
+/// Every offset below 2^(N−1): the true times span less than half the circle.
+fn within_half_circle<const N: u32>(offs: &[BV<'static>]) -> Bool<'static> {
+    let half = int(1i128 << (N - 1), N);
+    let terms: Vec<Bool<'static>> = offs.iter().map(|o| o.bvult(&half)).collect();
+    Bool::and(ctx(), &terms.iter().collect::<Vec<_>>())
 }
 
 /// The claim of both `earliest` goals, given each port's true position `offs` on the circle
