@@ -94,6 +94,26 @@ struct Tally {
     with_offset_writes: u64,
 }
 
+impl Tally {
+    /// Runs `search` on a fresh tally and prints the result with the time taken.
+    fn timed(what: &str, search: impl FnOnce(&mut Tally)) -> Tally {
+        let start = Instant::now();
+        let mut t = Tally::default();
+        search(&mut t);
+        println!(
+            "P6 model check, {what}: {t:?} in {:.1} s",
+            start.elapsed().as_secs_f64()
+        );
+        t
+    }
+
+    fn count(&mut self, o: &Outcome) {
+        self.scripts += 1;
+        self.cyclic += u64::from(o.reached_cyclic);
+        self.with_offset_writes += u64::from(o.offset_writes > 0);
+    }
+}
+
 fn check(header: &[u8; 5], faults: &[(usize, usize)], t: &mut Tally) {
     let s = script(header, faults);
     let o: Outcome = match run_script(&s) {
@@ -103,9 +123,7 @@ fn check(header: &[u8; 5], faults: &[(usize, usize)], t: &mut Tally) {
             panic!("P6 violated: {v:?}\nheader {header:?}, faults {named:?}\nscript {s:?}");
         }
     };
-    t.scripts += 1;
-    t.cyclic += u64::from(o.reached_cyclic);
-    t.with_offset_writes += u64::from(o.offset_writes > 0);
+    t.count(&o);
 }
 
 /// Every header × every placement of ≤ 2 faults (11 kinds) in the first R rounds.
@@ -113,26 +131,22 @@ fn check(header: &[u8; 5], faults: &[(usize, usize)], t: &mut Tally) {
 #[test]
 #[ignore]
 fn p6_all_placements_of_two_faults() {
-    let start = Instant::now();
-    let mut t = Tally::default();
     let nf = FAULTS.len();
-    for h in headers() {
-        check(&h, &[], &mut t);
-        for a in 0..R {
-            for ka in 0..nf {
-                check(&h, &[(a, ka)], &mut t);
-                for b in a + 1..R {
-                    for kb in 0..nf {
-                        check(&h, &[(a, ka), (b, kb)], &mut t);
+    let t = Tally::timed("≤2 faults", |t| {
+        for h in headers() {
+            check(&h, &[], t);
+            for a in 0..R {
+                for ka in 0..nf {
+                    check(&h, &[(a, ka)], t);
+                    for b in a + 1..R {
+                        for kb in 0..nf {
+                            check(&h, &[(a, ka), (b, kb)], t);
+                        }
                     }
                 }
             }
         }
-    }
-    println!(
-        "P6 model check, ≤2 faults: {t:?} in {:.1} s",
-        start.elapsed().as_secs_f64()
-    );
+    });
     // Not vacuous: most runs still reach Cyclic, and offsets are written where slaves allow it.
     assert!(t.cyclic * 2 > t.scripts, "{t:?}");
     assert!(t.with_offset_writes * 4 > t.scripts, "{t:?}");
@@ -146,29 +160,23 @@ fn p6_all_placements_of_two_faults() {
 #[test]
 #[ignore]
 fn p6_all_placements_of_three_faults() {
-    let start = Instant::now();
-    let mut t = Tally::default();
     let nf = FAULTS.len();
     let h = [0u8, 5, 6, 4, 3];
-    {
+    let t = Tally::timed("3 faults", |t| {
         for a in 0..R {
             for b in a + 1..R {
                 for c in b + 1..R {
                     for ka in 0..nf {
                         for kb in 0..nf {
                             for kc in 0..nf {
-                                check(&h, &[(a, ka), (b, kb), (c, kc)], &mut t);
+                                check(&h, &[(a, ka), (b, kb), (c, kc)], t);
                             }
                         }
                     }
                 }
             }
         }
-    }
-    println!(
-        "P6 model check, 3 faults: {t:?} in {:.1} s",
-        start.elapsed().as_secs_f64()
-    );
+    });
     assert!(t.cyclic * 2 > t.scripts, "{t:?}");
 }
 
@@ -199,43 +207,35 @@ const D: u32 = 5;
 #[test]
 #[ignore]
 fn p6_all_interleavings_after_bringup_prefixes() {
-    let start = Instant::now();
-    let mut t = Tally::default();
     let n = ACTIONS.len();
     let total = n.pow(D);
-    for h in [[0u8, 0, 0, 0, 3], [0, 5, 6, 4, 3]] {
-        for prefix in [0usize, 8, 16, 20] {
-            let mut base = h.to_vec();
-            for _ in 0..prefix {
-                base.extend_from_slice(NOMINAL);
-            }
-            for code in 0..total {
-                let mut s = base.clone();
-                let mut c = code;
-                let mut names = Vec::new();
-                for _ in 0..D {
-                    let (name, bytes) = ACTIONS[c % n];
-                    s.extend_from_slice(bytes);
-                    names.push(name);
-                    c /= n;
+    let t = Tally::timed(&format!("all {D}-action interleavings"), |t| {
+        for h in [[0u8, 0, 0, 0, 3], [0, 5, 6, 4, 3]] {
+            for prefix in [0usize, 8, 16, 20] {
+                let mut base = h.to_vec();
+                for _ in 0..prefix {
+                    base.extend_from_slice(NOMINAL);
                 }
-                match run_script(&s) {
-                    Ok(o) => {
-                        t.scripts += 1;
-                        t.cyclic += u64::from(o.reached_cyclic);
-                        t.with_offset_writes += u64::from(o.offset_writes > 0);
+                for code in 0..total {
+                    let mut s = base.clone();
+                    let mut c = code;
+                    let mut names = Vec::new();
+                    for _ in 0..D {
+                        let (name, bytes) = ACTIONS[c % n];
+                        s.extend_from_slice(bytes);
+                        names.push(name);
+                        c /= n;
                     }
-                    Err(v) => panic!(
-                        "P6 violated: {v:?}\nheader {h:?}, {prefix} nominal rounds, then {names:?}"
-                    ),
+                    match run_script(&s) {
+                        Ok(o) => t.count(&o),
+                        Err(v) => panic!(
+                            "P6 violated: {v:?}\nheader {h:?}, {prefix} nominal rounds, then {names:?}"
+                        ),
+                    }
                 }
             }
         }
-    }
-    println!(
-        "P6 model check, all {D}-action interleavings: {t:?} in {:.1} s",
-        start.elapsed().as_secs_f64()
-    );
+    });
     assert_eq!(t.scripts, 8 * total as u64);
     // Not vacuous: the 20-round prefixes are in Cyclic (a quarter of all runs).
     assert!(t.cyclic * 4 >= t.scripts, "{t:?}");
