@@ -146,6 +146,24 @@ fn touches_fmmu(a: usize, len: usize) -> bool {
     (a < fmmus.end && a + len > fmmus.start) || (a <= n && a + len > n)
 }
 
+/// Little-endian typed reads (and writes) of the register file, one pair per width.
+macro_rules! le_accessors {
+    ($($get:ident $(, $set:ident)?: $t:ty;)*) => {
+        $(
+            #[inline]
+            pub fn $get(&self, a: u16) -> $t {
+                <$t>::from_le_bytes(self.get_n(a))
+            }
+            $(
+                #[inline]
+                pub fn $set(&mut self, a: u16, v: $t) {
+                    self.set_n(a, &v.to_le_bytes());
+                }
+            )?
+        )*
+    };
+}
+
 impl RegisterFile {
     /// A register file in its power-on state.
     pub fn new(kind: EscKind, ram_bytes: u16, ports: u8, esc_type: u8, pulse_len: u16) -> Self {
@@ -301,25 +319,10 @@ impl RegisterFile {
     pub fn bytes(&self) -> &[u8] {
         &self.mem
     }
-    #[inline]
-    pub fn get_u16(&self, a: u16) -> u16 {
-        u16::from_le_bytes(self.get_n(a))
-    }
-    #[inline]
-    pub fn set_u16(&mut self, a: u16, v: u16) {
-        self.set_n(a, &v.to_le_bytes());
-    }
-    #[inline]
-    pub fn get_u32(&self, a: u16) -> u32 {
-        u32::from_le_bytes(self.get_n(a))
-    }
-    #[inline]
-    pub fn set_u32(&mut self, a: u16, v: u32) {
-        self.set_n(a, &v.to_le_bytes());
-    }
-    #[inline]
-    pub fn get_u64(&self, a: u16) -> u64 {
-        u64::from_le_bytes(self.get_n(a))
+    le_accessors! {
+        get_u16, set_u16: u16;
+        get_u32, set_u32: u32;
+        get_u64: u64;
     }
     /// Stores a 64-bit DC value; on a 32-bit DC only the low half is kept.
     #[inline]
