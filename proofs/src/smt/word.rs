@@ -95,6 +95,17 @@ impl Logic for SymBool {
     }
 }
 
+/// `Word` methods that are one Z3 bit-vector operation on both operands.
+macro_rules! z3_binary_ops {
+    ($($name:ident -> $ret:ty = $wrap:ident::of($op:ident);)*) => {
+        $(
+            fn $name(self, rhs: Self) -> $ret {
+                $wrap::of(self.0.$op(rhs.0))
+            }
+        )*
+    };
+}
+
 impl<const N: u32> Word for Sym<N> {
     type Bool = SymBool;
     type Signed = Sym<N>;
@@ -103,20 +114,15 @@ impl<const N: u32> Word for Sym<N> {
     fn lit(v: u8) -> Self {
         Sym::val(u64::from(v))
     }
-    fn wrapping_add(self, rhs: Self) -> Self {
-        Sym::of(self.0.bvadd(rhs.0))
-    }
-    fn wrapping_sub(self, rhs: Self) -> Self {
-        Sym::of(self.0.bvsub(rhs.0))
-    }
-    fn wrapping_mul(self, rhs: Self) -> Self {
-        Sym::of(self.0.bvmul(rhs.0))
-    }
-    fn bit_and(self, rhs: Self) -> Self {
-        Sym::of(self.0.bvand(rhs.0))
-    }
-    fn bit_or(self, rhs: Self) -> Self {
-        Sym::of(self.0.bvor(rhs.0))
+    z3_binary_ops! {
+        wrapping_add -> Self = Sym::of(bvadd);
+        wrapping_sub -> Self = Sym::of(bvsub);
+        wrapping_mul -> Self = Sym::of(bvmul);
+        bit_and -> Self = Sym::of(bvand);
+        bit_or -> Self = Sym::of(bvor);
+        eq -> SymBool = SymBool::of(_eq);
+        ult -> SymBool = SymBool::of(bvult);
+        slt -> SymBool = SymBool::of(bvslt);
     }
     fn shl(self, n: u32) -> Self {
         Sym::of(self.0.bvshl(Sym::<N>::val(u64::from(n)).0))
@@ -136,15 +142,6 @@ impl<const N: u32> Word for Sym<N> {
             Some(r) => Sym(r),
             None => Sym::of(self.0.bvurem(rhs.0)),
         }
-    }
-    fn eq(self, rhs: Self) -> SymBool {
-        SymBool::of(self.0._eq(rhs.0))
-    }
-    fn ult(self, rhs: Self) -> SymBool {
-        SymBool::of(self.0.bvult(rhs.0))
-    }
-    fn slt(self, rhs: Self) -> SymBool {
-        SymBool::of(self.0.bvslt(rhs.0))
     }
     fn select(c: SymBool, a: Self, b: Self) -> Self {
         Sym::of(c.0.ite(a.0, b.0))
