@@ -129,6 +129,32 @@ fn t_diff_section(r: &Report) -> String {
     out
 }
 
+/// A table with a row per scheme in `r`: `title` after a blank line, then the scheme name in
+/// 15 columns and each of `columns` (header, width) right-aligned, with `cells` giving a row.
+fn scheme_table(
+    out: &mut String,
+    r: &Report,
+    title: &str,
+    columns: &[(&str, usize)],
+    cells: impl Fn(&Summary) -> Vec<String>,
+) {
+    let _ = writeln!(out, "\n{title}");
+    let line = |out: &mut String, name: &str, values: &mut dyn Iterator<Item = &str>| {
+        let _ = write!(out, "{name:<15}");
+        for ((_, width), v) in columns.iter().zip(values) {
+            let _ = write!(out, " {v:>width$}");
+        }
+        out.push('\n');
+    };
+    line(out, "scheme", &mut columns.iter().map(|(h, _)| *h));
+    for name in SCHEMES {
+        if let Some(s) = r.schemes.get(name) {
+            let row = cells(s);
+            line(out, name, &mut row.iter().map(String::as_str));
+        }
+    }
+}
+
 /// The whole text report.
 pub fn render(r: &Report) -> String {
     let mut out = String::new();
@@ -162,50 +188,40 @@ pub fn render(r: &Report) -> String {
     }
     out.push_str(&given_section(r));
     out.push_str(&t_diff_section(r));
-    let _ = writeln!(
-        out,
-        "\nlock (every slave within 100 ns of the reference, true time, for the rest of the run)"
-    );
-    let _ = writeln!(
-        out,
-        "{:<15} {:>10} {:>12} {:>14}",
-        "scheme", "lock ms", "lock frames", "static drift"
-    );
-    for name in SCHEMES {
-        if let Some(s) = r.schemes.get(name) {
-            let _ = writeln!(
-                out,
-                "{:<15} {:>10} {:>12} {:>14}",
-                name,
+    scheme_table(
+        &mut out,
+        r,
+        "lock (every slave within 100 ns of the reference, true time, for the rest of the run)",
+        &[("lock ms", 10), ("lock frames", 12), ("static drift", 14)],
+        |s| {
+            vec![
                 optf(s.lock_ms, 1),
                 opt(s.lock_frames),
-                opt(s.static_drift_frames)
-            );
-        }
-    }
-    let _ = writeln!(
-        out,
-        "\nsteady-state SYNC0 skew vs the reference (true time, ns)"
+                opt(s.static_drift_frames),
+            ]
+        },
     );
-    let _ = writeln!(
-        out,
-        "{:<15} {:>10} {:>10} {:>10} {:>12} {:>9}",
-        "scheme", "mean|.|", "p99|.|", "max|.|", "signed mean", "pairs"
-    );
-    for name in SCHEMES {
-        if let Some(s) = r.schemes.get(name) {
-            let _ = writeln!(
-                out,
-                "{:<15} {:>10} {:>10} {:>10} {:>12} {:>9}",
-                name,
+    scheme_table(
+        &mut out,
+        r,
+        "steady-state SYNC0 skew vs the reference (true time, ns)",
+        &[
+            ("mean|.|", 10),
+            ("p99|.|", 10),
+            ("max|.|", 10),
+            ("signed mean", 12),
+            ("pairs", 9),
+        ],
+        |s| {
+            vec![
                 optf(s.skew_mean_ns, 1),
                 opt(s.skew_p99_ns),
                 opt(s.skew_max_ns),
                 optf(s.skew_signed_mean_ns, 1),
-                s.skew_samples
-            );
-        }
-    }
+                s.skew_samples.to_string(),
+            ]
+        },
+    );
     let ratio = |k: &str| optf(r.ratios.get(k).copied().flatten(), 3);
     let _ = writeln!(
         out,
