@@ -639,23 +639,23 @@ pub fn markdown_report(rep: &DcReport) -> String {
     out
 }
 
+/// The values given on the command line (all of them when none is), sorted, each once.
+fn chosen<T: Ord + Clone>(given: &[T], all: &[T]) -> Vec<T> {
+    let mut v = if given.is_empty() {
+        all.to_vec()
+    } else {
+        given.to_vec()
+    };
+    v.sort();
+    v.dedup();
+    v
+}
+
 /// Runs `ecdc bench dc` and writes its files; returns the report.
 pub fn run_dc(args: &DcArgs) -> anyhow::Result<DcReport> {
     super::validate::bench_dc_args(args)?;
-    let mut scenarios = if args.scenarios.is_empty() {
-        BenchScenario::ALL.to_vec()
-    } else {
-        args.scenarios.clone()
-    };
-    scenarios.sort();
-    scenarios.dedup();
-    let mut schemes = if args.schemes.is_empty() {
-        SchemeName::ALL.to_vec()
-    } else {
-        args.schemes.clone()
-    };
-    schemes.sort();
-    schemes.dedup();
+    let scenarios = chosen(&args.scenarios, &BenchScenario::ALL);
+    let schemes = chosen(&args.schemes, &SchemeName::ALL);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let cmd = command(args);
