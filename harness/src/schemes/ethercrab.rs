@@ -419,12 +419,7 @@ impl Ethercrab {
 
     /// One FRMW (8 bytes) to the reference's 0x0910, awaited.
     fn frmw(&mut self) -> anyhow::Result<bool> {
-        let r = self.link.try_txn(&[(
-            Command::Frmw,
-            Address::configured(station(self.reference), reg::SYSTEM_TIME),
-            &[0u8; 8],
-        )])?;
-        Ok(r.is_some())
+        frmw(&mut self.link, self.reference)
     }
 
     fn configure_sync(&mut self) -> anyhow::Result<()> {
@@ -444,6 +439,16 @@ impl Ethercrab {
     }
 }
 
+/// One FRMW of the reference's system time; true when it came back.
+fn frmw(link: &mut SimLink, reference: usize) -> anyhow::Result<bool> {
+    let r = link.try_txn(&[(
+        Command::Frmw,
+        Address::configured(station(reference), reg::SYSTEM_TIME),
+        &[0u8; 8],
+    )])?;
+    Ok(r.is_some())
+}
+
 impl Scheme for Ethercrab {
     fn name(&self) -> &'static str {
         "ethercrab"
@@ -457,15 +462,17 @@ impl Scheme for Ethercrab {
                     self.phase = Phase::Burst;
                 }
                 Phase::Burst => {
-                    while self.burst_sent < STATIC_SYNC_ITERATIONS && self.link.now < until {
-                        // A lost FRMW times out and the loop goes on with the next iteration
-                        // (ASSUMPTION: what a timed-out static-sync PDU does is not
-                        // documented; docs/bench.md "Frame loss").
-                        self.frmw()?;
-                        self.burst_sent += 1;
-                        self.dist_frames += 1;
-                    }
-                    if self.burst_sent < STATIC_SYNC_ITERATIONS {
+                    // A lost FRMW times out and the loop goes on with the next iteration
+                    // (ASSUMPTION: what a timed-out static-sync PDU does is not documented;
+                    // docs/bench.md "Frame loss").
+                    let reference = self.reference;
+                    let sent = &mut self.burst_sent;
+                    let dist = &mut self.dist_frames;
+                    let send = |link: &mut SimLink| frmw(link, reference);
+                    if !self
+                        .link
+                        .burst(sent, STATIC_SYNC_ITERATIONS, dist, until, send)?
+                    {
                         break;
                     }
                     self.phase = Phase::Sync;

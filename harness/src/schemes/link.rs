@@ -59,6 +59,25 @@ impl SimLink {
         }
     }
 
+    /// Sends the FRMWs of a static drift burst with `frmw` until `sent` reaches `total` or the
+    /// link reaches `until`, counting each frame in `sent` and `dist_frames`. True once the
+    /// whole burst is sent.
+    pub fn burst<R>(
+        &mut self,
+        sent: &mut u64,
+        total: u64,
+        dist_frames: &mut u64,
+        until: TrueTime,
+        mut frmw: impl FnMut(&mut SimLink) -> anyhow::Result<R>,
+    ) -> anyhow::Result<bool> {
+        while *sent < total && self.now < until {
+            frmw(self)?;
+            *sent += 1;
+            *dist_frames += 1;
+        }
+        Ok(*sent >= total)
+    }
+
     /// Lets the network run on, without frames, to `until` if it is not there yet (the end
     /// of a scheme's `advance`).
     pub fn advance_to(&mut self, until: TrueTime) -> anyhow::Result<()> {

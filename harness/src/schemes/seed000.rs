@@ -284,12 +284,12 @@ impl Scheme for Seed000 {
                     self.phase = Phase::Burst;
                 }
                 Phase::Burst => {
-                    while self.burst_sent < BURST_FRAMES && self.link.now < until {
-                        igh_steps::frmw(&mut self.link)?;
-                        self.burst_sent += 1;
-                        self.dist_frames += 1;
-                    }
-                    if self.burst_sent < BURST_FRAMES {
+                    let sent = &mut self.burst_sent;
+                    let dist = &mut self.dist_frames;
+                    if !self
+                        .link
+                        .burst(sent, BURST_FRAMES, dist, until, igh_steps::frmw)?
+                    {
                         break;
                     }
                     let c = self.cycle_len();
