@@ -470,97 +470,67 @@ fn main() -> anyhow::Result<()> {
     let pts = |(xs, ys): &(Vec<f64>, Vec<f64>)| -> Vec<(f64, f64)> {
         xs.iter().copied().zip(ys.iter().copied()).collect()
     };
+    let line = |name: &str, color: &'static str, points: Vec<(f64, f64)>| Series {
+        name: name.into(),
+        color,
+        points,
+        dashed: false,
+    };
+    let fit_line = |name: &str, color: &'static str, points: Vec<(f64, f64)>| Series {
+        dashed: true,
+        ..line(name, color, points)
+    };
+    let panel = |title: &str, x_label: &str, y_label: &str, series: Vec<Series>| Panel {
+        title: title.into(),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        series,
+    };
     let panels = vec![
-        Panel {
-            title: "Bring-up frames".into(),
-            x_label: "slaves".into(),
-            y_label: "frames".into(),
-            series: vec![
-                Series {
-                    name: "to drift phase".into(),
-                    color: "#1f77b4",
-                    points: pts(&drift_frames),
-                    dashed: false,
-                },
-                Series {
-                    name: "linear fit".into(),
-                    color: "#1f77b4",
-                    points: fitted(&drift_frames),
-                    dashed: true,
-                },
-                Series {
-                    name: "to lock".into(),
-                    color: "#d62728",
-                    points: pts(&lock_frames),
-                    dashed: false,
-                },
+        panel(
+            "Bring-up frames",
+            "slaves",
+            "frames",
+            vec![
+                line("to drift phase", "#1f77b4", pts(&drift_frames)),
+                fit_line("linear fit", "#1f77b4", fitted(&drift_frames)),
+                line("to lock", "#d62728", pts(&lock_frames)),
             ],
-        },
-        Panel {
-            title: "Bring-up time".into(),
-            x_label: "slaves".into(),
-            y_label: "ms".into(),
-            series: vec![
-                Series {
-                    name: "simulated, to drift phase".into(),
-                    color: "#1f77b4",
-                    points: pts(&drift_ms),
-                    dashed: false,
-                },
-                Series {
-                    name: "simulated, to lock".into(),
-                    color: "#d62728",
-                    points: pts(&lock_ms),
-                    dashed: false,
-                },
-                Series {
-                    name: "core CPU, to drift phase".into(),
-                    color: "#2ca02c",
-                    points: pts(&drift_core),
-                    dashed: false,
-                },
-                Series {
-                    name: "core CPU, linear fit".into(),
-                    color: "#2ca02c",
-                    points: fitted(&drift_core),
-                    dashed: true,
-                },
+        ),
+        panel(
+            "Bring-up time",
+            "slaves",
+            "ms",
+            vec![
+                line("simulated, to drift phase", "#1f77b4", pts(&drift_ms)),
+                line("simulated, to lock", "#d62728", pts(&lock_ms)),
+                line("core CPU, to drift phase", "#2ca02c", pts(&drift_core)),
+                fit_line("core CPU, linear fit", "#2ca02c", fitted(&drift_core)),
             ],
-        },
-        Panel {
-            title: "Per-cycle cost (locked)".into(),
-            x_label: "slaves".into(),
-            y_label: "ns per cycle".into(),
-            series: vec![
-                Series {
-                    name: "core".into(),
-                    color: "#9467bd",
-                    points: pts(&per_cyc),
-                    dashed: false,
-                },
-                Series {
-                    name: "core + servo".into(),
-                    color: "#8c564b",
-                    points: pts(&per_cyc_servo),
-                    dashed: false,
-                },
+        ),
+        panel(
+            "Per-cycle cost (locked)",
+            "slaves",
+            "ns per cycle",
+            vec![
+                line("core", "#9467bd", pts(&per_cyc)),
+                line("core + servo", "#8c564b", pts(&per_cyc_servo)),
             ],
-        },
-        Panel {
-            title: "Core state (size_of Machine<N>)".into(),
-            x_label: "capacity N".into(),
-            y_label: "bytes".into(),
-            series: vec![Series {
-                name: "Machine<N>".into(),
-                color: "#17becf",
-                points: vec![
+        ),
+        panel(
+            "Core state (size_of Machine<N>)",
+            "capacity N",
+            "bytes",
+            vec![line(
+                "Machine<N>",
+                "#17becf",
+                vec![
                     (64.0, std::mem::size_of::<Machine<64>>() as f64),
                     (256.0, std::mem::size_of::<Machine<256>>() as f64),
                     (1024.0, std::mem::size_of::<Machine<1024>>() as f64),
                 ],
-                dashed: false,
-            }],
-        },
+            )],
+        ),
     ];
     std::fs::write(
         out.join("scale.svg"),
