@@ -74,37 +74,18 @@ fn fmmu(net: &mut Network, t: &mut u64, st: u16, n: u16, m: Map) {
 #[test]
 fn invalid_transitions_and_acknowledge() {
     let (mut net, mut t) = net_of(&[Device::Bare], false);
-    assert_eq!(
-        request(&mut net, &mut t, 0x1000, 4),
-        (0x11, 0x0011),
-        "INIT -> SAFEOP"
-    );
-    assert_eq!(
-        request(&mut net, &mut t, 0x1000, 2),
-        (0x11, 0x0011),
-        "PREOP waits for the acknowledge"
-    );
-    assert_eq!(
-        request(&mut net, &mut t, 0x1000, 0x12),
-        (0x02, 0),
-        "ack + PREOP"
-    );
-    assert_eq!(
-        request(&mut net, &mut t, 0x1000, 8),
-        (0x12, 0x0011),
-        "PREOP -> OP"
-    );
-    assert_eq!(
-        request(&mut net, &mut t, 0x1000, 1),
-        (0x11, 0x0011),
-        "a lower state is taken, the error stays"
-    );
-    assert_eq!(request(&mut net, &mut t, 0x1000, 0x11), (0x01, 0));
-    assert_eq!(
-        request(&mut net, &mut t, 0x1000, 0x0F),
-        (0x11, 0x0012),
-        "no such state"
-    );
+    // (AL control written, (AL status, AL status code) read back, what it shows)
+    for (control, want, what) in [
+        (4, (0x11, 0x0011), "INIT -> SAFEOP"),
+        (2, (0x11, 0x0011), "PREOP waits for the acknowledge"),
+        (0x12, (0x02, 0), "ack + PREOP"),
+        (8, (0x12, 0x0011), "PREOP -> OP"),
+        (1, (0x11, 0x0011), "a lower state is taken, the error stays"),
+        (0x11, (0x01, 0), "ack + INIT"),
+        (0x0F, (0x11, 0x0012), "no such state"),
+    ] {
+        assert_eq!(request(&mut net, &mut t, 0x1000, control), want, "{what}");
+    }
     // A slave without process data reaches OP with no SyncManager configured.
     request(&mut net, &mut t, 0x1000, 0x11);
     for s in [2u16, 4, 8] {
@@ -127,18 +108,28 @@ fn safeop_refused_without_a_valid_sm_configuration() {
         (0x12, 0x001D),
         "no SM at all"
     );
-    // Outputs with the wrong length.
-    sm(&mut net, &mut t, st, 0, 0x1100, 2, 0x64);
-    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001D));
-    // Outputs with the wrong direction.
-    sm(&mut net, &mut t, st, 0, 0x1100, 1, 0x20);
-    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001D));
-    // Outputs right, inputs missing.
-    sm(&mut net, &mut t, st, 0, 0x1100, 1, 0x64);
-    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001E));
-    // Inputs outside process RAM.
-    sm(&mut net, &mut t, st, 1, 0x0F00, 1, 0x20);
-    assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, 0x001E));
+    // (SyncManager, start, length, control byte) written, then ack + SAFEOP refused with
+    for ((n, start, len, ctrl), code, what) in [
+        (
+            (0, 0x1100, 2, 0x64),
+            0x001D,
+            "outputs with the wrong length",
+        ),
+        (
+            (0, 0x1100, 1, 0x20),
+            0x001D,
+            "outputs with the wrong direction",
+        ),
+        (
+            (0, 0x1100, 1, 0x64),
+            0x001E,
+            "outputs right, inputs missing",
+        ),
+        ((1, 0x0F00, 1, 0x20), 0x001E, "inputs outside process RAM"),
+    ] {
+        sm(&mut net, &mut t, st, n, start, len, ctrl);
+        assert_eq!(request(&mut net, &mut t, st, 0x14), (0x12, code), "{what}");
+    }
     // Another place in process RAM is fine: the master chooses the buffer addresses.
     sm(&mut net, &mut t, st, 1, 0x1400, 1, 0x20);
     map_both(&mut net, &mut t, st, (0x1100, 1), (0x1400, 1));
@@ -165,14 +156,20 @@ fn safeop_refused_without_a_valid_sm_configuration() {
 /// FMMU 0 writes logical 0.. into the outputs buffer, FMMU 1 reads the inputs buffer into
 /// logical 16.. (each given as physical start and length).
 fn map_both(net: &mut Network, t: &mut u64, st: u16, out: (u16, u16), inp: (u16, u16)) {
-    let m = |log, (phys, len), typ| Map {
+    map_at(net, t, st, (0, out.0, out.1), (16, inp.0, inp.1));
+}
+
+/// FMMU 0 writes the outputs buffer, FMMU 1 reads the inputs buffer, each given as
+/// (logical start, physical start, length).
+fn map_at(net: &mut Network, t: &mut u64, st: u16, out: (u32, u16, u16), inp: (u32, u16, u16)) {
+    let m = |(log, phys, len), typ| Map {
         log,
         len,
         phys,
         typ,
     };
-    fmmu(net, t, st, 0, m(0, out, 2));
-    fmmu(net, t, st, 1, m(16, inp, 1));
+    fmmu(net, t, st, 0, m(out, 2));
+    fmmu(net, t, st, 1, m(inp, 1));
 }
 
 /// REQ-ESC-028: with both process-data SyncManagers right, PREOP→SAFEOP still needs an
@@ -253,58 +250,12 @@ fn safeop_refused_without_fmmus() {
 /// Configures an io8 (slave 0) and a servo (slave 1) the way a master does from their SII:
 /// outputs of both at logical 0..7, inputs at logical 16..23 (io8 at 16, servo at 17..22).
 fn configure(net: &mut Network, t: &mut u64) {
-    sm(net, t, 0x1000, 0, 0x1100, 1, 0x64);
-    sm(net, t, 0x1000, 1, 0x1180, 1, 0x20);
-    fmmu(
-        net,
-        t,
-        0x1000,
-        0,
-        Map {
-            log: 0,
-            len: 1,
-            phys: 0x1100,
-            typ: 2,
-        },
-    );
-    fmmu(
-        net,
-        t,
-        0x1000,
-        1,
-        Map {
-            log: 16,
-            len: 1,
-            phys: 0x1180,
-            typ: 1,
-        },
-    );
-    sm(net, t, 0x1001, 0, 0x1100, 6, 0x64);
-    sm(net, t, 0x1001, 1, 0x1180, 6, 0x20);
-    fmmu(
-        net,
-        t,
-        0x1001,
-        0,
-        Map {
-            log: 1,
-            len: 6,
-            phys: 0x1100,
-            typ: 2,
-        },
-    );
-    fmmu(
-        net,
-        t,
-        0x1001,
-        1,
-        Map {
-            log: 17,
-            len: 6,
-            phys: 0x1180,
-            typ: 1,
-        },
-    );
+    // (station, logical output start, logical input start, buffer length)
+    for (st, log_out, log_in, len) in [(0x1000, 0, 16, 1), (0x1001, 1, 17, 6)] {
+        sm(net, t, st, 0, 0x1100, len, 0x64);
+        sm(net, t, st, 1, 0x1180, len, 0x20);
+        map_at(net, t, st, (log_out, 0x1100, len), (log_in, 0x1180, len));
+    }
 }
 
 fn logical(net: &mut Network, t: &mut u64, c: Command, data: &[u8]) -> (Vec<u8>, u16) {
