@@ -104,23 +104,16 @@ fn power_cycle_resets_slave() {
 #[test]
 fn reference_loss() {
     let (mut net, t) = addressed(&Scenario::line(3));
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Frmw,
-        Address::configured(0x1001, 0x0910),
-        &[0; 8],
-    );
+    // The reference time distribution: FRMW of the first slave's 0x0910.
+    let frmw = |net: &mut Network, at| {
+        let reference = Address::configured(0x1001, 0x0910);
+        one(net, at, Command::Frmw, reference, &[0; 8])
+    };
+    let (r, a) = frmw(&mut net, t);
     assert_eq!(r.wkc, 3);
     net.schedule_fault(a + 1000, Fault::PowerOff { slave: 1 })
         .unwrap();
-    let (r, _) = one(
-        &mut net,
-        a + 1_000_000,
-        Command::Frmw,
-        Address::configured(0x1001, 0x0910),
-        &[0; 8],
-    );
+    let (r, _) = frmw(&mut net, a + 1_000_000);
     assert_eq!(r.wkc, 1, "only slave 0 (writing) is left");
 }
 
