@@ -7,7 +7,7 @@
 mod emu_support;
 
 use ecdc_core::wire::{Address, Command};
-use ecdc_harness::emu::{EscKind, Network, PpmSpec, Scenario, SlaveSpec, SyncSignal};
+use ecdc_harness::emu::{EscKind, Network, PpmSpec, Scenario, SlaveSpec, SyncEdge, SyncSignal};
 use emu_support::*;
 
 const L0: u64 = 1_000_000_000;
@@ -23,6 +23,12 @@ fn one_slave(kind: EscKind, l0: u64) -> (Network, u64) {
         ..SlaveSpec::default()
     });
     (Network::new(&sc).unwrap(), 0)
+}
+
+/// The SYNC edges the network emits up to true time `t`.
+fn edges_until(net: &mut Network, t: u64) -> Vec<SyncEdge> {
+    net.advance_to(t).unwrap();
+    net.take_sync_edges()
 }
 
 fn wr(net: &mut Network, t: u64, ado: u16, d: &[u8]) -> u64 {
@@ -50,8 +56,7 @@ fn cyclic_sync0() {
     let t = wr(&mut net, t, 0x0981, &[0x03]);
     let (st, _) = rd(&mut net, t, 0x0984, 1);
     assert_eq!(st[0] & 0x01, 0x01, "first pulse pending");
-    net.advance_to(50_000_000).unwrap();
-    let e = net.take_sync_edges();
+    let e = edges_until(&mut net, 50_000_000);
     assert_eq!(e.len(), 31);
     for (k, edge) in e.iter().enumerate() {
         assert_eq!(edge.signal, SyncSignal::Sync0);
@@ -75,8 +80,7 @@ fn single_shot() {
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
     let t = wr(&mut net, t, 0x0990, &(L0 + 5_000_000).to_le_bytes());
     let _ = wr(&mut net, t, 0x0981, &[0x03]);
-    net.advance_to(100_000_000).unwrap();
-    let e = net.take_sync_edges();
+    let e = edges_until(&mut net, 100_000_000);
     assert_eq!(e.len(), 1);
     assert_eq!(e[0].true_time, 5_000_000);
 }
@@ -90,8 +94,7 @@ fn start_time_in_the_past() {
     let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
     let t = wr(&mut net, t, 0x0990, &(L0 - 1_000_000).to_le_bytes());
     let _ = wr(&mut net, t, 0x0981, &[0x03]);
-    net.advance_to(100_000_000).unwrap();
-    assert!(net.take_sync_edges().is_empty());
+    assert!(edges_until(&mut net, 100_000_000).is_empty());
 
     let (mut net, t) = one_slave(EscKind::Dc64, L0);
     let t = wr(&mut net, t, 0x09A0, &1_000_000u32.to_le_bytes());
@@ -99,8 +102,7 @@ fn start_time_in_the_past() {
     let t = wr(&mut net, t, 0x0981, &[0x23]);
     let (st, _) = rd(&mut net, t, 0x0984, 1);
     assert_eq!(st[0] & 0x04, 0x04, "implausible start time flagged");
-    net.advance_to(10_000_000).unwrap();
-    let e = net.take_sync_edges();
+    let e = edges_until(&mut net, 10_000_000);
     assert_eq!(e.len(), 10, "fires at once, then every cycle");
     assert!(e[0].true_time < t);
 }
@@ -114,8 +116,7 @@ fn past_start_on_32bit_fires_after_wrap() {
     let start = 100_000_000u32 - 1_000_000;
     let t = wr(&mut net, t, 0x0990, &start.to_le_bytes());
     let _ = wr(&mut net, t, 0x0981, &[0x03]);
-    net.advance_to(5_000_000_000).unwrap();
-    let e = net.take_sync_edges();
+    let e = edges_until(&mut net, 5_000_000_000);
     assert_eq!(e.len(), 1);
     // 2^32 − 1 ms after the write, rounded up to the next 10 ns tick.
     assert_eq!(e[0].true_time, ((1u64 << 32) - 1_000_000).div_ceil(10) * 10);
@@ -157,8 +158,7 @@ fn pulse_stepped_over_at_a_piece_boundary_fires() {
     let mut net = one_slave_in_pieces(0.0, L0);
     let start = L0 + 20_000_000 - 3;
     start_sync0(&mut net, start);
-    net.advance_to(250_000_000).unwrap();
-    let e = net.take_sync_edges();
+    let e = edges_until(&mut net, 250_000_000);
     assert_eq!(e.len(), 231, "last edge at {:?}", e.last());
     for (k, edge) in e.iter().enumerate() {
         assert_eq!(edge.system_time, start + k as u64 * 1_000_000);
@@ -228,9 +228,7 @@ fn sync1_modes() {
         let t = wr(&mut net, t, 0x09A4, &c1.to_le_bytes());
         let t = wr(&mut net, t, 0x0990, &(L0 + 10_000_000).to_le_bytes());
         let _ = wr(&mut net, t, 0x0981, &[0x07]);
-        net.advance_to(14_500_000).unwrap();
-        let s1: Vec<u64> = net
-            .take_sync_edges()
+        let s1: Vec<u64> = edges_until(&mut net, 14_500_000)
             .iter()
             .filter(|e| e.signal == SyncSignal::Sync1)
             .map(|e| e.true_time - 10_000_000)
@@ -250,8 +248,7 @@ fn pdi_owned_unit_ignores_ecat() {
     let t = wr(&mut net, t, 0x0981, &[0x03]);
     let (a, _) = rd(&mut net, t, 0x0981, 1);
     assert_eq!(a[0], 0);
-    net.advance_to(20_000_000).unwrap();
-    assert!(net.take_sync_edges().is_empty());
+    assert!(edges_until(&mut net, 20_000_000).is_empty());
 }
 
 /// REQ-ESC-079: auto-activation on a start-time write, with the 32→64-bit extension.
@@ -270,8 +267,7 @@ fn auto_activation_with_extension() {
         5 * (1 << 32) + 3_001_000,
         "upper half taken from system time"
     );
-    net.advance_to(4_000_000).unwrap();
-    let e = net.take_sync_edges();
+    let e = edges_until(&mut net, 4_000_000);
     assert_eq!(e.len(), 2);
     assert_eq!(e[0].true_time, 3_000_000);
 }
@@ -334,8 +330,7 @@ fn skew_after_drift_compensation() {
         frmw(&mut net, t);
         t += 1_000_000;
     }
-    net.advance_to(t).unwrap();
-    let edges = net.take_sync_edges();
+    let edges = edges_until(&mut net, t);
     let mut by_time: std::collections::BTreeMap<u64, Vec<u64>> = Default::default();
     for e in &edges {
         by_time.entry(e.system_time).or_default().push(e.true_time);
