@@ -20,6 +20,9 @@
 //! lets bring-up finish there without touching anything DC does. scripts/peers-bench.sh runs it
 //! as a separate, labelled master (`ethercrab-eeprom100`), never in place of the example's.
 
+#[path = "../../shared/logged_main.rs"]
+mod logged_main;
+
 use std::time::{Duration, Instant};
 
 use ethercrab::{
@@ -27,6 +30,7 @@ use ethercrab::{
     subdevice_group::{CycleInfo, DcConfiguration, TxRxResponse},
     DcSync, MainDevice, MainDeviceConfig, PduStorage, Timeouts,
 };
+use logged_main::logged_main;
 
 // ecdc choice: room for the 32-slave tree of scripts/peers-bench.sh and its process data.
 const MAX_SUBDEVICES: usize = 64;
@@ -70,11 +74,7 @@ fn parse_args() -> Result<(Vec<String>, Option<Duration>), String> {
 }
 
 fn main() {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("info")).init();
-    if let Err(e) = run() {
-        eprintln!("ethercrab-driver: {e}");
-        std::process::exit(1);
-    }
+    logged_main("ethercrab-driver", "info", run);
 }
 
 fn run() -> Result<(), String> {

@@ -5,30 +5,24 @@
 //!
 //! Usage: ethercrab-ecdc IFACE [SECONDS] [CYCLE_US]   (defaults: 10 s, 1000 us)
 
+#[path = "../../shared/arg.rs"]
+mod arg;
+#[path = "../../shared/logged_main.rs"]
+mod logged_main;
+
+use arg::arg;
 use ecdc_harness::runtime::socket::{RawSocket, SocketOptions};
 use ethercrab::PduStorage;
 use ethercrab_ecdc::{run, Options};
+use logged_main::logged_main;
 
 const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
 const MAX_FRAMES: usize = 32;
 
 static PDU_STORAGE: PduStorage<MAX_FRAMES, MAX_PDU_DATA> = PduStorage::new();
 
-fn arg<T: std::str::FromStr>(i: usize, default: T) -> Result<T, String> {
-    match std::env::args().nth(i) {
-        None => Ok(default),
-        Some(s) => s
-            .parse()
-            .map_err(|_| format!("argument {i}: cannot parse {s:?}")),
-    }
-}
-
 fn main() {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
-    if let Err(e) = main_inner() {
-        eprintln!("ethercrab-ecdc: {e}");
-        std::process::exit(1);
-    }
+    logged_main("ethercrab-ecdc", "warn", main_inner);
 }
 
 fn main_inner() -> Result<(), String> {

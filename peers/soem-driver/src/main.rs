@@ -16,6 +16,9 @@
 //! Usage: soem-driver IFACE [SECONDS] [CYCLE_US]   (defaults: 10 s, 1000 us)
 //!        soem-driver IFACE --config-only          (ec_config_init + ec_config_map + ec_configdc)
 
+#[path = "../../shared/arg.rs"]
+mod arg;
+
 use std::ffi::{CStr, CString};
 use std::os::raw::{c_int, c_void};
 use std::ptr::addr_of_mut;
@@ -23,6 +26,7 @@ use std::sync::atomic::{AtomicBool, AtomicI32, AtomicI64, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use arg::arg;
 use soem_sys::{
     boolean, ec_close, ec_configdc, ec_dcsync0, ec_groupt, ec_init, ec_receive_processdata,
     ec_send_processdata, ec_slavet, ec_state_EC_STATE_OPERATIONAL, ec_state_EC_STATE_SAFE_OP,
@@ -80,15 +84,6 @@ fn name(s: &ec_slavet) -> String {
 
 fn ms(t: Instant) -> u128 {
     t.elapsed().as_millis()
-}
-
-fn arg<T: std::str::FromStr>(i: usize, default: T) -> Result<T, String> {
-    match std::env::args().nth(i) {
-        None => Ok(default),
-        Some(s) => s
-            .parse()
-            .map_err(|_| format!("argument {i}: cannot parse {s:?}")),
-    }
 }
 
 fn main() {
