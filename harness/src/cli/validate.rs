@@ -490,24 +490,23 @@ mod tests {
         let p = f64_in(0.0, 1.0);
         assert_eq!(p("0.25"), Ok(0.25));
         assert!(p("-0.5").unwrap_err().contains("valid: 0..=1"));
-        assert!(p("NaN").is_err());
-        assert!(p("inf").is_err());
-        assert!(p("1.0001").is_err());
-        assert!(seconds("0").is_err());
-        assert!(seconds("-1").is_err());
-        assert!(seconds("nan").is_err());
+        for bad in ["NaN", "inf", "1.0001"] {
+            assert!(p(bad).is_err(), "{bad}");
+        }
+        for bad in ["0", "-1", "nan"] {
+            assert!(seconds(bad).is_err(), "{bad}");
+        }
         assert_eq!(seconds("2.5"), Ok(2.5));
     }
 
     #[test]
     fn interface_names() {
-        assert!(iface_name("eth1").is_ok());
-        assert!(iface_name("").is_err());
-        assert!(iface_name("a-very-long-name").is_err());
-        assert!(iface_name("abcdefghijklmno").is_ok());
-        assert!(iface_name("a/b").is_err());
-        assert!(iface_name("..").is_err());
-        assert!(iface_name("eth 1").is_err());
+        for good in ["eth1", "abcdefghijklmno"] {
+            assert!(iface_name(good).is_ok(), "{good}");
+        }
+        for bad in ["", "a-very-long-name", "a/b", "..", "eth 1"] {
+            assert!(iface_name(bad).is_err(), "{bad:?}");
+        }
     }
 
     #[test]
