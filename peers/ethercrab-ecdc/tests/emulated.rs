@@ -6,22 +6,13 @@
 mod support;
 
 use ecdc_harness::emu::Scenario;
-use ethercrab::PduStorage;
-use ethercrab_ecdc::{run, Options};
-use support::{sync0_spreads, EmuLink};
-
-static PDU_STORAGE: PduStorage<32, { PduStorage::element_size(1100) }> = PduStorage::new();
+use support::{run_for, sync0_spreads, EmuLink};
 
 #[test]
 fn ethercrab_configures_ecdc_synchronises() {
     let slaves = 3;
     let link = EmuLink::new(&Scenario::line(slaves));
-    let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
-    let opts = Options {
-        seconds: 1.0,
-        ..Options::default()
-    };
-    let (r, mut link) = run(link, tx, rx, pdu_loop, &opts).expect("run");
+    let (r, mut link) = run_for(link, 1.0);
     let s = &r.status;
     eprintln!("{r:#?}");
     assert_eq!(r.subdevices, slaves);

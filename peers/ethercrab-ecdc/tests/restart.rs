@@ -7,11 +7,7 @@
 mod support;
 
 use ecdc_harness::emu::Scenario;
-use ethercrab::PduStorage;
-use ethercrab_ecdc::{run, Options};
-use support::{sync0_spreads, EmuLink};
-
-static PDU_STORAGE: PduStorage<32, { PduStorage::element_size(1100) }> = PduStorage::new();
+use support::{run_for, sync0_spreads, EmuLink};
 
 #[test]
 fn restart_in_op_reuses_the_measured_t_diff() {
@@ -20,12 +16,7 @@ fn restart_in_op_reuses_the_measured_t_diff() {
     // 200 ms after all slaves are in OP, 20 ms of ecdc frames lost: more than
     // `max_lost_cycles` (5) cycles.
     link.drop_ecdc = Some((200_000_000, 20_000_000));
-    let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
-    let opts = Options {
-        seconds: 1.5,
-        ..Options::default()
-    };
-    let (r, mut link) = run(link, tx, rx, pdu_loop, &opts).expect("run");
+    let (r, mut link) = run_for(link, 1.5);
     let s = &r.status;
     for (t, e) in &s.events {
         let ms = (*t as f64 - r.op_mono_ns as f64) / 1e6;

@@ -8,7 +8,21 @@ use std::sync::atomic::AtomicBool;
 use ecdc_harness::emu::{Delivery, Network, Scenario, SyncSignal};
 use ecdc_harness::runtime::clock;
 use ecdc_harness::runtime::socket::Link;
-use ethercrab_ecdc::{route, Route};
+use ethercrab::PduStorage;
+use ethercrab_ecdc::{route, run, Options, Report, Route};
+
+static PDU_STORAGE: PduStorage<32, { PduStorage::element_size(1100) }> = PduStorage::new();
+
+/// Runs ethercrab and ecdc on `link` for `seconds` with the default options; returns the
+/// report and the link. Once per test binary: the PDU storage splits only once.
+pub fn run_for(link: EmuLink, seconds: f64) -> (Report, EmuLink) {
+    let (tx, rx, pdu_loop) = PDU_STORAGE.try_split().expect("split once");
+    let opts = Options {
+        seconds,
+        ..Options::default()
+    };
+    run(link, tx, rx, pdu_loop, &opts).expect("run")
+}
 
 /// The emulated chain behind an in-memory link: a sent frame goes through the network at once
 /// (at the current true time) and its reply is handed out when its last bit would arrive.
