@@ -20,7 +20,7 @@
 //! lets bring-up finish there without touching anything DC does. scripts/peers-bench.sh runs it
 //! as a separate, labelled master (`ethercrab-eeprom100`), never in place of the example's.
 
-#[path = "../../shared/logged_main.rs"]
+#[path = "../../common/logged_main.rs"]
 mod logged_main;
 
 use std::time::{Duration, Instant};

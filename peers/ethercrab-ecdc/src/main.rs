@@ -5,9 +5,9 @@
 //!
 //! Usage: ethercrab-ecdc IFACE [SECONDS] [CYCLE_US]   (defaults: 10 s, 1000 us)
 
-#[path = "../../shared/arg.rs"]
+#[path = "../../common/arg.rs"]
 mod arg;
-#[path = "../../shared/logged_main.rs"]
+#[path = "../../common/logged_main.rs"]
 mod logged_main;
 
 use arg::arg;

@@ -16,7 +16,7 @@
 //! Usage: soem-driver IFACE [SECONDS] [CYCLE_US]   (defaults: 10 s, 1000 us)
 //!        soem-driver IFACE --config-only          (ec_config_init + ec_config_map + ec_configdc)
 
-#[path = "../../shared/arg.rs"]
+#[path = "../../common/arg.rs"]
 mod arg;
 
 use std::ffi::{CStr, CString};
