@@ -1,7 +1,8 @@
 # Sourced by .ci/run: the other masters (peers/, each its own Cargo workspace). Both drivers
 # must build: peers/ethercrab-driver (ethercrab from crates.io) and peers/soem-driver (SOEM's C
 # sources from the SOEM-sys crate, built by its build script with cmake + libclang, which
-# .ci/install.sh installs; GPL-2.0, never linked into an ecdc crate). Then, when root and
+# .ci/install.sh installs; GPL-2.0, never linked into an ecdc crate); peers/ethercrab-ecdc
+# must pass clippy, fmt and its tests. Then, when root and
 # network namespaces work, scripts/peers-bench.sh runs on seed 003's two servo slaves for 2 s
 # each, one run (PEERS_REPEATS=1): ethercrab to OP with DC, and SOEM's ec_config_init +
 # ec_config_map + ec_configdc. The layer checks the emulator's JSON (`sync` figures present,
@@ -23,6 +24,15 @@ for d in ethercrab-driver soem-driver; do
         peers_status="failed (peers/$d build, clippy or fmt)"
     fi
 done
+# peers/ethercrab-ecdc embeds ecdc-core in ethercrab's TX/RX loop; its tests run that whole
+# master against the emulator in-process (no network), including a re-initialisation in OP.
+if (cd peers/ethercrab-ecdc \
+    && CARGO_TARGET_DIR="$peers_target" cargo clippy -q --release --all-targets -- -D warnings \
+    && cargo fmt --check && CARGO_TARGET_DIR="$peers_target" cargo test -q --release); then
+    echo "peers/ethercrab-ecdc: clippy, fmt and tests pass"
+else
+    peers_status="failed (peers/ethercrab-ecdc clippy, fmt or tests)"
+fi
 if [ "$peers_status" = passed ]; then
     peers_out="$(mktemp -d)"
     peers_log="$(mktemp)"

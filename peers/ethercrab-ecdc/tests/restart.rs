@@ -13,10 +13,10 @@ use support::{run_for, sync0_spreads, EmuLink};
 fn restart_in_op_reuses_the_measured_t_diff() {
     let slaves = 3;
     let mut link = EmuLink::new(&Scenario::line(slaves));
-    // 200 ms after all slaves are in OP, 20 ms of ecdc frames lost: more than
-    // `max_lost_cycles` (5) cycles.
-    link.drop_ecdc = Some((200_000_000, 20_000_000));
-    let (r, mut link) = run_for(link, 1.5);
+    // 200 ms after all slaves are in OP, 1.2 s of ecdc frames lost: longer than the machine's
+    // hold-over (`Config::holdover_ns`, 1 s by default), which shorter silences end in.
+    link.drop_ecdc = Some((200_000_000, 1_200_000_000));
+    let (r, mut link) = run_for(link, 3.0);
     let s = &r.status;
     for (t, e) in &s.events {
         let ms = (*t as f64 - r.op_mono_ns as f64) / 1e6;
@@ -35,7 +35,9 @@ fn restart_in_op_reuses_the_measured_t_diff() {
         "{:?}",
         s.events
     );
-    assert_eq!(s.restarts, 1, "{:?}", s.events);
+    // At least one re-initialisation: those started while the wire is still silent fail in
+    // `CountSlaves` and restart again.
+    assert!(s.restarts >= 1, "{:?}", s.events);
     assert!(s.locked, "not locked again");
     let resolved: Vec<&str> = s
         .events
