@@ -6,9 +6,9 @@
 use crate::dc::config::SyncConfig;
 use crate::dc::delay::{self, DelayError};
 use crate::dc::error::Error;
-use crate::dc::machine::Shared;
 use crate::dc::offset::{self, ClockWidth};
 use crate::dc::port::{Port, PortSet};
+use crate::dc::shared::Shared;
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::sync;
 use crate::dc::topology::{Latches, Node, SlaveSample, TopologyError};

@@ -56,7 +56,7 @@ impl<'m, const N: usize> ControlState<'m, N> {
     /// The fields that make up the control state, as one comparable and hashable value.
     fn fields(self) -> impl PartialEq + Hash + 'm {
         let Machine { phase, sh } = self.m;
-        let crate::dc::machine::Shared {
+        let crate::dc::shared::Shared {
             cfg,
             line,
             inflight,

@@ -8,9 +8,10 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::holdover::{Holdover, HoldoverCause};
-use crate::dc::machine::{Machine, Shared};
+use crate::dc::machine::Machine;
 use crate::dc::phase::Phase;
 use crate::dc::request::{le, Op, Pending, Reply, Tag};
+use crate::dc::shared::Shared;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::timer::Timer;
@@ -72,7 +73,6 @@ pub(crate) struct CyclicState {
     /// BRD 0x092C bound read by the cycle in flight (`bound_ns` keeps the last one read).
     pub(crate) cycle_bound_ns: Option<u32>,
 }
-
 
 /// Cyclic operation at work: its own data and the machine's shared parts. A fault found here
 /// ends the cyclic phase, so it is only recorded ([`CyclicCx::fail`]); the machine carries it

@@ -11,8 +11,8 @@
 use crate::dc::cyclic::{diff_reply, rr_after, CyclicCx};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::index_after;
 use crate::dc::request::{Op, Payload, Pending, Tag};
+use crate::dc::shared::index_after;
 use crate::wire::register::reg;
 use crate::wire::{
     data_and_wkc, dlpdu_header, matches_pattern, put_small, set_more, Command, FrameBuilder,
@@ -287,7 +287,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         self.on_bound_reply(wkc, data);
         let (data, wkc) = data_and_wkc(d2);
         self.on_topology_reply(wkc, data);
-        let crate::dc::machine::Shared { inflight, line, .. } = &mut *self.sh;
+        let crate::dc::shared::Shared { inflight, line, .. } = &mut *self.sh;
         let cyc = &mut *self.c;
         let reads = inflight.entries.get(3..n).unwrap_or(&[]);
         for (p, d) in reads.iter().zip(rr.chunks_exact(FPRD_LEN)) {

@@ -9,7 +9,7 @@
 //! - `phase.rs`: the `Phase` enum, one variant per phase holding that phase's own data (the
 //!   drift gate, cyclic operation's bookkeeping), with typed steps; [`State`] (`state.rs`) is
 //!   its observable projection and the one transition table;
-//! - the shared parts (`machine::Shared`): configuration, the line (`line.rs`: slave table,
+//! - the shared parts (`shared.rs`): configuration, the line (`line.rs`: slave table,
 //!   reference, running domain, SYNC start), the in-flight table (`request.rs`), the timer
 //!   table (`timer.rs`), events (`event.rs`), counters, restart bookkeeping, and the tables too
 //!   large for a phase value (`measure.rs`'s latch rounds, `tdiff.rs`'s plan, `scratch.rs`);
@@ -50,6 +50,7 @@ mod phase;
 mod remeasure;
 mod request;
 mod scratch;
+mod shared;
 pub mod slave;
 pub mod state;
 pub mod stations;

@@ -7,9 +7,9 @@
 use crate::dc::cyclic::{CyclicCx, Remeasure};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
-use crate::dc::machine::expect_wkc;
 use crate::dc::measure::{latch_read, store_latch_reply, LATCH_TRIGGER};
 use crate::dc::request::{Op, Reply, Tag};
+use crate::dc::shared::expect_wkc;
 use crate::dc::slave::LatchRead;
 use crate::wire::register::reg;
 use crate::wire::FrameBuilder;

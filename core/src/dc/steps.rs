@@ -4,9 +4,10 @@
 
 use crate::dc::config::DriftCommand;
 use crate::dc::error::Error;
-use crate::dc::machine::{expect_wkc, Item, Machine, Shared};
+use crate::dc::machine::{Item, Machine};
 use crate::dc::phase::{AdjustStep, DiscoveryStep, DriftStep, MeasureStep, Phase};
 use crate::dc::request::{Op, Pending, Reply};
+use crate::dc::shared::{expect_wkc, Shared};
 use crate::dc::state::State;
 use crate::dc::timer::Timer;
 use crate::time::SystemTime;
