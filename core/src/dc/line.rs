@@ -87,3 +87,64 @@ impl<const N: usize> Line<N> {
         self.domain_shift = 0;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dc::slave::DcKind;
+
+    fn line_of(kinds: &[DcKind]) -> Line<4> {
+        let mut l = Line::new();
+        for (s, k) in l.slaves.iter_mut().zip(kinds) {
+            s.dc = *k;
+        }
+        l.count = u16::try_from(kinds.len()).unwrap();
+        l
+    }
+
+    /// Only the slaves found are reachable, by position.
+    #[test]
+    fn slaves_beyond_the_count_are_not_found() {
+        let mut l = line_of(&[DcKind::Bits64, DcKind::None]);
+        assert_eq!(l.found().len(), 2);
+        assert!(l.slave(1).is_some() && l.slave_mut(1).is_some());
+        assert!(l.slave(2).is_none() && l.slave_mut(2).is_none());
+        assert!(l.slave(u16::MAX).is_none() && l.slave_mut(u16::MAX).is_none());
+        l.count = 0;
+        assert!(l.slave(0).is_none() && l.slave_mut(0).is_none());
+    }
+
+    /// The latching BWR's working counter counts every slave with latches, and only those.
+    #[test]
+    fn latching_count_is_the_slaves_with_latches() {
+        let l = line_of(&[
+            DcKind::Bits64,
+            DcKind::None,
+            DcKind::DelayOnly,
+            DcKind::Bits32,
+        ]);
+        assert_eq!(l.latching_count(), 3);
+        assert_eq!(line_of(&[DcKind::None]).latching_count(), 0);
+        // A slave beyond the count does not latch for this line.
+        let mut l = line_of(&[DcKind::Bits64, DcKind::Bits64]);
+        l.count = 1;
+        assert_eq!(l.latching_count(), 1);
+    }
+
+    /// A new bring-up forgets what was found but keeps the t_Diff overrides; `clear` both.
+    #[test]
+    fn forget_found_keeps_overrides_clear_does_not() {
+        let mut l = line_of(&[DcKind::Bits64]);
+        l.reference = 1;
+        l.sys_count = 1;
+        l.domain_shift = 7;
+        l.sync_start = 9;
+        l.t_diff[0] = Some(80);
+        l.forget_found();
+        assert_eq!((l.count, l.reference, l.sys_count), (0, 0, 0));
+        assert_eq!((l.domain_shift, l.sync_start), (0, 0));
+        assert_eq!(l.t_diff[0], Some(80));
+        l.clear();
+        assert_eq!(l, Line::new());
+    }
+}
