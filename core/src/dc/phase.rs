@@ -125,7 +125,7 @@ impl Phase {
 
     /// The phase of state `to`, entered from `self`: a step of the same phase keeps the
     /// phase's data, any other phase starts afresh. A new drift check starts without a bound
-    /// read.
+    /// read. (`Cyclic` has one step and is never re-entered from itself, `State::can_go`.)
     pub(crate) fn enter(self, to: State) -> Phase {
         match to {
             State::Idle => Phase::Idle,
@@ -161,10 +161,7 @@ impl Phase {
             State::ClearActivation => Phase::Activation(ActivationStep::ClearActivation),
             State::ProgramSync => Phase::Activation(ActivationStep::ProgramSync),
             State::ActivateSync => Phase::Activation(ActivationStep::ActivateSync),
-            State::Cyclic => match self {
-                Phase::Cyclic(c) => Phase::Cyclic(c),
-                _ => Phase::Cyclic(CyclicState::default()),
-            },
+            State::Cyclic => Phase::Cyclic(CyclicState::default()),
             State::RestartWait => Phase::RestartWait,
             State::Failed => Phase::Failed,
         }
@@ -238,5 +235,25 @@ mod tests {
         assert_eq!(p.drift_gate(), None);
         let p = p.enter(State::DriftBurst);
         assert_eq!(p.drift_gate(), Some(&DriftGate::IDLE));
+    }
+
+    /// The cyclic getters read the phase's data, and see none outside `Cyclic`.
+    #[test]
+    fn cyclic_data_is_read_in_cyclic_only() {
+        use crate::dc::{Config, Machine};
+        use crate::time::SystemTime;
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        m.phase = Phase::Cyclic(CyclicState {
+            locked: true,
+            bound_ns: Some(5),
+            ref_time: Some(7),
+            ..CyclicState::default()
+        });
+        assert!(m.is_locked() && !m.in_holdover());
+        assert_eq!(m.diff_bound_ns(), Some(5));
+        assert_eq!(m.reference_time(), Some(SystemTime(7)));
+        m.phase = m.phase.enter(State::Failed);
+        assert!(!m.is_locked());
+        assert_eq!((m.diff_bound_ns(), m.reference_time()), (None, None));
     }
 }
