@@ -153,3 +153,63 @@ pub(crate) fn expect_wkc(p: Pending, expected: u16, actual: u16) -> Result<(), E
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dc::event::EVENT_QUEUE_LEN;
+    use crate::dc::Machine;
+    use crate::wire::Command;
+
+    /// Indexes run through `first..first + count` and wrap to `first`, also across 0xFF.
+    #[test]
+    fn indexes_cycle_through_their_range() {
+        let walk = |first: u8, count: u8, from: u8, n: usize| {
+            let mut i = from;
+            let mut seen = std::vec::Vec::new();
+            for _ in 0..n {
+                i = index_after(i, first, count);
+                seen.push(i);
+            }
+            seen
+        };
+        assert_eq!(walk(0x80, 3, 0x80, 4), [0x81, 0x82, 0x80, 0x81]);
+        assert_eq!(walk(0xFE, 4, 0xFE, 4), [0xFF, 0x00, 0x01, 0xFE]);
+        assert_eq!(walk(0, 1, 0, 2), [0, 0]);
+    }
+
+    #[test]
+    fn expect_wkc_names_the_datagram() {
+        let p = Pending {
+            command: Command::Fprd,
+            index: 3,
+            station: 0x1001,
+            register: 0x0130,
+            len: 2,
+            tag: Tag::Item(0),
+        };
+        assert_eq!(expect_wkc(p, 1, 1), Ok(()));
+        assert_eq!(
+            expect_wkc(p, 1, 0),
+            Err(Error::Wkc {
+                command: Command::Fprd,
+                station: 0x1001,
+                register: 0x0130,
+                expected: 1,
+                actual: 0,
+            })
+        );
+    }
+
+    /// A full event queue counts what it drops; events that fit are not counted.
+    #[test]
+    fn dropped_events_are_counted() {
+        let mut m = Machine::<2>::new(crate::dc::Config::default()).unwrap();
+        for _ in 0..EVENT_QUEUE_LEN {
+            m.sh.push_event(Event::Restarting);
+        }
+        assert_eq!(m.sh.stats.events_dropped, 0);
+        m.sh.push_event(Event::Restarting);
+        assert_eq!(m.sh.stats.events_dropped, 1);
+    }
+}
