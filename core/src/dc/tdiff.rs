@@ -1051,3 +1051,31 @@ mod tests {
         assert_eq!(mean(5, 0), None);
     }
 }
+
+#[cfg(test)]
+mod recovery_tests {
+    use super::DL_CONTROL;
+    use crate::dc::{Config, Machine};
+    use crate::time::SystemTime;
+    use crate::wire::{Command, EthernetFrame};
+
+    /// REQ-DC-124: a port an interrupted t_Diff step may have left closed is reopened in a
+    /// frame of its own, before the slave count: a BRD in the same frame would not reach the
+    /// slaves behind the still-closed port, and the count would miss them.
+    #[test]
+    fn restore_goes_alone_before_the_count() {
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        m.sh.tdiff.pending = Some((0x1002, 0x0000));
+        m.start(SystemTime(0));
+        let mut buf = [0u8; 1514];
+        let n = m.poll_transmit(SystemTime(0), &mut buf).unwrap();
+        let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
+        let frame = eth.ecat_frame().unwrap();
+        assert_eq!(frame.datagram_count(), Ok(1));
+        let d = frame.iter().next().unwrap().unwrap();
+        assert_eq!(
+            (d.command(), d.adp(), d.ado()),
+            (Ok(Command::Fpwr), 0x1002, DL_CONTROL)
+        );
+    }
+}
