@@ -189,3 +189,34 @@ impl SlaveInfo {
         Some(())
     }
 }
+
+#[cfg(test)]
+mod latch_tests {
+    use super::*;
+
+    /// The two reads of the receive-time block, their lengths and what each one stores.
+    #[test]
+    fn latch_reads_store_ports_and_epu() {
+        assert_eq!((LatchRead::Before.len(), LatchRead::After.len()), (16, 32));
+        let mut block = [0u8; 32];
+        for (k, b) in block.iter_mut().enumerate() {
+            *b = u8::try_from(k).unwrap();
+        }
+        let port = |k: u8| u32::from_le_bytes([4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3]);
+        let mut s = SlaveInfo::EMPTY;
+        assert_eq!(s.store_latches(LatchRead::Before, &block[..16]), Some(()));
+        assert_eq!(s.times_before, [port(0), port(1), port(2), port(3)]);
+        assert_eq!((s.times_after, s.epu_time), ([0; 4], 0));
+        assert_eq!(s.store_latches(LatchRead::After, &block), Some(()));
+        assert_eq!(s.times_after, s.times_before);
+        assert_eq!(
+            s.epu_time,
+            u64::from_le_bytes(block[24..32].try_into().unwrap())
+        );
+        // Too short: nothing stored.
+        let mut t = SlaveInfo::EMPTY;
+        assert_eq!(t.store_latches(LatchRead::Before, &block[..15]), None);
+        assert_eq!(t.store_latches(LatchRead::After, &block[..31]), None);
+        assert_eq!(t, SlaveInfo::EMPTY);
+    }
+}
