@@ -14,8 +14,8 @@ use super::datagram::field;
 use super::frame::{field as ffield, FrameType};
 use super::Command;
 
-/// Bit positions of the fields in the little-endian key: 8 × their byte offsets.
-const CMD_SHIFT: u32 = 0;
+/// Bit positions of the fields in the little-endian key: 8 × their byte offsets (the
+/// command is byte 0, bits 0..8).
 const IDX_SHIFT: u32 = 8;
 const ADP_SHIFT: u32 = 16;
 const ADO_SHIFT: u32 = 32;
@@ -35,7 +35,7 @@ pub(crate) struct HeaderKey(pub(crate) u64);
 
 impl HeaderKey {
     /// The command and index bits.
-    pub(crate) const COMMAND_INDEX: u64 = 0xFFFF << CMD_SHIFT;
+    pub(crate) const COMMAND_INDEX: u64 = 0xFFFF;
     /// The ADP bits (station or position address).
     pub(crate) const ADP: u64 = 0xFFFF << ADP_SHIFT;
     /// The ADO bits (register offset).
@@ -45,7 +45,7 @@ impl HeaderKey {
     /// The M bit (more datagrams follow).
     pub(crate) const MORE: u64 = (field::MORE as u64) << LEN_SHIFT;
     /// The command bits.
-    pub(crate) const COMMAND: u64 = 0xFF << CMD_SHIFT;
+    pub(crate) const COMMAND: u64 = 0xFF;
     /// The data length bits of the length word (C, M and the reserved bits left out).
     pub(crate) const LEN: u64 = (field::LEN_MASK as u64) << LEN_SHIFT;
 
@@ -54,7 +54,7 @@ impl HeaderKey {
     #[inline(always)]
     pub(crate) const fn new(command: Command, index: u8, adp: u16, ado: u16, len: u16) -> Self {
         HeaderKey(
-            (command.code() as u64) << CMD_SHIFT
+            (command.code() as u64)
                 | (index as u64) << IDX_SHIFT
                 | (adp as u64) << ADP_SHIFT
                 | (ado as u64) << ADO_SHIFT
