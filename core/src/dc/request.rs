@@ -198,7 +198,7 @@ impl Pending {
     pub(crate) fn pattern(&self) -> HeaderPattern {
         HeaderPattern {
             want: self.key().0,
-            mask: self.compared() & !HeaderKey::LEN_WORD,
+            mask: self.compared(),
             len: self.len,
         }
     }
@@ -465,6 +465,45 @@ mod tests {
             )
             .unwrap();
         buf[s.offset()..s.offset() + 16].to_vec()
+    }
+
+    /// REQ-DC-113: a reply header matches its request on command, index, register and data
+    /// length, and on the station for FP commands only; M, C and IRQ do not matter.
+    #[test]
+    fn reply_header_fields_that_must_match() {
+        let header = |cmd: u8, idx: u8, adp: u16, ado: u16, len_word: u16| {
+            let mut h = [0u8; 10];
+            h[0] = cmd;
+            h[1] = idx;
+            h[2..4].copy_from_slice(&adp.to_le_bytes());
+            h[4..6].copy_from_slice(&ado.to_le_bytes());
+            h[6..8].copy_from_slice(&len_word.to_le_bytes());
+            h[8] = 0x55;
+            h
+        };
+        let fp = pending(7, 0x1001);
+        let fprd = Command::Fprd.code();
+        assert!(fp.matches_header(&header(fprd, 7, 0x1001, 0x092C, 4)));
+        assert!(fp.matches_header(&header(fprd, 7, 0x1001, 0x092C, 4 | 0xC000)));
+        for h in [
+            header(fprd, 7, 0x1001, 0x092C, 5),
+            header(fprd, 7, 0x1001, 0x092C, 4 | 0x0100),
+            header(fprd, 8, 0x1001, 0x092C, 4),
+            header(fprd, 7, 0x1002, 0x092C, 4),
+            header(fprd, 7, 0x1001, 0x092D, 4),
+            header(Command::Fpwr.code(), 7, 0x1001, 0x092C, 4),
+        ] {
+            assert!(!fp.matches_header(&h), "{h:02x?}");
+        }
+        // A broadcast's ADP is the slaves' count of it: not compared.
+        let brd = Pending {
+            command: Command::Brd,
+            station: 0,
+            ..fp
+        };
+        let code = Command::Brd.code();
+        assert!(brd.matches_header(&header(code, 7, 0x0003, 0x092C, 4)));
+        assert!(!brd.matches_header(&header(code, 7, 0x0003, 0x092C, 2)));
     }
 
     /// The in-flight table: room and emptiness by counters, matching in send order and out of

@@ -176,6 +176,12 @@ mod tests {
             let mut with_m = key.datagram::<16>(0);
             set_more(&mut with_m, true);
             assert!(Datagram::new_unchecked(&with_m[..]).more());
+            set_more(&mut with_m, true);
+            assert!(
+                Datagram::new_unchecked(&with_m[..]).more(),
+                "setting M twice keeps it"
+            );
+            assert_eq!(key.with_more(true).with_more(true), key.with_more(true));
             assert_eq!(
                 HeaderKey::of(with_m[..8].try_into().unwrap()),
                 key.with_more(true)
