@@ -95,7 +95,8 @@ impl<const N: usize> Machine<N> {
                     self.tdiff_recover_reply();
                     Ok(())
                 }
-                _ => self.discovery_reply(Reply { item: 0, ..r }),
+                // The count's reply: its handler does not read the item number.
+                _ => self.discovery_reply(r),
             };
         }
         match self.phase {
