@@ -350,3 +350,30 @@ mod tests {
         assert_eq!(PiLimits::from_ns(10, 11), Err(LimitError::IntegratorLimit));
     }
 }
+
+#[cfg(test)]
+mod limit_tests {
+    use super::*;
+
+    /// REQ-SERVO-011: 0 < I_max ≤ y_max ≤ LIMIT_MAX_NS · 2^32, each bound on its own.
+    #[test]
+    fn q32_limits_refused_outside_their_ranges() {
+        let top = LIMIT_MAX_NS << FRAC_BITS;
+        assert!(PiLimits::from_q32(top, top).is_ok());
+        assert!(PiLimits::from_q32(1, 1).is_ok());
+        for y in [0, -1, i64::MIN, top + 1, i64::MAX] {
+            assert_eq!(
+                PiLimits::from_q32(y, 1),
+                Err(LimitError::OutputLimit),
+                "y_max {y}"
+            );
+        }
+        for i in [0, -1, i64::MIN, 2 << 32, i64::MAX] {
+            assert_eq!(
+                PiLimits::from_q32(1 << 32, i),
+                Err(LimitError::IntegratorLimit),
+                "i_max {i}"
+            );
+        }
+    }
+}
