@@ -11,6 +11,7 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::phase::{ActivationStep, Phase};
 use crate::dc::request::{le, Op, Reply};
+use crate::dc::shared::expect_wkc;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
@@ -58,19 +59,19 @@ impl<const N: usize> Machine<N> {
         };
         match self.phase {
             Phase::Activation(ActivationStep::ReadReferenceTime) => {
-                match self.slave(self.sh.line.reference) {
+                match self.sh.line.slave(self.sh.line.reference) {
                     Some(r) => Item::Send(Op::fprd(r.station, reg::SYSTEM_TIME, r.dc.time_width())),
                     None => Item::Skip,
                 }
             }
-            Phase::Activation(ActivationStep::ClearActivation) => match self.slave(i) {
+            Phase::Activation(ActivationStep::ClearActivation) => match self.sh.line.slave(i) {
                 Some(s) if sync_target(s) => {
                     Item::Send(Op::fpwr(s.station, reg::SYNC_ACTIVATION, 1, 0))
                 }
                 _ => Item::Skip,
             },
             Phase::Activation(ActivationStep::ProgramSync) => match SyncWrite::of(i) {
-                Some((pos, write)) => match self.slave(pos) {
+                Some((pos, write)) => match self.sh.line.slave(pos) {
                     Some(s) if sync_target(s) => Item::Send(match write {
                         SyncWrite::StartTime => Op::fpwr(
                             s.station,
@@ -95,7 +96,7 @@ impl<const N: usize> Machine<N> {
                 },
                 None => Item::Skip,
             },
-            Phase::Activation(ActivationStep::ActivateSync) => match self.slave(i) {
+            Phase::Activation(ActivationStep::ActivateSync) => match self.sh.line.slave(i) {
                 Some(s) if sync_target(s) => Item::Send(Op::fpwr(
                     s.station,
                     reg::CYCLIC_UNIT_CONTROL,
@@ -110,18 +111,23 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn activation_reply(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
-        self.expect_wkc(p, 1, wkc)?;
+        expect_wkc(p, 1, wkc)?;
         match self.phase {
             Phase::Activation(ActivationStep::ReadReferenceTime) => {
                 let bad = p.out_of_range();
                 let raw = le(data, usize::from(p.len)).ok_or(bad)?;
-                let r = self.slave(self.sh.line.reference).copied().ok_or(bad)?;
+                let r = self
+                    .sh
+                    .line
+                    .slave(self.sh.line.reference)
+                    .copied()
+                    .ok_or(bad)?;
                 let sync = self.sh.cfg.sync.ok_or(bad)?;
                 self.sh.line.sync_start =
                     self.sh.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
             }
             Phase::Activation(ActivationStep::ActivateSync) => {
-                if let Some(s) = self.slave_mut(i) {
+                if let Some(s) = self.sh.line.slave_mut(i) {
                     s.sync_programmed = true;
                 }
             }
@@ -138,7 +144,7 @@ impl<const N: usize> Machine<N> {
             Phase::Activation(ActivationStep::ActivateSync) => {
                 let n = self.slaves().iter().filter(|s| s.sync_programmed).count();
                 let slaves = u16::try_from(n).unwrap_or(u16::MAX);
-                self.push_event(Event::SyncStarted {
+                self.sh.push_event(Event::SyncStarted {
                     start: self.sh.line.sync_start,
                     slaves,
                 });

@@ -9,6 +9,7 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::phase::{AdjustStep, Phase};
 use crate::dc::request::{le, Op, Reply};
+use crate::dc::shared::expect_wkc;
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
 use crate::wire::register::{reg, typed};
@@ -54,7 +55,7 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn adjust_item(&self, i: u16) -> Item {
         match self.phase {
             Phase::Adjust(AdjustStep::ReadAlStatus) if i < self.sh.line.count => {
-                match self.slave(i) {
+                match self.sh.line.slave(i) {
                     Some(s) if s.dc.has_system_time() => {
                         Item::Send(Op::fprd(s.station, reg::AL_STATUS, 2))
                     }
@@ -64,7 +65,7 @@ impl<const N: usize> Machine<N> {
             // REQ-DC-131: the offset of every slave whose offset stays, after every AL status
             // of the step is in (`max_per_frame` keeps the two halves in separate frames).
             Phase::Adjust(AdjustStep::ReadAlStatus) => {
-                match self.slave(i.saturating_sub(self.sh.line.count)) {
+                match self.sh.line.slave(i.saturating_sub(self.sh.line.count)) {
                     Some(s) if s.dc.has_system_time() && s.al_status.is_some() => {
                         if s.may_step_offset() {
                             Item::Skip
@@ -77,7 +78,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
             Phase::Adjust(AdjustStep::WriteOffsets) => match DcWrite::of(i) {
-                Some((pos, write)) => match self.slave(pos) {
+                Some((pos, write)) => match self.sh.line.slave(pos) {
                     Some(s) if s.dc.has_system_time() => match write {
                         // REQ-DC-103: never step the system time of a (possibly) running slave.
                         DcWrite::Offset if s.may_step_offset() => {
@@ -97,7 +98,7 @@ impl<const N: usize> Machine<N> {
                 None => Item::Skip,
             },
             Phase::Adjust(AdjustStep::ResetLoops) => match LoopReset::of(i) {
-                Some((pos, write)) => match self.slave(pos) {
+                Some((pos, write)) => match self.sh.line.slave(pos) {
                     Some(s) if s.offset_written => {
                         let (register, v) = match write {
                             LoopReset::FilterDepths => (
@@ -120,11 +121,11 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn adjust_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
-        self.expect_wkc(p, 1, wkc)?;
+        expect_wkc(p, 1, wkc)?;
         match self.phase {
             Phase::Adjust(AdjustStep::ReadAlStatus) if i >= self.sh.line.count => {
                 let v = le(data, usize::from(p.len)).ok_or(p.out_of_range())?;
-                if let Some(s) = self.slave_mut(i.saturating_sub(self.sh.line.count)) {
+                if let Some(s) = self.sh.line.slave_mut(i.saturating_sub(self.sh.line.count)) {
                     s.running_offset = Some(v);
                 }
             }
@@ -132,13 +133,13 @@ impl<const N: usize> Machine<N> {
                 let v = typed::AL_STATUS
                     .decode(data)
                     .map_err(|_| p.out_of_range())?;
-                if let Some(s) = self.slave_mut(i) {
+                if let Some(s) = self.sh.line.slave_mut(i) {
                     s.al_status = Some(v);
                 }
             }
             Phase::Adjust(AdjustStep::WriteOffsets) => {
                 if let Some((pos, DcWrite::Offset)) = DcWrite::of(i) {
-                    if let Some(s) = self.slave_mut(pos) {
+                    if let Some(s) = self.sh.line.slave_mut(pos) {
                         s.offset_written = true;
                     }
                 }
@@ -168,7 +169,7 @@ impl<const N: usize> Machine<N> {
                         skipped = skipped.saturating_add(1);
                     }
                 }
-                self.push_event(Event::OffsetsWritten {
+                self.sh.push_event(Event::OffsetsWritten {
                     written,
                     skipped_running: skipped,
                 });

@@ -135,7 +135,7 @@ mod tests {
             |m| m.sh.cfg.retries = m.sh.cfg.retries.wrapping_add(1),
             |m| m.sh.line.sync_start = 1,
             |m| m.phase = m.phase.enter(crate::dc::State::Failed),
-            |m| m.push_event(crate::dc::Event::Restarting),
+            |m| m.sh.push_event(crate::dc::Event::Restarting),
             |m| m.sh.line.slaves[1].station = 0x1234,
         ];
         for (k, change) in changes.iter().enumerate() {

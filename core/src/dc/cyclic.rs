@@ -708,7 +708,7 @@ mod tests {
             b2.push(Command::Lrw, 7, a, &[1, 2, 3]).unwrap();
         }
         let before = m1.clone();
-        let frmw = m1.frmw_op(T);
+        let frmw = m1.sh.frmw_op(T);
         let block = m1
             .in_cyclic(T, |cx| cx.push_cycle_block(&mut b1, frmw))
             .unwrap();

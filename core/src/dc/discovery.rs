@@ -7,6 +7,7 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::phase::{DiscoveryStep, Phase};
 use crate::dc::request::{Op, Reply};
+use crate::dc::shared::expect_wkc;
 use crate::dc::slave::{DcKind, SlaveInfo};
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
@@ -52,12 +53,12 @@ impl<const N: usize> Machine<N> {
             Phase::Discovery(DiscoveryStep::AssignAddresses) => self.station_item(i),
             Phase::Discovery(DiscoveryStep::ReadInfo) => match InfoRead::of(i) {
                 Some((pos, read)) => {
-                    let station = self.slave(pos).map_or(0, |s| s.station);
+                    let station = self.sh.line.slave(pos).map_or(0, |s| s.station);
                     Item::Send(Op::fprd(station, read.register(), 2))
                 }
                 None => Item::Skip,
             },
-            Phase::Discovery(DiscoveryStep::ProbeSystemTime) => match self.slave(i) {
+            Phase::Discovery(DiscoveryStep::ProbeSystemTime) => match self.sh.line.slave(i) {
                 Some(s) if s.dc.has_latches() => {
                     Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME, 4))
                 }
@@ -93,15 +94,15 @@ impl<const N: usize> Machine<N> {
                 Ok(())
             }
             Phase::Discovery(DiscoveryStep::AssignAddresses) => {
-                self.expect_wkc(p, 1, wkc)?;
+                expect_wkc(p, 1, wkc)?;
                 let station = self.station_reply(i, p, data)?;
-                if let Some(s) = self.slave_mut(i) {
+                if let Some(s) = self.sh.line.slave_mut(i) {
                     s.station = station;
                 }
                 Ok(())
             }
             Phase::Discovery(DiscoveryStep::ReadInfo) => {
-                self.expect_wkc(p, 1, wkc)?;
+                expect_wkc(p, 1, wkc)?;
                 let Some((pos, read)) = InfoRead::of(i) else {
                     return Ok(());
                 };
@@ -110,7 +111,7 @@ impl<const N: usize> Machine<N> {
                     InfoRead::DlStatus => typed::DL_STATUS.decode(data),
                 }
                 .map_err(|_| p.out_of_range())?;
-                if let Some(s) = self.slave_mut(pos) {
+                if let Some(s) = self.sh.line.slave_mut(pos) {
                     match read {
                         InfoRead::Features => {
                             s.features = v;
@@ -129,9 +130,9 @@ impl<const N: usize> Machine<N> {
             Phase::Discovery(DiscoveryStep::ProbeSystemTime) => {
                 // IgH `fsm_slave_scan.c`: WKC 1 = system time present, 0 = latches only.
                 if wkc > 1 {
-                    return self.expect_wkc(p, 1, wkc);
+                    return expect_wkc(p, 1, wkc);
                 }
-                if let Some(s) = self.slave_mut(i) {
+                if let Some(s) = self.sh.line.slave_mut(i) {
                     if wkc == 0 {
                         s.dc = DcKind::DelayOnly;
                     }
@@ -149,7 +150,7 @@ impl<const N: usize> Machine<N> {
             Phase::Discovery(DiscoveryStep::ReadInfo) => {
                 // A slave's own entry port must show a link, or the DL status is garbage.
                 for pos in self.positions() {
-                    if let Some(s) = self.slave(pos) {
+                    if let Some(s) = self.sh.line.slave(pos) {
                         if !DlStatus(s.dl_status).any_link() {
                             return Err(Error::OutOfRange {
                                 station: s.station,
@@ -165,7 +166,7 @@ impl<const N: usize> Machine<N> {
                 // implements: REQ-DC-003
                 let mut reference = None;
                 for pos in self.positions() {
-                    if let Some(s) = self.slave(pos) {
+                    if let Some(s) = self.sh.line.slave(pos) {
                         if s.dc.has_system_time() {
                             sys = sys.saturating_add(1);
                             reference.get_or_insert(pos);
@@ -175,7 +176,7 @@ impl<const N: usize> Machine<N> {
                 let reference = reference.ok_or(Error::NoReferenceClock)?;
                 self.sh.line.reference = reference;
                 self.sh.line.sys_count = sys;
-                self.push_event(Event::SlavesFound {
+                self.sh.push_event(Event::SlavesFound {
                     count: self.sh.line.count,
                     dc: sys,
                 });

@@ -12,6 +12,7 @@ use crate::dc::event::Event;
 use crate::dc::machine::{Item, Machine};
 use crate::dc::phase::{DriftStep, Phase};
 use crate::dc::request::{Op, Reply, Tag};
+use crate::dc::shared::expect_wkc;
 use crate::dc::state::State;
 use crate::wire::register::{reg, typed, SystemTimeDifference};
 use crate::wire::{FrameBuilder, DATAGRAM_OVERHEAD};
@@ -82,7 +83,7 @@ impl<const N: usize> Machine<N> {
             || b.fits(
                 usize::from(op.len)
                     .saturating_add(DATAGRAM_OVERHEAD)
-                    .saturating_add(usize::from(self.frmw_op(now).len)),
+                    .saturating_add(usize::from(self.sh.frmw_op(now).len)),
             )
     }
 
@@ -94,7 +95,7 @@ impl<const N: usize> Machine<N> {
     /// the check pause.
     pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
         if matches!(self.phase, Phase::Drift(DriftStep::Check, _))
-            && self.push_op(b, self.frmw_op(now), Tag::Frmw)
+            && self.sh.push_op(b, self.sh.frmw_op(now), Tag::Frmw)
         {
             if let Some(gate) = self.phase.drift_gate_mut() {
                 gate.frames = gate.frames.saturating_add(1);
@@ -104,7 +105,7 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn drift_item(&self, now: u64, i: u16) -> Item {
         match self.phase {
-            Phase::Drift(DriftStep::Burst, _) => Item::Send(self.frmw_op(now)),
+            Phase::Drift(DriftStep::Burst, _) => Item::Send(self.sh.frmw_op(now)),
             Phase::Drift(DriftStep::Check, _) => {
                 let check = self.sh.cfg.drift.check;
                 if i == 0 {
@@ -116,7 +117,7 @@ impl<const N: usize> Machine<N> {
                 if check == DriftCheck::Broadcast {
                     return Item::Skip;
                 }
-                match self.slave(i.saturating_sub(1)) {
+                match self.sh.line.slave(i.saturating_sub(1)) {
                     Some(s) if s.dc.has_system_time() => {
                         Item::Send(Op::fprd(s.station, reg::SYSTEM_TIME_DIFFERENCE, 4))
                     }
@@ -130,11 +131,11 @@ impl<const N: usize> Machine<N> {
     pub(crate) fn drift_reply(&mut self, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
         match self.phase {
-            Phase::Drift(DriftStep::Burst, _) => self.check_frmw(p, wkc),
+            Phase::Drift(DriftStep::Burst, _) => self.sh.check_frmw(p, wkc),
             Phase::Drift(DriftStep::Check, _) => {
                 // BRD 0x092C: only ESCs with a system time have the register.
                 let expected = if i == 0 { self.sh.line.sys_count } else { 1 };
-                self.expect_wkc(p, expected, wkc)?;
+                expect_wkc(p, expected, wkc)?;
                 let raw = typed::SYSTEM_TIME_DIFFERENCE
                     .decode(data)
                     .map_err(|_| p.out_of_range())?;
@@ -143,7 +144,7 @@ impl<const N: usize> Machine<N> {
                     if let Some(gate) = self.phase.drift_gate_mut() {
                         gate.bound = Some(d.magnitude());
                     }
-                } else if let Some(s) = self.slave_mut(i.saturating_sub(1)) {
+                } else if let Some(s) = self.sh.line.slave_mut(i.saturating_sub(1)) {
                     s.last_diff_ns = Some(i64::from(d.to_ns()));
                 }
                 Ok(())

@@ -8,7 +8,7 @@ use crate::dc::measure::LatchRounds;
 use crate::dc::phase::Phase;
 use crate::dc::request::{Inflight, Op, Pending, Reply, Tag};
 use crate::dc::scratch::Scratch;
-use crate::dc::shared::{expect_wkc, Restarts, Shared, StepProgress};
+use crate::dc::shared::{Restarts, Shared, StepProgress};
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::tdiff::Tdiff;
@@ -214,7 +214,7 @@ impl<const N: usize> Machine<N> {
 
     /// Stops everything and returns to `Idle`; replies still in flight will be ignored.
     pub fn reset(&mut self) {
-        self.stop_awaiting();
+        self.sh.stop_awaiting();
         self.enter(State::Idle);
     }
 
@@ -310,10 +310,6 @@ impl<const N: usize> Machine<N> {
         self.sh.timers.is_set(Timer::Reply)
     }
 
-    /// Gives up the frame in flight (`Shared::stop_awaiting`).
-    pub(crate) fn stop_awaiting(&mut self) {
-        self.sh.stop_awaiting();
-    }
     // ----- output ---------------------------------------------------------------------------
 
     /// Next event, if any.
@@ -352,7 +348,7 @@ impl<const N: usize> Machine<N> {
         let mut b = match FrameBuilder::new(buf) {
             Ok(b) => b,
             Err(_) => {
-                self.push_event(Event::Error(Error::BufferTooSmall));
+                self.sh.push_event(Event::Error(Error::BufferTooSmall));
                 return None;
             }
         };
@@ -363,7 +359,7 @@ impl<const N: usize> Machine<N> {
             Ok(n) => Some(n),
             Err(_) => {
                 // Cannot happen for a builder that accepted the datagrams; treat as a loss.
-                self.stop_awaiting();
+                self.sh.stop_awaiting();
                 None
             }
         }
@@ -390,7 +386,7 @@ impl<const N: usize> Machine<N> {
             if self.phase.is_cyclic() {
                 self.in_cyclic(now, |cx| cx.cyclic_lost(now));
             } else {
-                self.stop_awaiting();
+                self.sh.stop_awaiting();
                 let e = self.sh.step.error.take().unwrap_or(Error::Timeout {
                     state: self.state(),
                 });
@@ -479,10 +475,6 @@ impl<const N: usize> Machine<N> {
         self.sh.stats.foreign_frames = self.sh.stats.foreign_frames.saturating_add(1);
     }
 
-    pub(crate) fn push_event(&mut self, e: Event) {
-        self.sh.push_event(e);
-    }
-
     /// Enters `to` with a fresh cursor. Internal transitions follow [`State::can_go`]; one that
     /// does not is a machine bug, reported as [`Error::Internal`] with the machine stopped in
     /// `Failed` (every state may go to `Failed`, so this cannot recurse) rather than a panic
@@ -491,10 +483,10 @@ impl<const N: usize> Machine<N> {
         let to = if self.state().can_go(to) {
             to
         } else {
-            self.push_event(Event::Error(Error::Internal {
+            self.sh.push_event(Event::Error(Error::Internal {
                 state: self.state(),
             }));
-            self.stop_awaiting();
+            self.sh.stop_awaiting();
             State::Failed
         };
         self.phase = self.phase.enter(to);
@@ -511,8 +503,8 @@ impl<const N: usize> Machine<N> {
 
     /// Reports a fault and stops or schedules a re-initialisation (REQ-DC-111).
     pub(crate) fn fault(&mut self, now: u64, e: Error) {
-        self.push_event(Event::Error(e));
-        self.stop_awaiting();
+        self.sh.push_event(Event::Error(e));
+        self.sh.stop_awaiting();
         if self.sh.cfg.auto_restart {
             self.sh.stats.restarts = self.sh.stats.restarts.saturating_add(1);
             let wake = SystemTime(now.saturating_add(self.restart_delay()));
@@ -521,7 +513,7 @@ impl<const N: usize> Machine<N> {
             if self.state() == State::RestartWait {
                 self.sh.timers.set(Timer::Restart, wake);
             }
-            self.push_event(Event::Restarting);
+            self.sh.push_event(Event::Restarting);
         } else {
             self.enter(State::Failed);
         }
@@ -555,10 +547,6 @@ impl<const N: usize> Machine<N> {
         } else {
             self.fault(now, e);
         }
-    }
-
-    pub(crate) fn push_op(&mut self, b: &mut FrameBuilder<'_>, op: Op, tag: Tag) -> bool {
-        self.sh.push_op(b, op, tag)
     }
 
     fn fill(&mut self, now: u64, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
@@ -607,7 +595,7 @@ impl<const N: usize> Machine<N> {
                 Item::Skip => self.sh.step.cursor = self.sh.step.cursor.saturating_add(1),
                 Item::Send(op) => {
                     if !self.drift_check_room(now, b, op)
-                        || !self.push_op(b, op, Tag::Item(self.sh.step.cursor))
+                        || !self.sh.push_op(b, op, Tag::Item(self.sh.step.cursor))
                     {
                         break;
                     }
@@ -622,7 +610,7 @@ impl<const N: usize> Machine<N> {
         }
         if self.sh.inflight.is_empty() {
             if before == 0 {
-                self.push_event(Event::Error(Error::BufferTooSmall));
+                self.sh.push_event(Event::Error(Error::BufferTooSmall));
             }
             self.sh.step.cursor = self.sh.step.chunk_start;
             return false;
@@ -656,7 +644,7 @@ impl<const N: usize> Machine<N> {
                 }
             }
             Tag::Frmw if self.state() == State::DriftCheck => {
-                if let Err(e) = self.check_frmw(p, wkc) {
+                if let Err(e) = self.sh.check_frmw(p, wkc) {
                     self.sh.step.error.get_or_insert(e);
                 }
             }
@@ -681,19 +669,6 @@ impl<const N: usize> Machine<N> {
         if self.sh.step.cursor >= count {
             self.step_done(now);
         }
-    }
-
-    /// Expected-WKC check shared by every step ([`expect_wkc`]).
-    pub(crate) fn expect_wkc(&self, p: Pending, expected: u16, actual: u16) -> Result<(), Error> {
-        expect_wkc(p, expected, actual)
-    }
-
-    pub(crate) fn slave(&self, pos: u16) -> Option<&SlaveInfo> {
-        self.sh.line.slave(pos)
-    }
-
-    pub(crate) fn slave_mut(&mut self, pos: u16) -> Option<&mut SlaveInfo> {
-        self.sh.line.slave_mut(pos)
     }
 
     /// Positions `0..count`, as u16.

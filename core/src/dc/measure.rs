@@ -56,7 +56,9 @@ impl<const N: usize> Machine<N> {
     }
 
     fn latch_item(&self, i: u16, read: LatchRead) -> Item {
-        self.slave(i)
+        self.sh
+            .line
+            .slave(i)
             .and_then(|s| latch_read(s, read))
             .map_or(Item::Skip, Item::Send)
     }
@@ -112,7 +114,7 @@ impl<const N: usize> Machine<N> {
         self.sh.latch.sum.clear();
         let max_seen = applied?;
         self.sh.compute_offsets()?;
-        self.push_event(Event::DelaysMeasured {
+        self.sh.push_event(Event::DelaysMeasured {
             max_delay_ns: max_seen,
         });
         Ok(())

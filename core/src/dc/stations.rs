@@ -51,7 +51,8 @@ impl<const N: usize> Machine<N> {
                     register: p.register,
                 };
                 let station = typed::STATION_ADDRESS.decode(data).map_err(|_| bad)?;
-                let taken = (0..i).any(|q| self.slave(q).is_some_and(|s| s.station == station));
+                let taken =
+                    (0..i).any(|q| self.sh.line.slave(q).is_some_and(|s| s.station == station));
                 if station == 0 || taken {
                     return Err(Error::OutOfRange {
                         station,

@@ -48,16 +48,6 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// The drift-compensation datagram (`Shared::frmw_op`).
-    pub(crate) fn frmw_op(&self, now: u64) -> Op {
-        self.sh.frmw_op(now)
-    }
-
-    /// FRMW working counter (`Shared::check_frmw`).
-    pub(crate) fn check_frmw(&mut self, p: Pending, wkc: u16) -> Result<(), Error> {
-        self.sh.check_frmw(p, wkc)
-    }
-
     pub(crate) fn item(&self, now: u64, i: u16) -> Item {
         if self.phase == Phase::Discovery(DiscoveryStep::CountSlaves) && self.sh.tdiff.recovering {
             return match i {

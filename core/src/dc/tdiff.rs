@@ -40,6 +40,7 @@ use crate::dc::offset::offset_write_permitted;
 use crate::dc::phase::{Phase, TdiffStep};
 use crate::dc::port::{Port, PortSet};
 use crate::dc::request::{le, Op, Reply};
+use crate::dc::shared::expect_wkc;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::topology::{Latches, SlaveSample};
@@ -344,7 +345,7 @@ impl<const N: usize> Machine<N> {
         match self.phase {
             Phase::Tdiff(TdiffStep::Read) if !off => {
                 let (pos, read) = TdiffRead::of(i)?;
-                let s = self.slave(pos)?;
+                let s = self.sh.line.slave(pos)?;
                 match read {
                     TdiffRead::Ident => Some(Work::Ident(pos)),
                     TdiffRead::AlStatus => Some(Work::AlStatus(pos)),
@@ -357,7 +358,7 @@ impl<const N: usize> Machine<N> {
                 self.tdiff_chained().then_some(Work::Trigger)
             }
             Phase::Tdiff(TdiffStep::Latch) => {
-                let s = self.slave(i)?;
+                let s = self.sh.line.slave(i)?;
                 match self.sh.tdiff.latch {
                     Latch::Closed { target, .. } => match self.sh.tdiff.plan_of(target) {
                         Plan::Measure { parent, .. } if parent == i => Some(Work::ReadPorts(i)),
@@ -386,7 +387,7 @@ impl<const N: usize> Machine<N> {
         let Some(w) = self.tdiff_work(i) else {
             return Item::Skip;
         };
-        let station = |pos: u16| self.slave(pos).map_or(0, |s| s.station);
+        let station = |pos: u16| self.sh.line.slave(pos).map_or(0, |s| s.station);
         let op = match w {
             Work::Ident(pos) => Op::fprd(station(pos), ESC_TYPE, 2),
             Work::AlStatus(pos) => Op::fprd(station(pos), reg::AL_STATUS, 2),
@@ -472,18 +473,18 @@ impl<const N: usize> Machine<N> {
             let (all, latching) = self.tdiff_reachable();
             return p.check_latch_wkc(wkc, latching, all);
         }
-        self.expect_wkc(p, 1, wkc)?;
+        expect_wkc(p, 1, wkc)?;
         let word = || le(data, 2).and_then(|v| u16::try_from(v).ok()).ok_or(bad);
         match w {
             Work::Ident(pos) => {
                 let v = word()?;
-                if let Some(s) = self.slave_mut(pos) {
+                if let Some(s) = self.sh.line.slave_mut(pos) {
                     s.esc_type = v;
                 }
             }
             Work::AlStatus(pos) => {
                 let v = word()?;
-                if let Some(s) = self.slave_mut(pos) {
+                if let Some(s) = self.sh.line.slave_mut(pos) {
                     s.al_status = Some(v);
                 }
             }
@@ -577,7 +578,7 @@ impl<const N: usize> Machine<N> {
                     target: t,
                     round: 0,
                 };
-                let station = self.slave(t).map_or(0, |s| s.station);
+                let station = self.sh.line.slave(t).map_or(0, |s| s.station);
                 let original = self.sh.tdiff.dl_control.get(usize::from(t)).copied();
                 self.sh.tdiff.pending = Some((station, original.unwrap_or(0)));
                 self.sh.tdiff.closed = 0;
@@ -591,7 +592,7 @@ impl<const N: usize> Machine<N> {
         let rounds = self.tdiff_cfg().rounds;
         let base_rounds = self.tdiff_cfg().base_rounds;
         let stale = |m: &Self, pos: u16| Error::Measurement {
-            station: m.slave(pos).map_or(0, |s| s.station),
+            station: m.sh.line.slave(pos).map_or(0, |s| s.station),
         };
         match self.sh.tdiff.latch {
             Latch::Pre => {
@@ -878,7 +879,9 @@ impl<const N: usize> Machine<N> {
         let mut fallback = 0u16;
         self.sh.scratch.resolved.fill((0, TdiffSource::Default));
         for i in (0u16..).take(count) {
-            let Some(s) = self.slave(i) else { continue };
+            let Some(s) = self.sh.line.slave(i) else {
+                continue;
+            };
             let r = match self.sh.tdiff.plan_of(i) {
                 Plan::Done { mean } => mean,
                 _ => None,
@@ -970,7 +973,7 @@ impl<const N: usize> Machine<N> {
                 TdiffSource::Default => {}
             }
         }
-        self.push_event(Event::TdiffResolved {
+        self.sh.push_event(Event::TdiffResolved {
             measured,
             same_type,
             configured,
