@@ -197,7 +197,7 @@ impl Pending {
     #[inline]
     pub(crate) fn pattern(&self) -> HeaderPattern {
         HeaderPattern {
-            want: self.key().0,
+            want: self.key(),
             mask: self.compared(),
             len: self.len,
         }

@@ -13,6 +13,7 @@
 //! (REQ-WIRE-015), so a frame whose two descriptions disagree is rejected with a typed error.
 
 use super::datagram::field as dfield;
+use super::key::HeaderKey;
 use super::{get_u16_le, put, Datagram, Error, Result, MAX_DATAGRAM_DATA, MAX_ECAT_PAYLOAD};
 
 // implements: REQ-WIRE-005
@@ -367,16 +368,13 @@ pub(crate) fn valid_fast_each(
 /// the reserved bits clear, and M set on every datagram but the last.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct HeaderPattern {
-    /// Command (bits 0..7), index (8..15), ADP (16..31), ADO (32..47); bits 48..63 ignored.
-    pub want: u64,
+    /// Command, index, ADP and ADO; the length word is ignored (`len` and M replace it).
+    pub want: HeaderKey,
     /// Which of bits 0..47 are compared (ADP is left out where slaves change it).
     pub mask: u64,
     /// Data length.
     pub len: u16,
 }
-
-/// Bits 48..63 of a [`HeaderPattern`]: the length word.
-const LEN_WORD: u64 = 0xFFFF << 48;
 
 impl HeaderPattern {
     /// Whether a datagram's first 8 header bytes `head` match: the masked fields equal, the
@@ -384,12 +382,9 @@ impl HeaderPattern {
     /// within [`MAX_DATAGRAM_DATA`] and the command a known one.
     #[inline]
     pub(crate) fn matches(&self, head: &[u8; dfield::LEN_FLAGS.end], more: bool) -> bool {
-        let more = if more { dfield::MORE } else { 0 };
-        let word = u64::from(self.len | more) << 48;
+        let want = self.want.with_len(self.len).with_more(more);
         let [cmd, ..] = *head;
-        (u64::from_le_bytes(*head) ^ (self.want & !LEN_WORD | word))
-            & (self.mask & !LEN_WORD | LEN_WORD)
-            == 0
+        HeaderKey::of(head).agrees(want, self.mask & !HeaderKey::LEN_WORD | HeaderKey::LEN_WORD)
             && usize::from(self.len) <= MAX_DATAGRAM_DATA
             && usize::from(cmd) < super::Command::ALL.len()
     }
@@ -802,7 +797,7 @@ mod tests {
                 let d = d.unwrap();
                 let h = u64::from_le_bytes(d.header_bytes().unwrap()[..8].try_into().unwrap());
                 HeaderPattern {
-                    want: h,
+                    want: HeaderKey(h),
                     mask: if with_adp {
                         0xFFFF_FFFF_FFFF
                     } else {
@@ -843,13 +838,13 @@ mod tests {
                     assert_eq!(ds.len(), 2);
                     for (d, p) in ds.iter().zip(&pats) {
                         let h = d.header_bytes().unwrap();
-                        assert_eq!(h[0], p.want as u8, "command");
-                        assert_eq!(h[1], (p.want >> 8) as u8, "index");
-                        assert_eq!(d.ado(), (p.want >> 32) as u16, "ADO");
+                        assert_eq!(h[0], p.want.0 as u8, "command");
+                        assert_eq!(h[1], (p.want.0 >> 8) as u8, "index");
+                        assert_eq!(d.ado(), (p.want.0 >> 32) as u16, "ADO");
                         assert_eq!(d.data_len(), p.len);
                         assert!(!d.circulating());
                         if with_adp {
-                            assert_eq!(d.adp(), (p.want >> 16) as u16, "ADP");
+                            assert_eq!(d.adp(), (p.want.0 >> 16) as u16, "ADP");
                         }
                     }
                     // Only data, WKC, IRQ, padding (and ADP where not compared) may differ.

@@ -72,6 +72,12 @@ impl HeaderKey {
         }
     }
 
+    /// The same key with the length word `len` (its C, M and reserved bits as `len` has them).
+    #[inline(always)]
+    pub(crate) const fn with_len(self, len: u16) -> Self {
+        HeaderKey(self.0 & !Self::LEN_WORD | (len as u64) << LEN_SHIFT)
+    }
+
     /// The key of the header bytes `h`.
     #[inline(always)]
     pub(crate) const fn of(h: &[u8; field::LEN_FLAGS.end]) -> Self {
