@@ -1127,4 +1127,47 @@ mod tests {
             Err(DelayError::NegativeHop { slave: 2 })
         );
     }
+
+    /// The accessors, and the round check of `accumulate` on each field alone: a round of
+    /// another reference, or of another length, is refused and leaves the sum as it was.
+    #[test]
+    fn accessors_and_round_mismatch() {
+        let s = line(&[3000, 2000, 900, 0], 0, 0);
+        let t = Topology::<4>::build(&s).unwrap();
+        let d0 = compute(&s, &t, 0).unwrap();
+        let mut d2 = compute(&s, &t, 2).unwrap();
+        assert_eq!((d0.reference(), d2.reference()), (0, 2));
+        assert_eq!((d0.len(), d0.is_empty()), (4, false));
+        assert!(Delays::<4>::new().is_empty());
+        let before = d2.exact(3);
+        assert_eq!(d2.accumulate(&d0), Err(DelayError::RoundMismatch));
+        assert_eq!(d2.exact(3), before);
+        // Three slaves: the last one's port 1 closed.
+        let mut s3 = [SlaveSample::default(); 3];
+        s3.copy_from_slice(&s[..3]);
+        s3[2].ports = PortSet::EMPTY.with(Port::P0);
+        let t3 = Topology::<4>::build(&s3).unwrap();
+        let mut d3 = compute(&s3, &t3, 0).unwrap();
+        assert_eq!((d3.len(), d3.reference()), (3, 0));
+        assert_eq!(d3.accumulate(&d0), Err(DelayError::RoundMismatch));
+        assert_eq!(d3.rounds(), 1);
+    }
+
+    /// `walk` returns what `walk_in_place` writes, and a clone of it is equal to it.
+    #[test]
+    fn walk_returns_the_in_place_walk() {
+        let s = line(&[3000, 2000, 900, 0], 20, 7);
+        let t = Topology::<4>::build(&s).unwrap();
+        let w: [WalkSlave<u64>; 4] = core::array::from_fn(|i| WalkSlave::from_sample(&s[i]));
+        let got = walk(&w, &t, 1).unwrap();
+        let mut in_place = Walk::<u64, 4>::new();
+        walk_in_place(&w, &t, 1, &mut in_place).unwrap();
+        assert_eq!(got.twice, in_place.twice);
+        assert_eq!(got.stopped, in_place.stopped);
+        assert_eq!(got.twice[0], Some(((-1020i64) as u64, false)));
+        assert!(got.hops[1].is_some());
+        let c = got.clone();
+        assert_eq!((c.twice, c.stopped), (got.twice, got.stopped));
+        assert_eq!(c.hops.map(|h| h.is_some()), got.hops.map(|h| h.is_some()));
+    }
 }

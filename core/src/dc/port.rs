@@ -221,6 +221,18 @@ impl PortSet {
 mod tests {
     use super::*;
 
+    /// `from_number` inverts `number` on 0..=3 and refuses every other number.
+    #[test]
+    fn port_from_number() {
+        for p in Port::PROCESSING_ORDER {
+            assert_eq!(Port::from_number(p.number()), Some(p));
+        }
+        assert_eq!(Port::from_number(2), Some(Port::P2));
+        for n in 4..=u8::MAX {
+            assert_eq!(Port::from_number(n), None);
+        }
+    }
+
     // verifies: REQ-DC-010
     #[test]
     fn processing_order_cycle() {
