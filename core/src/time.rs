@@ -19,6 +19,17 @@ use crate::num;
 pub const UNIX_TO_ETHERCAT_EPOCH_NS: u64 = 946_684_800_000_000_000;
 
 /// REQ-TIME-001: system time, ns since 2000-01-01 00:00:00, wrapping modulo 2^64.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::time::SystemTime;
+///
+/// // 2000-01-01 00:00:01 plus 500 ns.
+/// let t = SystemTime::from_nanos(1_000_000_500);
+/// assert_eq!(t.to_string(), "2000-01-01T00:00:01.000000500Z");
+/// assert_eq!(t.wrapping_since(SystemTime::EPOCH), 1_000_000_500);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct SystemTime(pub u64);
 
@@ -27,18 +38,49 @@ impl SystemTime {
     pub const EPOCH: SystemTime = SystemTime(0);
 
     /// From raw nanoseconds since 2000-01-01.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let t = SystemTime::from_nanos(1_500);
+    /// assert_eq!(t, SystemTime(1_500));
+    /// assert_eq!(t.as_nanos(), 1_500);
+    /// ```
     #[inline]
     pub const fn from_nanos(ns: u64) -> Self {
         SystemTime(ns)
     }
 
     /// Raw nanoseconds since 2000-01-01.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let t = SystemTime::EPOCH.wrapping_add(250);
+    /// assert_eq!(t.as_nanos(), 250);
+    /// ```
     #[inline]
     pub const fn as_nanos(self) -> u64 {
         self.0
     }
 
     /// REQ-TIME-002: from ns since the Unix epoch; `None` before 2000-01-01.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::{SystemTime, UNIX_TO_ETHERCAT_EPOCH_NS};
+    ///
+    /// // One second after 2000-01-01, as a host clock (CLOCK_REALTIME) would report it.
+    /// let unix_ns = UNIX_TO_ETHERCAT_EPOCH_NS + 1_000_000_000;
+    /// assert_eq!(SystemTime::from_unix_nanos(unix_ns), Some(SystemTime::from_nanos(1_000_000_000)));
+    /// // 1999 has no EtherCAT system time.
+    /// assert_eq!(SystemTime::from_unix_nanos(0), None);
+    /// ```
     #[inline]
     pub fn from_unix_nanos(unix_ns: u64) -> Option<Self> {
         unix_ns
@@ -47,12 +89,32 @@ impl SystemTime {
     }
 
     /// REQ-TIME-002: to ns since the Unix epoch; `None` if that overflows u64 (year 2554+).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::{SystemTime, UNIX_TO_ETHERCAT_EPOCH_NS};
+    ///
+    /// assert_eq!(SystemTime::EPOCH.to_unix_nanos(), Some(UNIX_TO_ETHERCAT_EPOCH_NS));
+    /// assert_eq!(SystemTime::from_nanos(u64::MAX).to_unix_nanos(), None);
+    /// ```
     #[inline]
     pub fn to_unix_nanos(self) -> Option<u64> {
         self.0.checked_add(UNIX_TO_ETHERCAT_EPOCH_NS)
     }
 
     /// `self + ns` modulo 2^64.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let t = SystemTime::from_nanos(1_000);
+    /// assert_eq!(t.wrapping_add(500), SystemTime::from_nanos(1_500));
+    /// // The 64-bit clock wraps instead of overflowing.
+    /// assert_eq!(SystemTime::from_nanos(u64::MAX).wrapping_add(2), SystemTime::from_nanos(1));
+    /// ```
     #[inline]
     #[must_use]
     pub fn wrapping_add(self, ns: u64) -> Self {
@@ -60,6 +122,16 @@ impl SystemTime {
     }
 
     /// `self + ns` for a signed step (e.g. an offset correction), modulo 2^64.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let t = SystemTime::from_nanos(1_000);
+    /// assert_eq!(t.wrapping_add_signed(-300), SystemTime::from_nanos(700));
+    /// assert_eq!(t.wrapping_add_signed(300), SystemTime::from_nanos(1_300));
+    /// ```
     #[inline]
     #[must_use]
     pub fn wrapping_add_signed(self, ns: i64) -> Self {
@@ -70,6 +142,15 @@ impl SystemTime {
     }
 
     /// `self − ns` modulo 2^64.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// assert_eq!(SystemTime::from_nanos(1_000).wrapping_sub(400), SystemTime::from_nanos(600));
+    /// assert_eq!(SystemTime::EPOCH.wrapping_sub(1), SystemTime::from_nanos(u64::MAX));
+    /// ```
     #[inline]
     #[must_use]
     pub fn wrapping_sub(self, ns: u64) -> Self {
@@ -77,18 +158,52 @@ impl SystemTime {
     }
 
     /// REQ-TIME-003: signed ns from `earlier` to `self`; exact when the true gap is < 2^63 ns.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let sent = SystemTime::from_nanos(10_000);
+    /// let received = SystemTime::from_nanos(12_500);
+    /// assert_eq!(received.wrapping_since(sent), 2_500);
+    /// assert_eq!(sent.wrapping_since(received), -2_500);
+    /// // Still exact across the 2^64 wrap.
+    /// assert_eq!(SystemTime::from_nanos(5).wrapping_since(SystemTime::from_nanos(u64::MAX)), 6);
+    /// ```
     #[inline]
     pub fn wrapping_since(self, earlier: SystemTime) -> i64 {
         num::wrapping_diff(self.0, earlier.0)
     }
 
     /// REQ-TIME-004: `self` is strictly after `other` on the wrapping 64-bit circle.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let a = SystemTime::from_nanos(u64::MAX);
+    /// let b = a.wrapping_add(10); // wrapped to 9
+    /// assert!(b.is_after(a));
+    /// assert!(!a.is_after(b));
+    /// assert!(!a.is_after(a));
+    /// ```
     #[inline]
     pub fn is_after(self, other: SystemTime) -> bool {
         num::is_after(self.0, other.0)
     }
 
     /// REQ-TIME-013: the low 32 bits, which is all a 32-bit DC slave keeps (REQ-CONV-003).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let t = SystemTime::from_nanos(0x0000_0001_2345_6789);
+    /// assert_eq!(t.low32(), 0x2345_6789);
+    /// ```
     #[inline]
     pub fn low32(self) -> u32 {
         num::low32(self.0)
@@ -96,6 +211,18 @@ impl SystemTime {
 
     /// REQ-TIME-006: the system time nearest to `reference` whose low 32 bits are `low`
     /// (within [−2^31, 2^31) ns of it). Widens a value read from a 32-bit DC slave.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// // A 32-bit slave reports 0x0000_0010 just after its counter wrapped; the master's
+    /// // estimate of the time is a little before the wrap.
+    /// let estimate = SystemTime::from_nanos(0x0000_0004_FFFF_FF00);
+    /// let t = SystemTime::extend_low32(0x0000_0010, estimate);
+    /// assert_eq!(t, SystemTime::from_nanos(0x0000_0005_0000_0010));
+    /// ```
     #[inline]
     pub fn extend_low32(low: u32, reference: SystemTime) -> Self {
         SystemTime(num::extend_near(u64::from(low), reference.0, 32))
@@ -103,6 +230,16 @@ impl SystemTime {
 
     /// REQ-TIME-007: position of `self` within a cycle of `cycle_ns`, in [0, cycle_ns);
     /// `None` for a zero cycle.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// // 1 ms cycle: 2 500 000 ns is 500 µs into the third cycle.
+    /// assert_eq!(SystemTime::from_nanos(2_500_000).phase_in(1_000_000), Some(500_000));
+    /// assert_eq!(SystemTime::from_nanos(2_500_000).phase_in(0), None);
+    /// ```
     #[inline]
     pub fn phase_in(self, cycle_ns: u64) -> Option<u64> {
         (cycle_ns != 0).then(|| num::phase(self.0, cycle_ns))
@@ -110,6 +247,20 @@ impl SystemTime {
 
     /// REQ-TIME-007: the first multiple of `cycle_ns` at or after `self` (modulo 2^64); `None`
     /// for a zero cycle. Aligns a SYNC0 start time to the cycle grid.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let now = SystemTime::from_nanos(2_500_000);
+    /// assert_eq!(now.next_multiple_of(1_000_000), Some(SystemTime::from_nanos(3_000_000)));
+    /// // A time already on the grid stays where it is.
+    /// assert_eq!(
+    ///     SystemTime::from_nanos(3_000_000).next_multiple_of(1_000_000),
+    ///     Some(SystemTime::from_nanos(3_000_000))
+    /// );
+    /// ```
     #[inline]
     pub fn next_multiple_of(self, cycle_ns: u64) -> Option<Self> {
         let ph = self.phase_in(cycle_ns)?;
@@ -174,11 +325,29 @@ fn civil_from_days(days: u64) -> (u64, u64, u64) {
 }
 
 /// REQ-TIME-001: a 32-bit receive-time latch in a slave's local time (0x0900..0x090F).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::time::PortTime;
+///
+/// // Port 0 latched the frame on its way out, port 1 on its way back, 1.2 µs later.
+/// let (p0, p1) = (PortTime(4_000), PortTime(5_200));
+/// assert_eq!(p1.wrapping_since(p0), 1_200);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct PortTime(pub u32);
 
 impl PortTime {
     /// Raw latch value.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::PortTime;
+    ///
+    /// assert_eq!(PortTime(0x1234_5678).raw(), 0x1234_5678);
+    /// ```
     #[inline]
     pub const fn raw(self) -> u32 {
         self.0
@@ -186,12 +355,31 @@ impl PortTime {
 
     /// REQ-TIME-003: signed ns from `earlier` to `self`; exact when the true gap is < 2^31 ns
     /// (≈ 2.1 s), whatever wraps of the 32-bit counter lie between them.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::PortTime;
+    ///
+    /// assert_eq!(PortTime(1_500).wrapping_since(PortTime(1_000)), 500);
+    /// // The latch counter wrapped between the two ports: still 32 ns.
+    /// assert_eq!(PortTime(16).wrapping_since(PortTime(u32::MAX - 15)), 32);
+    /// ```
     #[inline]
     pub fn wrapping_since(self, earlier: PortTime) -> i32 {
         num::wrapping_diff(self.0, earlier.0)
     }
 
     /// REQ-TIME-004: `self` is strictly after `other` on the wrapping 32-bit circle.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::PortTime;
+    ///
+    /// assert!(PortTime(3).is_after(PortTime(u32::MAX)));
+    /// assert!(!PortTime(u32::MAX).is_after(PortTime(3)));
+    /// ```
     #[inline]
     pub fn is_after(self, other: PortTime) -> bool {
         num::is_after(self.0, other.0)
@@ -202,6 +390,18 @@ impl PortTime {
     /// present. Pass ports in processing order (0, 3, 1, 2) if ties must follow it.
     /// Correct whenever the present times span less than 2^31 ns, even across a wrap.
     /// Only the first 8 entries are considered (an ESC has at most 4 ports).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::PortTime;
+    ///
+    /// // Ports in processing order 0, 3, 1, 2; port 3 is closed. Port 1's latch wrapped, so port
+    /// // 0 (just before the wrap) is the earliest.
+    /// let ports = [Some(PortTime(u32::MAX - 100)), None, Some(PortTime(200)), Some(PortTime(900))];
+    /// assert_eq!(PortTime::earliest(&ports), Some(0));
+    /// assert_eq!(PortTime::earliest(&[None, None]), None);
+    /// ```
     pub fn earliest(ports: &[Option<PortTime>]) -> Option<usize> {
         const MAX: usize = 8;
         let mut times = [0u32; MAX];
