@@ -90,12 +90,41 @@ pub mod reg {
 }
 
 /// A register value type with a fixed little-endian width.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::RegisterValue;
+///
+/// // Every register value is little-endian on the wire.
+/// assert_eq!(<u32 as RegisterValue>::WIDTH, 4);
+/// assert_eq!(u32::decode_le(&[0x78, 0x56, 0x34, 0x12]), Some(0x1234_5678));
+/// ```
 pub trait RegisterValue: Copy {
     /// Width in bytes.
     const WIDTH: usize;
     /// Decodes from exactly `WIDTH` bytes (callers pass a checked slice).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::RegisterValue;
+    ///
+    /// assert_eq!(i16::decode_le(&[0xFE, 0xFF]), Some(-2));
+    /// assert_eq!(u64::decode_le(&[0; 4]), None); // too short
+    /// ```
     fn decode_le(bytes: &[u8]) -> Option<Self>;
     /// Encodes into exactly `WIDTH` bytes.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::RegisterValue;
+    ///
+    /// let mut out = [0u8; 2];
+    /// assert_eq!(0x0C00u16.encode_le(&mut out), Some(()));
+    /// assert_eq!(out, [0x00, 0x0C]);
+    /// ```
     fn encode_le(self, out: &mut [u8]) -> Option<()>;
 }
 
@@ -116,6 +145,20 @@ macro_rules! int_value {
 int_value!(u8, u16, u32, u64, i16);
 
 /// A register: its address plus the type (and so the width) of its value.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::{typed, Register};
+///
+/// // The System Time Delay register 0x0928 is a u32.
+/// let delay: Register<u32> = typed::SYSTEM_TIME_DELAY;
+/// assert_eq!((delay.address(), delay.len()), (0x0928, 4));
+/// let mut data = [0u8; 4];
+/// delay.encode(1_250, &mut data)?;
+/// assert_eq!(delay.decode(&data)?, 1_250);
+/// # Ok::<(), ecdc_core::wire::Error>(())
+/// ```
 #[derive(Debug, PartialEq, Eq)]
 pub struct Register<V> {
     address: u16,
@@ -131,6 +174,16 @@ impl<V> Copy for Register<V> {}
 
 impl<V: RegisterValue> Register<V> {
     /// A register at `address`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::Register;
+    ///
+    /// // A register this crate has no constant for: 0x0502 EEPROM control/status, a u16.
+    /// const EEPROM_CONTROL: Register<u16> = Register::new(0x0502);
+    /// assert_eq!(EEPROM_CONTROL.address(), 0x0502);
+    /// ```
     pub const fn new(address: u16) -> Register<V> {
         Register {
             address,
@@ -138,29 +191,85 @@ impl<V: RegisterValue> Register<V> {
         }
     }
     /// Its address (ADO).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::typed;
+    ///
+    /// assert_eq!(typed::SYSTEM_TIME.address(), 0x0910);
+    /// ```
     pub const fn address(self) -> u16 {
         self.address
     }
     /// Its width in bytes (the datagram length to read or write it).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::typed;
+    ///
+    /// assert_eq!(typed::SYSTEM_TIME.width(), 8);
+    /// assert_eq!(typed::SYSTEM_TIME_32.width(), 4);
+    /// ```
     pub const fn width(self) -> usize {
         V::WIDTH
     }
     /// Its width as a datagram length.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::typed;
+    ///
+    /// // The datagram length for a read of 0x0130 AL status.
+    /// assert_eq!(typed::AL_STATUS.len(), 2);
+    /// ```
     pub const fn len(self) -> u16 {
         // widths are 1..=8
         let [lo, _, _, _, _, _, _, _] = (V::WIDTH as u64).to_le_bytes();
         lo as u16
     }
     /// Always false (every register is at least one byte); for API symmetry with `len`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::typed;
+    ///
+    /// assert!(!typed::SYNC_ACTIVATION.is_empty());
+    /// ```
     pub const fn is_empty(self) -> bool {
         V::WIDTH == 0
     }
     /// Decodes the value from the first `width` bytes of `data` ([`Error::Truncated`] if
     /// shorter).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::{register::typed, Error};
+    ///
+    /// // A datagram's data may be longer than the register: only the first bytes count.
+    /// assert_eq!(typed::SPEED_COUNTER_DIFF.decode(&[0xF6, 0xFF, 0xAA]), Ok(-10));
+    /// assert_eq!(typed::SYSTEM_TIME.decode(&[0; 4]), Err(Error::Truncated));
+    /// ```
     pub fn decode(self, data: &[u8]) -> Result<V> {
         V::decode_le(data).ok_or(Error::Truncated)
     }
     /// Encodes `value` into the first `width` bytes of `out` ([`Error::Truncated`] if shorter).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::{register::typed, Error};
+    ///
+    /// let mut data = [0u8; 4];
+    /// typed::SYNC0_CYCLE.encode(1_000_000, &mut data)?;
+    /// assert_eq!(data, 1_000_000u32.to_le_bytes());
+    /// assert_eq!(typed::SYSTEM_TIME.encode(0, &mut data), Err(Error::Truncated));
+    /// # Ok::<(), Error>(())
+    /// ```
     pub fn encode(self, value: V, out: &mut [u8]) -> Result<()> {
         value.encode_le(out).ok_or(Error::Truncated)
     }
@@ -231,6 +340,18 @@ pub mod typed {
 /// 0x0008 ESC Features Supported (REQ-WIRE-071). Bit positions per the Infineon SVD `feature`
 /// register and IgH: bit 2 DC available, bit 3 DC width (1 = 64 bit), bit 8 enhanced DC SYNC
 /// activation (0x0981 bits 3..7 exist).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::EscFeatures;
+///
+/// // A 64-bit DC slave with enhanced SYNC activation, read from 0x0008.
+/// let f = EscFeatures::parse(&[0x0C, 0x01])?;
+/// assert!(f.dc_supported() && f.dc_64bit() && f.enhanced_sync());
+/// assert_eq!(f.dc_time_width(), 8);
+/// # Ok::<(), ecdc_core::wire::Error>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct EscFeatures(pub u16);
 
@@ -243,26 +364,78 @@ impl EscFeatures {
     pub const ENHANCED_SYNC: u16 = 1 << 8;
 
     /// Decodes from register bytes ([`Error::Truncated`] if fewer than 2).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::{register::EscFeatures, Error};
+    ///
+    /// assert_eq!(EscFeatures::parse(&[0x04, 0x00]), Ok(EscFeatures(EscFeatures::DC)));
+    /// assert_eq!(EscFeatures::parse(&[0x04]), Err(Error::Truncated));
+    /// ```
     pub fn parse(data: &[u8]) -> Result<EscFeatures> {
         typed::ESC_FEATURES.decode(data).map(EscFeatures)
     }
     /// The raw word.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::EscFeatures;
+    ///
+    /// assert_eq!(EscFeatures(0x010C).raw(), 0x010C);
+    /// ```
     pub const fn raw(self) -> u16 {
         self.0
     }
     /// DC unit present.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::EscFeatures;
+    ///
+    /// assert!(EscFeatures(EscFeatures::DC).dc_supported());
+    /// assert!(!EscFeatures(0).dc_supported());
+    /// ```
     pub const fn dc_supported(self) -> bool {
         self.0 & Self::DC != 0
     }
     /// DC registers are 64 bit wide (else 32).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::EscFeatures;
+    ///
+    /// assert!(EscFeatures(EscFeatures::DC | EscFeatures::DC_64BIT).dc_64bit());
+    /// assert!(!EscFeatures(EscFeatures::DC).dc_64bit());
+    /// ```
     pub const fn dc_64bit(self) -> bool {
         self.0 & Self::DC_64BIT != 0
     }
     /// Enhanced SYNC activation bits exist in 0x0981.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::EscFeatures;
+    ///
+    /// assert!(EscFeatures(EscFeatures::ENHANCED_SYNC).enhanced_sync());
+    /// ```
     pub const fn enhanced_sync(self) -> bool {
         self.0 & Self::ENHANCED_SYNC != 0
     }
     /// Width of System Time / Offset / Start Time on this slave in bytes: 8 or 4.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::EscFeatures;
+    ///
+    /// assert_eq!(EscFeatures(EscFeatures::DC | EscFeatures::DC_64BIT).dc_time_width(), 8);
+    /// assert_eq!(EscFeatures(EscFeatures::DC).dc_time_width(), 4);
+    /// ```
     pub const fn dc_time_width(self) -> usize {
         if self.dc_64bit() {
             8
@@ -273,6 +446,16 @@ impl EscFeatures {
 }
 
 /// One port's state in [`DlStatus`].
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::{DlStatus, PortState};
+///
+/// // Port 1 has a link and communication; its loop is open, so frames go on through it.
+/// let open = PortState { link: true, loop_closed: false, communication: true };
+/// assert_eq!(DlStatus(0x0820).port(1), open);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct PortState {
     /// Physical link detected.
@@ -287,15 +470,44 @@ pub struct PortState {
 /// port p (1 = closed); bit 9+2p communication on port p (IgH `ec_slave_set_dl_status`).
 /// Bits 0..3 (PDI operational, watchdog, enhanced link detection) are kept in `raw` only:
 /// their positions are unverified.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::DlStatus;
+///
+/// // Link on port 0 and 1; port 0 open with communication, port 1 too, ports 2/3 closed.
+/// let dl = DlStatus::parse(&[0x30, 0x5A])?;
+/// assert!(dl.link(0) && dl.link(1) && !dl.link(2));
+/// assert!(dl.loop_closed(2) && dl.loop_closed(3) && !dl.loop_closed(1));
+/// # Ok::<(), ecdc_core::wire::Error>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct DlStatus(pub u16);
 
 impl DlStatus {
     /// Decodes from register bytes ([`Error::Truncated`] if fewer than 2).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::{register::DlStatus, Error};
+    ///
+    /// assert_eq!(DlStatus::parse(&[0x10, 0x02]), Ok(DlStatus(0x0210)));
+    /// assert_eq!(DlStatus::parse(&[]), Err(Error::Truncated));
+    /// ```
     pub fn parse(data: &[u8]) -> Result<DlStatus> {
         typed::DL_STATUS.decode(data).map(DlStatus)
     }
     /// The raw word.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::DlStatus;
+    ///
+    /// assert_eq!(DlStatus(0x0210).raw(), 0x0210);
+    /// ```
     pub const fn raw(self) -> u16 {
         self.0
     }
@@ -306,23 +518,72 @@ impl DlStatus {
         }
     }
     /// Physical link on `port` (0..=3; false for other ports).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::DlStatus;
+    ///
+    /// let dl = DlStatus(0x0010); // bit 4: link on port 0
+    /// assert!(dl.link(0));
+    /// assert!(!dl.link(1));
+    /// assert!(!dl.link(4)); // no such port
+    /// ```
     pub const fn link(self, port: u8) -> bool {
         port < 4 && self.bit((port as u32).wrapping_add(4))
     }
     /// Loop closed on `port` (0..=3; false for other ports).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::DlStatus;
+    ///
+    /// let dl = DlStatus(0x0100); // bit 8: loop port 0 closed
+    /// assert!(dl.loop_closed(0));
+    /// assert!(!dl.loop_closed(1));
+    /// ```
     pub const fn loop_closed(self, port: u8) -> bool {
         port < 4 && self.bit((port as u32).wrapping_mul(2).wrapping_add(8))
     }
     /// Communication on `port` (0..=3; false for other ports).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::DlStatus;
+    ///
+    /// let dl = DlStatus(0x0200); // bit 9: communication on port 0
+    /// assert!(dl.communication(0));
+    /// assert!(!dl.communication(3));
+    /// ```
     pub const fn communication(self, port: u8) -> bool {
         port < 4 && self.bit((port as u32).wrapping_mul(2).wrapping_add(9))
     }
     /// A physical link on any of the four ports (bits 4..7). A slave that answered has a
     /// link on the port the frame entered by, so a reply without one is not a DL status.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::DlStatus;
+    ///
+    /// assert!(DlStatus(0x0080).any_link()); // port 3
+    /// assert!(!DlStatus(0x0F00).any_link()); // loops closed, no link
+    /// ```
     pub const fn any_link(self) -> bool {
         self.link(0) || self.link(1) || self.link(2) || self.link(3)
     }
     /// All three flags of `port`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::{DlStatus, PortState};
+    ///
+    /// let p0 = DlStatus(0x0210).port(0);
+    /// assert_eq!(p0, PortState { link: true, loop_closed: false, communication: true });
+    /// ```
     pub const fn port(self, port: u8) -> PortState {
         PortState {
             link: self.link(port),
@@ -331,6 +592,19 @@ impl DlStatus {
         }
     }
     /// Encodes the port flags (bits 4..15) over `low_bits` (bits 0..3 kept, higher ignored).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::{DlStatus, PortState};
+    ///
+    /// // A slave at the end of a line: link on port 0 only, ports 1..3 looped back.
+    /// let open = PortState { link: true, loop_closed: false, communication: true };
+    /// let closed = PortState { link: false, loop_closed: true, communication: false };
+    /// let dl = DlStatus::from_ports([open, closed, closed, closed], 0);
+    /// assert_eq!(dl, DlStatus(0x5610));
+    /// assert_eq!(dl.port(0), open);
+    /// ```
     pub fn from_ports(ports: [PortState; 4], low_bits: u16) -> DlStatus {
         let mut v = low_bits & 0x000F;
         for (p, s) in (0u32..).zip(ports) {
@@ -346,6 +620,18 @@ impl DlStatus {
 /// 0x092C System Time Difference (REQ-WIRE-073, REQ-CONV-006): sign-magnitude, bits 30..0 =
 /// |Δt| in ns, bit 31 set when Δt < 0, i.e. the slave's local copy is **behind** the received
 /// system time. Not an `i32`.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::SystemTimeDifference;
+///
+/// // Read from 0x092C: bit 31 set, the slave's local copy is 40 ns behind.
+/// let d = SystemTimeDifference::parse(&[0x28, 0x00, 0x00, 0x80])?;
+/// assert!(d.local_behind());
+/// assert_eq!(d.to_ns(), -40);
+/// # Ok::<(), ecdc_core::wire::Error>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SystemTimeDifference(u32);
 
@@ -356,28 +642,83 @@ impl SystemTimeDifference {
     pub const MAGNITUDE: u32 = 0x7FFF_FFFF;
 
     /// From the raw register word.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// assert_eq!(SystemTimeDifference::from_raw(0x8000_0028).to_ns(), -40);
+    /// ```
     pub const fn from_raw(raw: u32) -> SystemTimeDifference {
         SystemTimeDifference(raw)
     }
     /// Decodes from register bytes ([`Error::Truncated`] if fewer than 4).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// let d = SystemTimeDifference::parse(&[0x0A, 0x00, 0x00, 0x00])?;
+    /// assert_eq!(d.to_ns(), 10);
+    /// assert!(SystemTimeDifference::parse(&[0x0A, 0x00]).is_err());
+    /// # Ok::<(), ecdc_core::wire::Error>(())
+    /// ```
     pub fn parse(data: &[u8]) -> Result<SystemTimeDifference> {
         typed::SYSTEM_TIME_DIFFERENCE
             .decode(data)
             .map(SystemTimeDifference)
     }
     /// The raw register word.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// assert_eq!(SystemTimeDifference::from_ns(-40).raw(), 0x8000_0028);
+    /// ```
     pub const fn raw(self) -> u32 {
         self.0
     }
     /// Bit 31: local copy behind the reference.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// assert!(SystemTimeDifference::from_ns(-1).local_behind());
+    /// assert!(!SystemTimeDifference::from_ns(1).local_behind());
+    /// ```
     pub const fn local_behind(self) -> bool {
         self.0 & Self::SIGN != 0
     }
     /// |Δt| in ns (0..=2^31−1).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// assert_eq!(SystemTimeDifference::from_ns(-40).magnitude(), 40);
+    /// ```
     pub const fn magnitude(self) -> u32 {
         self.0 & Self::MAGNITUDE
     }
     /// Signed Δt in ns: −magnitude when bit 31 is set. "Negative zero" (0x8000_0000) is 0.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// assert_eq!(SystemTimeDifference::from_raw(0x0000_0064).to_ns(), 100);
+    /// assert_eq!(SystemTimeDifference::from_raw(0x8000_0064).to_ns(), -100);
+    /// // "Negative zero".
+    /// assert_eq!(SystemTimeDifference::from_raw(0x8000_0000).to_ns(), 0);
+    /// ```
     pub const fn to_ns(self) -> i32 {
         // magnitude ≤ 2^31 − 1, so both the conversion and the negation are exact.
         let m = self.magnitude() as i32;
@@ -388,6 +729,16 @@ impl SystemTimeDifference {
         }
     }
     /// Encodes Δt in ns, saturating |Δt| at 2^31 − 1 (the register's range). 0 encodes as +0.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::SystemTimeDifference;
+    ///
+    /// assert_eq!(SystemTimeDifference::from_ns(-100).raw(), 0x8000_0064);
+    /// // Beyond the register's range the magnitude saturates.
+    /// assert_eq!(SystemTimeDifference::from_ns(i64::MAX).to_ns(), i32::MAX);
+    /// ```
     pub const fn from_ns(ns: i64) -> SystemTimeDifference {
         let mag = ns.unsigned_abs();
         let mag = if mag > Self::MAGNITUDE as u64 {
@@ -406,6 +757,20 @@ impl SystemTimeDifference {
 
 /// The 32-byte receive-time block 0x0900..0x091F as read in one datagram (REQ-WIRE-074):
 /// port receive times 0..3, System Time (0x0910) and the ECAT processing unit receive time.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::wire::register::ReceiveTimes;
+///
+/// let times = ReceiveTimes { port: [1_000, 1_900, 0, 0], system_time: 5_000, epu: 1_000 };
+/// let mut block = [0u8; ReceiveTimes::LEN];
+/// times.emit(&mut block)?;
+/// let read = ReceiveTimes::parse(&block)?;
+/// // Port 1 saw the frame 900 ns after port 0: the round trip through what is behind port 1.
+/// assert_eq!(read.port[1] - read.port[0], 900);
+/// # Ok::<(), ecdc_core::wire::Error>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct ReceiveTimes {
     /// Receive Time Port 0..3 (32-bit local time of the latching frame at each port).
@@ -424,6 +789,19 @@ impl ReceiveTimes {
     pub const PORTS_LEN: usize = 16;
 
     /// Decodes from at least 32 bytes starting at 0x0900 ([`Error::Truncated`] otherwise).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::{register::ReceiveTimes, Error};
+    ///
+    /// let mut block = [0u8; 32];
+    /// block[16..24].copy_from_slice(&7_000u64.to_le_bytes()); // 0x0910 system time
+    /// let t = ReceiveTimes::parse(&block)?;
+    /// assert_eq!(t.system_time, 7_000);
+    /// assert_eq!(ReceiveTimes::parse(&block[..16]), Err(Error::Truncated));
+    /// # Ok::<(), Error>(())
+    /// ```
     pub fn parse(data: &[u8]) -> Result<ReceiveTimes> {
         let b = data.get(..Self::LEN).ok_or(Error::Truncated)?;
         let (ports, rest) = b
@@ -439,6 +817,18 @@ impl ReceiveTimes {
 
     /// Decodes the four port receive times from at least 16 bytes starting at 0x0900 (a read
     /// of the ports alone, or of the whole block; [`Error::Truncated`] otherwise).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::register::ReceiveTimes;
+    ///
+    /// // A read of 0x0900..0x090F alone.
+    /// let mut ports = [0u8; ReceiveTimes::PORTS_LEN];
+    /// ports[4..8].copy_from_slice(&1_900u32.to_le_bytes());
+    /// assert_eq!(ReceiveTimes::parse_ports(&ports)?, [0, 1_900, 0, 0]);
+    /// # Ok::<(), ecdc_core::wire::Error>(())
+    /// ```
     pub fn parse_ports(data: &[u8]) -> Result<[u32; 4]> {
         let b = data.get(..Self::PORTS_LEN).ok_or(Error::Truncated)?;
         let mut port = [0u32; 4];
@@ -449,6 +839,19 @@ impl ReceiveTimes {
     }
 
     /// Encodes into the first 32 bytes of `out` ([`Error::Truncated`] if shorter).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::wire::{register::ReceiveTimes, Error};
+    ///
+    /// let t = ReceiveTimes { port: [1, 2, 3, 4], system_time: 5, epu: 6 };
+    /// let mut out = [0u8; 32];
+    /// t.emit(&mut out)?;
+    /// assert_eq!(out[..4], [1, 0, 0, 0]);
+    /// assert_eq!(t.emit(&mut [0u8; 31]), Err(Error::Truncated));
+    /// # Ok::<(), Error>(())
+    /// ```
     pub fn emit(&self, out: &mut [u8]) -> Result<()> {
         let b = out.get_mut(..Self::LEN).ok_or(Error::Truncated)?;
         let (ports, rest) = b.split_at_mut_checked(16).ok_or(Error::Truncated)?;
