@@ -13,6 +13,17 @@
 //! ```
 
 /// One of the four ports of an ESC.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::Port;
+///
+/// // A frame entering port 0 leaves through port 3 next (processing order 0, 3, 1, 2).
+/// assert_eq!(Port::P0.next(), Port::P3);
+/// // Port 1's receive time is at 0x0900 + 4 · 1.
+/// assert_eq!(0x0900 + 4 * u16::from(Port::P1.number()), 0x0904);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Port {
     /// Port 0 (usually the upstream port, "A").
@@ -30,6 +41,14 @@ impl Port {
     pub const PROCESSING_ORDER: [Port; 4] = [Port::P0, Port::P3, Port::P1, Port::P2];
 
     /// Port number 0..=3 (register index: receive time at 0x0900 + 4·n).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    ///
+    /// assert_eq!(Port::P3.number(), 3);
+    /// ```
     #[inline]
     pub const fn number(self) -> u8 {
         match self {
@@ -41,6 +60,15 @@ impl Port {
     }
 
     /// Port from its number; `None` above 3.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    ///
+    /// assert_eq!(Port::from_number(2), Some(Port::P2));
+    /// assert_eq!(Port::from_number(4), None);
+    /// ```
     #[inline]
     pub const fn from_number(n: u8) -> Option<Port> {
         match n {
@@ -53,6 +81,15 @@ impl Port {
     }
 
     /// Array index 0..=3 (same as [`Port::number`]).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    ///
+    /// let receive_times = [100u32, 900, 0, 300];
+    /// assert_eq!(receive_times[Port::P3.index()], 300);
+    /// ```
     #[inline]
     pub const fn index(self) -> usize {
         self.number() as usize
@@ -70,6 +107,21 @@ impl Port {
     }
 
     /// The next port in processing order: 0 → 3 → 1 → 2 → 0.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    ///
+    /// let mut p = Port::P0;
+    /// let mut order = [Port::P0; 4];
+    /// for slot in &mut order {
+    ///     *slot = p;
+    ///     p = p.next();
+    /// }
+    /// assert_eq!(order, Port::PROCESSING_ORDER);
+    /// assert_eq!(p, Port::P0);
+    /// ```
     #[inline]
     pub const fn next(self) -> Port {
         match self {
@@ -81,6 +133,17 @@ impl Port {
     }
 
     /// The previous port in processing order: 0 → 2 → 1 → 3 → 0.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    ///
+    /// assert_eq!(Port::P0.prev(), Port::P2);
+    /// for p in Port::PROCESSING_ORDER {
+    ///     assert_eq!(p.next().prev(), p);
+    /// }
+    /// ```
     #[inline]
     pub const fn prev(self) -> Port {
         match self {
@@ -94,6 +157,17 @@ impl Port {
     /// REQ-DC-010: true when the ESC-internal walk from the receiver of `self` to the transmitter
     /// of `to` passes the EPU (port 0's position is `self` or lies strictly between them; for
     /// `self == to` the walk is the full circle). Such a hop costs `t_P`, any other `t_F`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    ///
+    /// // In at port 0, out at port 1: the frame passes the EPU right after port 0 (t_P).
+    /// assert!(Port::P0.hop_is_processing(Port::P1));
+    /// // Back in at port 1, out at port 0 via port 2: no EPU on the way (t_F).
+    /// assert!(!Port::P1.hop_is_processing(Port::P0));
+    /// ```
     #[inline]
     pub const fn hop_is_processing(self, to: Port) -> bool {
         let mut p = self;
@@ -114,6 +188,18 @@ impl Port {
 }
 
 /// A set of ports (bit n = port n), e.g. the ports that are open according to DL status.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::{Port, PortSet};
+///
+/// // A slave with ports 0 and 1 open (a line topology's middle slave).
+/// let open = PortSet::EMPTY.with(Port::P0).with(Port::P1);
+/// assert_eq!(open.len(), 2);
+/// // Entering at port 0, the frame leaves through port 1 (port 3 is closed).
+/// assert_eq!(open.next_after(Port::P0), Some(Port::P1));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct PortSet(u8);
 
@@ -122,12 +208,30 @@ impl PortSet {
     pub const EMPTY: PortSet = PortSet(0);
 
     /// From a bit mask (bit n = port n); bits above 3 are ignored.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// let s = PortSet::from_bits(0b1111_0011);
+    /// assert_eq!(s.bits(), 0b0011);
+    /// assert!(s.contains(Port::P1));
+    /// ```
     #[inline]
     pub const fn from_bits(bits: u8) -> PortSet {
         PortSet(bits & 0x0F)
     }
 
     /// The bit mask.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// assert_eq!(PortSet::EMPTY.with(Port::P3).bits(), 0b1000);
+    /// ```
     #[inline]
     pub const fn bits(self) -> u8 {
         self.0
@@ -137,6 +241,19 @@ impl PortSet {
     /// neighbour the frame visits) when its loop is open (bit 8+2n clear) and communication is
     /// established on it (bit 9+2n set); a link bit (4..7) alone is not enough: a port with link
     /// but a closed loop is bypassed by the ESC (same rule as SOEM's `(dl >> (8+2n)) & 3 == 2`).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// // DL status 0x5A30: ports 0 and 1 have link, open loops and communication; 2 and 3 are
+    /// // looped back.
+    /// let open = PortSet::from_dl_status(0x5A30);
+    /// assert_eq!(open, PortSet::EMPTY.with(Port::P0).with(Port::P1));
+    /// // A link with a closed loop is bypassed by the ESC: not open.
+    /// assert!(PortSet::from_dl_status(0x0310).is_empty());
+    /// ```
     pub fn from_dl_status(dl_status: u16) -> PortSet {
         let mut set = PortSet::EMPTY;
         for port in Port::PROCESSING_ORDER {
@@ -154,12 +271,30 @@ impl PortSet {
     }
 
     /// Whether `port` is in the set.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// let s = PortSet::from_bits(0b0001);
+    /// assert!(s.contains(Port::P0));
+    /// assert!(!s.contains(Port::P2));
+    /// ```
     #[inline]
     pub const fn contains(self, port: Port) -> bool {
         self.0 & port.mask() != 0
     }
 
     /// The set with `port` added.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// assert_eq!(PortSet::EMPTY.with(Port::P2), PortSet::from_bits(0b0100));
+    /// ```
     #[inline]
     #[must_use]
     pub const fn with(self, port: Port) -> PortSet {
@@ -167,18 +302,45 @@ impl PortSet {
     }
 
     /// Number of ports in the set (0..=4).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::PortSet;
+    ///
+    /// assert_eq!(PortSet::from_bits(0b1011).len(), 3);
+    /// ```
     #[inline]
     pub const fn len(self) -> u32 {
         self.0.count_ones()
     }
 
     /// Whether the set is empty.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::PortSet;
+    ///
+    /// assert!(PortSet::EMPTY.is_empty());
+    /// assert!(!PortSet::from_bits(1).is_empty());
+    /// ```
     #[inline]
     pub const fn is_empty(self) -> bool {
         self.0 == 0
     }
 
     /// The first port of the set in processing order starting at port 0 (0, 3, 1, 2).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// // Port 3 comes before port 1 in processing order.
+    /// assert_eq!(PortSet::from_bits(0b1010).first_in_processing_order(), Some(Port::P3));
+    /// assert_eq!(PortSet::EMPTY.first_in_processing_order(), None);
+    /// ```
     pub fn first_in_processing_order(self) -> Option<Port> {
         Port::PROCESSING_ORDER
             .iter()
@@ -188,6 +350,18 @@ impl PortSet {
 
     /// The next port of the set strictly after `from` in processing order, wrapping around; may
     /// return `from` itself if it is the only member. `None` for an empty set.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// let s = PortSet::from_bits(0b0111); // ports 0, 1, 2
+    /// assert_eq!(s.next_after(Port::P0), Some(Port::P1));
+    /// assert_eq!(s.next_after(Port::P2), Some(Port::P0));
+    /// // The only member comes back to itself.
+    /// assert_eq!(PortSet::from_bits(0b0001).next_after(Port::P0), Some(Port::P0));
+    /// ```
     pub fn next_after(self, from: Port) -> Option<Port> {
         let mut p = from.next();
         let mut steps = 0u8;
@@ -203,6 +377,17 @@ impl PortSet {
 
     /// The member of the set visited just before `to` when walking from `from` (the entry port):
     /// the previous member in processing order, or `from` itself when nothing lies between.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    ///
+    /// let s = PortSet::from_bits(0b0111); // ports 0, 1, 2
+    /// // Walking 0 → 1 → 2, the port visited before 2 is 1.
+    /// assert_eq!(s.prev_before(Port::P2), Some(Port::P1));
+    /// assert_eq!(s.prev_before(Port::P1), Some(Port::P0));
+    /// ```
     pub fn prev_before(self, to: Port) -> Option<Port> {
         let mut p = to.prev();
         let mut steps = 0u8;
