@@ -26,6 +26,18 @@ use super::port::{Port, PortSet};
 use crate::time::PortTime;
 
 /// Receive-time latches of one slave after the latching write to 0x0900.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{port::Port, topology::Latches};
+/// use ecdc_core::time::PortTime;
+///
+/// // Port 0 latched the frame going out, port 1 when it came back 1 µs later.
+/// let l = Latches::from_raw([1_000, 2_000, 0, 0], 0x7_0000_03E8);
+/// assert_eq!(l.at(Port::P1).wrapping_since(l.at(Port::P0)), 1_000);
+/// assert_eq!(l.ports[0], PortTime(1_000));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Latches {
     /// Receive Time Port 0..3 (0x0900..0x090F), indexed by port number, local time. Values of
@@ -38,6 +50,20 @@ pub struct Latches {
 
 impl Latches {
     /// From raw register values (e.g. `wire::ReceiveTimes::port` and `::epu`).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::Latches;
+    /// use ecdc_core::time::PortTime;
+    /// use ecdc_core::wire::register::ReceiveTimes;
+    ///
+    /// // Straight from the 32-byte block read at 0x0900.
+    /// let read = ReceiveTimes { port: [1_000, 2_000, 0, 0], system_time: 0, epu: 1_000 };
+    /// let l = Latches::from_raw(read.port, read.epu);
+    /// assert_eq!(l.ports[1], PortTime(2_000));
+    /// assert_eq!(l.epu, 1_000);
+    /// ```
     pub const fn from_raw(ports: [u32; 4], epu: u64) -> Latches {
         Latches {
             ports: [
@@ -51,6 +77,16 @@ impl Latches {
     }
 
     /// The latched time of `port`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{port::Port, topology::Latches};
+    /// use ecdc_core::time::PortTime;
+    ///
+    /// let l = Latches::from_raw([10, 20, 30, 40], 10);
+    /// assert_eq!(l.at(Port::P3), PortTime(40));
+    /// ```
     #[inline]
     pub fn at(&self, port: Port) -> PortTime {
         self.ports.get(port.index()).copied().unwrap_or_default()
@@ -58,6 +94,21 @@ impl Latches {
 }
 
 /// What the DC maths needs to know about one slave (REQ-DC-001).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::{Port, PortSet};
+/// use ecdc_core::dc::topology::{Latches, SlaveSample};
+///
+/// // A DC slave with ports 0 and 1 open and a t_Diff of 20 ns from its datasheet.
+/// let s = SlaveSample {
+///     ports: PortSet::EMPTY.with(Port::P0).with(Port::P1),
+///     latches: Some(Latches::from_raw([1_000, 2_000, 0, 0], 1_000)),
+///     t_diff: 20,
+/// };
+/// assert_eq!(s, SlaveSample::from_registers(0x5A00, 0x0004, [1_000, 2_000, 0, 0], 1_000, 20));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct SlaveSample {
     /// Open ports, from DL status 0x0110 ([`PortSet::from_dl_status`]).
@@ -73,6 +124,21 @@ impl SlaveSample {
     /// From the raw registers read after a latch: DL Status 0x0110, ESC Features 0x0008,
     /// Receive Time Port 0..3 (0x0900..0x090F) and Receive Time EPU (0x0918). The latches are
     /// kept only when the ESC has DC (features bit 2); `t_diff` as in [`SlaveSample::t_diff`].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::{Port, PortSet};
+    /// use ecdc_core::dc::topology::SlaveSample;
+    ///
+    /// // DL status 0x5A00: ports 0 and 1 open; features 0x000C: 64-bit DC.
+    /// let dc = SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0);
+    /// assert_eq!(dc.ports, PortSet::EMPTY.with(Port::P0).with(Port::P1));
+    /// assert!(dc.latches.is_some());
+    /// // Features without bit 2: a slave without DC, whose latch registers mean nothing.
+    /// let plain = SlaveSample::from_registers(0x5A00, 0x0000, [1_000, 2_000, 0, 0], 1_000, 0);
+    /// assert_eq!(plain.latches, None);
+    /// ```
     pub fn from_registers(
         dl_status: u16,
         features: u16,
@@ -89,6 +155,22 @@ impl SlaveSample {
 }
 
 /// Where a slave is attached upstream.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::Port;
+/// use ecdc_core::dc::topology::{Link, SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples)?;
+/// // Slave 1 hangs off port 1 of slave 0.
+/// assert_eq!(topo.node(1).and_then(|n| n.parent), Some(Link { slave: 0, port: Port::P1 }));
+/// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Link {
     /// Index (auto-increment position) of the upstream slave.
@@ -98,6 +180,24 @@ pub struct Link {
 }
 
 /// One slave in the reconstructed tree.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::Port;
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples)?;
+/// let first = topo.node(0).ok_or(ecdc_core::dc::topology::TopologyError::Capacity)?;
+/// assert_eq!(first.entry, Port::P0);
+/// assert_eq!(first.parent, None); // wired to the master
+/// assert_eq!(first.children, [None, Some(1), None, None]);
+/// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Node {
     /// Port wired upstream (towards the master).
@@ -119,18 +219,67 @@ impl Node {
     };
 
     /// Number of downstream (non-entry) open ports.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples)?;
+    /// let counts = topo.nodes().iter().map(|n| n.downstream_ports());
+    /// assert!(counts.eq([1, 0])); // slave 1 ends the line
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn downstream_ports(&self) -> u32 {
         self.ports.len().saturating_sub(1)
     }
 
     /// The last open port the frame visits before leaving through the entry port (the entry
     /// port itself for a line end).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples)?;
+    /// let last = topo.nodes().iter().map(|n| n.last_port());
+    /// // Slave 0 last sees the frame at port 1 (coming back); the line end only at its entry.
+    /// assert!(last.eq([Port::P1, Port::P0]));
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn last_port(&self) -> Port {
         self.ports.prev_before(self.entry).unwrap_or(self.entry)
     }
 }
 
 /// Why the topology could not be reconstructed.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::Port;
+/// use ecdc_core::dc::topology::{SlaveSample, Topology, TopologyError};
+///
+/// // One slave reports port 1 open, but no second slave answered behind it.
+/// let samples = [SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0)];
+/// assert_eq!(
+///     Topology::<8>::build(&samples),
+///     Err(TopologyError::DanglingPort { slave: 0, port: Port::P1 })
+/// );
+/// // A slave without any open port cannot have been reached.
+/// let dead = [SlaveSample::from_registers(0x0000, 0x0000, [0; 4], 0, 0)];
+/// assert_eq!(Topology::<8>::build(&dead), Err(TopologyError::NoOpenPort { slave: 0 }));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum TopologyError {
@@ -187,6 +336,23 @@ impl core::fmt::Display for TopologyError {
 impl std::error::Error for TopologyError {}
 
 /// The reconstructed tree for up to `N` slaves (REQ-DC-012).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::Port;
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// // Two DC slaves in a line, in auto-increment order.
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples)?;
+/// assert_eq!(topo.len(), 2);
+/// assert_eq!(topo.node(0).map(|n| n.children[Port::P1.index()]), Some(Some(1)));
+/// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+/// ```
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Topology<const N: usize> {
     nodes: [Node; N],
@@ -195,6 +361,21 @@ pub struct Topology<const N: usize> {
 
 impl<const N: usize> Topology<N> {
     /// Reconstructs the tree from per-slave samples in auto-increment order.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology, TopologyError};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// assert_eq!(Topology::<8>::build(&samples)?.len(), 2);
+    /// // Capacity is fixed at compile time.
+    /// assert_eq!(Topology::<1>::build(&samples), Err(TopologyError::Capacity));
+    /// # Ok::<(), TopologyError>(())
+    /// ```
     pub fn build(samples: &[SlaveSample]) -> Result<Self, TopologyError> {
         let mut topo = Topology::new();
         let mut stack = [(0, Port::P0); N];
@@ -204,6 +385,16 @@ impl<const N: usize> Topology<N> {
 
     /// An empty tree (no slaves), e.g. the initial value of a buffer for
     /// [`build_in_place`](Self::build_in_place).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::Topology;
+    ///
+    /// let topo = Topology::<64>::new();
+    /// assert!(topo.is_empty());
+    /// assert_eq!(topo.node(0), None);
+    /// ```
     pub const fn new() -> Self {
         Topology {
             nodes: [Node::EMPTY; N],
@@ -220,6 +411,25 @@ impl<const N: usize> Topology<N> {
     /// [`build`](Self::build) into `self`, with `stack` as the depth-first walk's working
     /// space: nothing of size `N` goes on the thread's stack. On `Err` the contents of `self`
     /// are unspecified (but valid); on `Ok` it equals what `build` returns.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// // Buffers that live as long as the master (e.g. in a static or a struct), so a large `N`
+    /// // never lands on a small embedded stack.
+    /// let mut topo = Topology::<64>::new();
+    /// let mut stack = [(0u16, Port::P0); 64];
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// topo.build_in_place(&samples, &mut stack)?;
+    /// assert_eq!(topo, Topology::<64>::build(&samples)?);
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn build_in_place(
         &mut self,
         samples: &[SlaveSample],
@@ -275,21 +485,68 @@ impl<const N: usize> Topology<N> {
     }
 
     /// Number of slaves.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+    /// assert_eq!(Topology::<8>::build(&samples)?.len(), 1);
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn len(&self) -> usize {
         usize::from(self.len)
     }
 
     /// Whether there are no slaves.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::Topology;
+    ///
+    /// assert!(Topology::<8>::build(&[])?.is_empty());
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
 
     /// The node of slave `i` (auto-increment position).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::port::Port;
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+    /// let topo = Topology::<8>::build(&samples)?;
+    /// assert_eq!(topo.node(0).map(|n| n.entry), Some(Port::P0));
+    /// assert_eq!(topo.node(1), None); // beyond the slaves found, not beyond N
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn node(&self, i: usize) -> Option<&Node> {
         self.nodes.get(..self.len())?.get(i)
     }
 
     /// All nodes in auto-increment order.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples)?;
+    /// let parents = topo.nodes().iter().map(|n| n.parent.map(|link| link.slave));
+    /// assert!(parents.eq([None, Some(0)]));
+    /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
+    /// ```
     pub fn nodes(&self) -> &[Node] {
         self.nodes.get(..self.len()).unwrap_or(&[])
     }
@@ -302,6 +559,20 @@ impl<const N: usize> Default for Topology<N> {
 }
 
 /// REQ-DC-013: the entry port of a slave.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::port::Port;
+/// use ecdc_core::dc::topology::{entry_port, SlaveSample};
+///
+/// // Wired upstream on port 1: port 1 latched first, port 0 after the excursion behind it.
+/// let s = SlaveSample::from_registers(0x5A00, 0x000C, [2_000, 1_000, 0, 0], 1_000, 0);
+/// assert_eq!(entry_port(&s), Some(Port::P1));
+/// // Port 0 latched just before the 32-bit counter wrapped: still the earliest.
+/// let s = SlaveSample::from_registers(0x5A00, 0x000C, [u32::MAX - 10, 500, 0, 0], 0, 0);
+/// assert_eq!(entry_port(&s), Some(Port::P0));
+/// ```
 pub fn entry_port(sample: &SlaveSample) -> Option<Port> {
     match &sample.latches {
         Some(latches) => {
