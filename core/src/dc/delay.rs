@@ -67,6 +67,24 @@ use crate::num::{overflowing_add, overflowing_sub, Logic, Word};
 
 /// Why delays could not be computed. Every variant names the offending slave (auto-increment
 /// position) so the caller can report it; no delay is produced from such input.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// // There is no slave 5 to be the reference clock.
+/// assert_eq!(
+///     delay::compute(&samples, &topo, 5).map(|d| d.len()),
+///     Err(DelayError::BadReference { slave: 5 })
+/// );
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum DelayError {
@@ -156,6 +174,25 @@ impl std::error::Error for DelayError {}
 ///
 /// Internally an exact fraction per slave (`sum / weight`, weight = 2 × rounds) so averaging
 /// several latch rounds rounds only once.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// // Slave 0 latched the frame at port 0 and again at port 1 1 µs later: the cable and
+/// // slave 1 behind port 1 take 500 ns each way.
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let delays = delay::compute(&samples, &topo, 0)?;
+/// assert_eq!(delays.ns(0), Some(0)); // the reference clock itself
+/// assert_eq!(delays.register_value(1)?, 500); // written to slave 1's 0x0928
+/// # Ok::<(), DelayError>(())
+/// ```
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct Delays<const N: usize> {
     sum: [Option<i64>; N],
@@ -167,6 +204,16 @@ pub struct Delays<const N: usize> {
 impl<const N: usize> Delays<N> {
     /// No delays: no slave, no round (every [`ns`](Self::ns) is `None`). The initial value of
     /// an output buffer for [`compute_in_place`].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::Delays;
+    ///
+    /// let d = Delays::<8>::new();
+    /// assert!(d.is_empty());
+    /// assert_eq!((d.rounds(), d.ns(0)), (0, None));
+    /// ```
     pub const fn new() -> Self {
         Delays {
             sum: [None; N],
@@ -177,6 +224,24 @@ impl<const N: usize> Delays<N> {
     }
 
     /// Makes `self` equal to `other` without a temporary of size `N` on the stack.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, Delays, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// // Keep the last good result in a long-lived buffer.
+    /// let mut last_good = Delays::<8>::new();
+    /// last_good.copy_from(&delay::compute(&samples, &topo, 0)?);
+    /// assert_eq!(last_good.ns(1), Some(500));
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn copy_from(&mut self, other: &Delays<N>) {
         self.sum.copy_from_slice(&other.sum);
         self.weight = other.weight;
@@ -198,27 +263,109 @@ impl<const N: usize> Delays<N> {
     }
 
     /// Number of slaves covered (latched or not).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// // A DC slave followed by a slave without DC: both are covered, only one has a delay.
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x0000, [0; 4], 0, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// let delays = delay::compute(&samples, &topo, 0)?;
+    /// assert_eq!(delays.len(), 2);
+    /// assert_eq!(delays.ns(1), None);
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn len(&self) -> usize {
         usize::from(self.len)
     }
 
     /// Whether no slave is covered.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+    /// let topo = Topology::<8>::build(&samples).expect("a single slave");
+    /// assert!(!delay::compute(&samples, &topo, 0)?.is_empty());
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
 
     /// The reference clock's position.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// assert_eq!(delay::compute(&samples, &topo, 1)?.reference(), 1);
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn reference(&self) -> u16 {
         self.reference
     }
 
     /// Number of latch rounds averaged.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// let mut delays = delay::compute(&samples, &topo, 0)?;
+    /// assert_eq!(delays.rounds(), 1);
+    /// delays.accumulate(&delay::compute(&samples, &topo, 0)?)?;
+    /// assert_eq!(delays.rounds(), 2);
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn rounds(&self) -> i64 {
         self.weight.checked_div(2).unwrap_or(0)
     }
 
     /// Delay of slave `i` relative to the reference in ns, rounded to nearest (ties up);
     /// negative for slaves before the reference; `None` for slaves without latches.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// // With slave 1 as the reference, slave 0 sees the frame 500 ns before it.
+    /// let delays = delay::compute(&samples, &topo, 1)?;
+    /// assert_eq!(delays.ns(0), Some(-500));
+    /// assert_eq!(delays.ns(1), Some(0));
+    /// assert_eq!(delays.ns(2), None);
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn ns(&self, i: usize) -> Option<i64> {
         let sum = (*self.sum.get(..self.len())?.get(i)?)?;
         // round(sum / weight), ties towards +∞: ⌊(sum + ⌊weight/2⌋) / weight⌋ (weight even).
@@ -228,12 +375,49 @@ impl<const N: usize> Delays<N> {
 
     /// The exact value as `(numerator, denominator)` ns: twice the delay summed over rounds, and
     /// twice the number of rounds. For tests and diagnostics.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// // A 1 001 ns round trip: the delay is 500.5 ns, kept exactly as 1001 / 2.
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_001, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// let delays = delay::compute(&samples, &topo, 0)?;
+    /// assert_eq!(delays.exact(1), Some((1_001, 2)));
+    /// assert_eq!(delays.ns(1), Some(501)); // ties round up
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn exact(&self, i: usize) -> Option<(i64, i64)> {
         let sum = (*self.sum.get(..self.len())?.get(i)?)?;
         Some((sum, self.weight))
     }
 
     /// REQ-DC-018: the value to write to System Time Delay 0x0928 (4 bytes) for slave `i`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let samples = [
+    ///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+    ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    /// ];
+    /// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+    /// let delays = delay::compute(&samples, &topo, 0)?;
+    /// assert_eq!(delays.register_value(1)?.to_le_bytes(), [0xF4, 0x01, 0, 0]); // 500
+    /// // 0x0928 cannot hold a slave before the reference.
+    /// let delays = delay::compute(&samples, &topo, 1)?;
+    /// assert_eq!(delays.register_value(0), Err(DelayError::BeforeReference { slave: 0 }));
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn register_value(&self, i: usize) -> Result<u32, DelayError> {
         let slave = u16::try_from(i).map_err(|_| DelayError::Mismatch)?;
         let ns = self.ns(i).ok_or(DelayError::Mismatch)?;
@@ -244,6 +428,27 @@ impl<const N: usize> Delays<N> {
     }
 
     /// Adds another latch round (same slaves, reference and DC set) for averaging.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::{self, DelayError};
+    /// use ecdc_core::dc::topology::{SlaveSample, Topology};
+    ///
+    /// let round = |port1: u32| {
+    ///     [
+    ///         SlaveSample::from_registers(0x5A00, 0x000C, [1_000, port1, 0, 0], 1_000, 0),
+    ///         SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+    ///     ]
+    /// };
+    /// let topo = Topology::<8>::build(&round(2_000)).expect("a line of two slaves");
+    /// // Two latch rounds, 10 ns apart (the stamp resolution): 500 and 505 average to 502.5.
+    /// let mut delays = delay::compute(&round(2_000), &topo, 0)?;
+    /// delays.accumulate(&delay::compute(&round(2_010), &topo, 0)?)?;
+    /// assert_eq!(delays.exact(1), Some((2_010, 4)));
+    /// assert_eq!(delays.ns(1), Some(503));
+    /// # Ok::<(), DelayError>(())
+    /// ```
     pub fn accumulate(&mut self, other: &Delays<N>) -> Result<(), DelayError> {
         if other.len != self.len || other.reference != self.reference {
             return Err(DelayError::RoundMismatch);
@@ -281,6 +486,24 @@ impl<const N: usize> Default for Delays<N> {
 /// symbolic stamps; this runs it on `u64` and turns its flags into the first error in
 /// processing order (an arithmetic failure of an earlier slave before a structural one of a
 /// later slave, as a hop-by-hop walk with early returns reports them).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// // Slave 0 has t_Diff = 20 ns (its processing hop is 20 ns slower than forwarding).
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 20),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let delays = delay::compute(&samples, &topo, 0)?;
+/// // The outbound hop through slave 0's EPU is the slower one: (1000 + 20) / 2.
+/// assert_eq!(delays.ns(1), Some(510));
+/// # Ok::<(), DelayError>(())
+/// ```
 pub fn compute<const N: usize>(
     samples: &[SlaveSample],
     topology: &Topology<N>,
@@ -295,6 +518,22 @@ pub fn compute<const N: usize>(
 /// The working space of [`compute_in_place`]: the walk's input and output for up to `N`
 /// slaves. Kept by the caller (e.g. inside a long-lived state machine) so that a delay
 /// computation puts nothing of size `N` on the thread's stack.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError, DelayScratch, Delays};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// // Long-lived buffers (a static, or a field of the master's state) for 256 slaves.
+/// let mut scratch = DelayScratch::<256>::new();
+/// let mut delays = Delays::<256>::new();
+/// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+/// let topo = Topology::<256>::build(&samples).expect("a single slave");
+/// delay::compute_in_place(&samples, &topo, 0, &mut scratch, &mut delays)?;
+/// assert_eq!(delays.ns(0), Some(0));
+/// # Ok::<(), DelayError>(())
+/// ```
 #[derive(Clone)]
 pub struct DelayScratch<const N: usize> {
     slaves: [WalkSlave<u64>; N],
@@ -303,6 +542,15 @@ pub struct DelayScratch<const N: usize> {
 
 impl<const N: usize> DelayScratch<N> {
     /// Fresh working space (its contents never carry over between computations).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::DelayScratch;
+    ///
+    /// let scratch = DelayScratch::<64>::new();
+    /// assert_eq!(format!("{scratch:?}"), "DelayScratch");
+    /// ```
     pub const fn new() -> Self {
         DelayScratch {
             slaves: [WalkSlave::non_dc(); N],
@@ -326,6 +574,23 @@ impl<const N: usize> core::fmt::Debug for DelayScratch<N> {
 /// [`compute`] into `out`, with `scratch` as working space: nothing of size `N` goes on the
 /// thread's stack. On `Ok`, `out` equals what `compute` returns; on `Err` its contents are
 /// unspecified (but valid).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError, DelayScratch, Delays};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let (mut scratch, mut out) = (DelayScratch::new(), Delays::new());
+/// delay::compute_in_place(&samples, &topo, 0, &mut scratch, &mut out)?;
+/// assert_eq!(out, delay::compute(&samples, &topo, 0)?);
+/// # Ok::<(), DelayError>(())
+/// ```
 pub fn compute_in_place<const N: usize>(
     samples: &[SlaveSample],
     topology: &Topology<N>,
@@ -377,6 +642,16 @@ pub fn compute_in_place<const N: usize>(
 /// One slave's input to [`walk`] over a word type `W` (at least 64 bits wide): the four 32-bit
 /// receive-time latches zero-extended into `W` (`None` for a slave without DC), and `t_Diff`
 /// sign-extended.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::WalkSlave;
+///
+/// // The walk's input, built by hand: 32-bit stamps widened to the word, t_Diff = −20 ns.
+/// let s = WalkSlave::<u64> { stamps: Some([1_000, 2_000, 0, 0]), t_diff: (-20i64) as u64 };
+/// assert_eq!(s.stamps.map(|t| t[1] - t[0]), Some(1_000));
+/// ```
 #[derive(Debug, Clone, Copy)]
 pub struct WalkSlave<W: Word> {
     /// Receive Time Port 0..3, indexed by port number, as 32-bit values in the word.
@@ -387,6 +662,18 @@ pub struct WalkSlave<W: Word> {
 
 impl WalkSlave<u64> {
     /// The walk input of a sample.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::WalkSlave;
+    /// use ecdc_core::dc::topology::SlaveSample;
+    ///
+    /// let sample = SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, -20);
+    /// let s = WalkSlave::from_sample(&sample);
+    /// assert_eq!(s.stamps, Some([1_000, 2_000, 0, 0]));
+    /// assert_eq!(s.t_diff as i64, -20);
+    /// ```
     pub fn from_sample(sample: &SlaveSample) -> WalkSlave<u64> {
         WalkSlave {
             stamps: sample
@@ -407,6 +694,24 @@ impl WalkSlave<u64> {
 
 /// The checks of one hop of the walk (slave `c` from its nearest latched ancestor), in the order
 /// [`compute`] reports them.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError, WalkSlave};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let walk = delay::walk(&samples.map(|s| WalkSlave::from_sample(&s)), &topo, 0)?;
+/// let hop = walk.hops[1].ok_or(DelayError::Mismatch)?;
+/// assert!(!hop.stale && !hop.non_dc_overflow);
+/// assert_eq!(hop.step.hop2, 1_000);
+/// # Ok::<(), DelayError>(())
+/// ```
 #[derive(Clone, Copy)]
 pub struct HopChecks<W: Word> {
     /// The signed sum of the non-DC slaves' `t_Diff` left the signed range.
@@ -419,6 +724,24 @@ pub struct HopChecks<W: Word> {
 }
 
 /// What [`walk`] computed for one latch round.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError, WalkSlave};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let walk = delay::walk(&samples.map(|s| WalkSlave::from_sample(&s)), &topo, 0)?;
+/// // Twice the delay, with "left the signed range" = false.
+/// assert_eq!(walk.twice[..2], [Some((0, false)), Some((1_000, false))]);
+/// assert_eq!(walk.stopped, None);
+/// # Ok::<(), DelayError>(())
+/// ```
 pub struct Walk<W: Word, const N: usize> {
     /// Per latched slave: twice its delay from the reference (`abs2 − abs2(reference)`, modulo
     /// 2^N) and whether that subtraction left the signed range. `None` for slaves without
@@ -435,6 +758,16 @@ pub struct Walk<W: Word, const N: usize> {
 impl<W: Word, const N: usize> Walk<W, N> {
     /// An empty result (no slave, not stopped): the initial value of an output buffer for
     /// [`walk_in_place`].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::delay::Walk;
+    ///
+    /// let w = Walk::<u64, 8>::new();
+    /// assert!(w.twice.iter().all(Option::is_none));
+    /// assert_eq!(w.stopped, None);
+    /// ```
     pub const fn new() -> Self {
         Walk {
             twice: [None; N],
@@ -466,6 +799,24 @@ impl<W: Word, const N: usize> Clone for Walk<W, N> {
 /// terms each hop uses depends only on the topology and on which slaves have latches, never on
 /// stamp values, so on symbolic stamps the walk is one straight-line formula per topology.
 /// `Err` only for a reference without latches or mismatched lengths (checked before any hop).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError, WalkSlave};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let slaves = samples.map(|s| WalkSlave::from_sample(&s));
+/// let walk = delay::walk(&slaves, &topo, 0)?;
+/// // `compute` is this walk on u64, halved once.
+/// assert_eq!(walk.twice[1].map(|(twice, _)| twice / 2), Some(500));
+/// # Ok::<(), DelayError>(())
+/// ```
 pub fn walk<W: Word, const N: usize>(
     slaves: &[WalkSlave<W>],
     topology: &Topology<N>,
@@ -480,6 +831,25 @@ pub fn walk<W: Word, const N: usize>(
 /// stack. On `Ok`, `out` equals what `walk` returns; on `Err` its contents are unspecified.
 /// While the walk runs, `out.twice` holds each latched slave's doubled delay from the root
 /// (the hops read their ancestors' there); it becomes relative to `reference` at the end.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::{self, DelayError, Walk, WalkSlave};
+/// use ecdc_core::dc::topology::{SlaveSample, Topology};
+///
+/// let samples = [
+///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
+///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
+/// ];
+/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
+/// let slaves = samples.map(|s| WalkSlave::from_sample(&s));
+/// let mut out = Walk::<u64, 8>::new();
+/// delay::walk_in_place(&slaves, &topo, 1, &mut out)?;
+/// // Relative to slave 1: slave 0 is 500 ns earlier, so twice that is −1000.
+/// assert_eq!(out.twice[0], Some(((-1_000i64) as u64, false)));
+/// # Ok::<(), DelayError>(())
+/// ```
 pub fn walk_in_place<W: Word, const N: usize>(
     slaves: &[WalkSlave<W>],
     topology: &Topology<N>,
@@ -646,6 +1016,17 @@ fn hop_result(hop: &HopChecks<u64>, c: u16) -> Result<(), DelayError> {
 }
 
 /// Result of [`twice_delay_step`]: the doubled delay and the checks, as N-bit words and flags.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::twice_delay_step;
+///
+/// // a is the root; the excursion behind its port is 1 200 ns, c's own round trip 200 ns.
+/// let step = twice_delay_step::<u64>(0, 0, 1_200, 200, 0, 0, 0);
+/// assert_eq!((step.hop2, step.abs2), (1_000, 1_000));
+/// assert!(!step.inconsistent && !step.negative_hop);
+/// ```
 #[derive(Clone, Copy)]
 pub struct HopStep<W: Word> {
     /// Twice the delay of `c` from the root: `abs_a + 2·before + hop2` (mod 2^N).
@@ -671,6 +1052,20 @@ pub struct HopStep<W: Word> {
 /// trip, `corr_a`/`corr_c` = the t_Diff of a/c where its hop is a processing hop (else 0),
 /// `non_dc` = the signed sum of the non-DC slaves' t_Diff between them (see the module doc).
 /// Each overflow flag is exactly what the corresponding `i64::checked_*` would report.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::delay::twice_delay_step;
+///
+/// // a's own delay from the root is 300 ns (abs_a = 600), it held the frame 50 ns before
+/// // sending towards c, and a's processing hop adds t_Diff = 20 ns.
+/// let step = twice_delay_step::<u64>(600, 50, 1_000, 0, 20, 0, 0);
+/// assert_eq!(step.hop2, 1_020);
+/// assert_eq!(step.abs2, 600 + 2 * 50 + 1_020);
+/// // c's round trip longer than the excursion a saw: stale latches.
+/// assert!(twice_delay_step::<u64>(0, 0, 100, 200, 0, 0, 0).inconsistent);
+/// ```
 #[inline]
 pub fn twice_delay_step<W: Word>(
     abs_a: W,
