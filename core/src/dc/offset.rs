@@ -26,6 +26,18 @@ use crate::num::{low32, Word};
 use crate::time::SystemTime;
 
 /// Width of a slave's DC clock (ESC features 0x0008 bit 3).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::ClockWidth;
+/// use ecdc_core::wire::register::EscFeatures;
+///
+/// // ESC features 0x000C: DC with 64-bit system time.
+/// let width = ClockWidth::from_features(0x000C);
+/// assert_eq!(width, ClockWidth::Bits64);
+/// assert_eq!(width.bytes(), EscFeatures(0x000C).dc_time_width());
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ClockWidth {
     /// 32-bit system time: 0x0910, 0x0920 and 0x0990 are 4 bytes wide.
@@ -36,6 +48,15 @@ pub enum ClockWidth {
 
 impl ClockWidth {
     /// From ESC features 0x0008 (bit 3 set = 64-bit).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::ClockWidth;
+    ///
+    /// assert_eq!(ClockWidth::from_features(0x000C), ClockWidth::Bits64);
+    /// assert_eq!(ClockWidth::from_features(0x0004), ClockWidth::Bits32);
+    /// ```
     pub const fn from_features(features: u16) -> ClockWidth {
         if features & 0x0008 != 0 {
             ClockWidth::Bits64
@@ -45,6 +66,15 @@ impl ClockWidth {
     }
 
     /// Register width in bytes (4 or 8).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::ClockWidth;
+    ///
+    /// assert_eq!(ClockWidth::Bits32.bytes(), 4);
+    /// assert_eq!(ClockWidth::Bits64.bytes(), 8);
+    /// ```
     pub const fn bytes(self) -> usize {
         match self {
             ClockWidth::Bits32 => 4,
@@ -55,6 +85,16 @@ impl ClockWidth {
 
 /// A little-endian register image of exactly the slave's width: write `as_slice()` as the
 /// datagram data, never more (REQ-CONV-003).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::{ClockWidth, WidthValue};
+///
+/// // The datagram data for 0x0920 on a 32-bit slave: 4 bytes, never 8.
+/// let image = WidthValue::new(0x1_0000_0500, ClockWidth::Bits32).to_register();
+/// assert_eq!(image.as_slice(), [0x00, 0x05, 0x00, 0x00]);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct RegisterBytes {
     buf: [u8; 8],
@@ -63,6 +103,14 @@ pub struct RegisterBytes {
 
 impl RegisterBytes {
     /// A 4-byte image.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::RegisterBytes;
+    ///
+    /// assert_eq!(RegisterBytes::u32(1_000_000).as_slice(), 1_000_000u32.to_le_bytes());
+    /// ```
     pub const fn u32(v: u32) -> RegisterBytes {
         let b = v.to_le_bytes();
         RegisterBytes {
@@ -72,6 +120,14 @@ impl RegisterBytes {
     }
 
     /// An 8-byte image.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::RegisterBytes;
+    ///
+    /// assert_eq!(RegisterBytes::u64(1).as_slice(), [1, 0, 0, 0, 0, 0, 0, 0]);
+    /// ```
     pub const fn u64(v: u64) -> RegisterBytes {
         RegisterBytes {
             buf: v.to_le_bytes(),
@@ -80,12 +136,31 @@ impl RegisterBytes {
     }
 
     /// The bytes to write (4 or 8).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::RegisterBytes;
+    ///
+    /// assert_eq!(RegisterBytes::u32(7).as_slice().len(), 4);
+    /// assert_eq!(RegisterBytes::u64(7).as_slice().len(), 8);
+    /// ```
     pub fn as_slice(&self) -> &[u8] {
         self.buf.get(..usize::from(self.len)).unwrap_or(&[])
     }
 }
 
 /// A time-like register value of a DC slave's width (0x0920 offset, 0x0990 start time).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::{ClockWidth, WidthValue};
+///
+/// let v = WidthValue::new(0x1_2345_6789, ClockWidth::Bits32);
+/// assert_eq!(v, WidthValue::Bits32(0x2345_6789));
+/// assert_eq!(v.as_u64(), 0x2345_6789);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum WidthValue {
     /// For a 32-bit slave: the low 32 bits.
@@ -96,6 +171,15 @@ pub enum WidthValue {
 
 impl WidthValue {
     /// The value reduced to `width`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::{ClockWidth, WidthValue};
+    ///
+    /// assert_eq!(WidthValue::new(0x1_0000_0001, ClockWidth::Bits64), WidthValue::Bits64(0x1_0000_0001));
+    /// assert_eq!(WidthValue::new(0x1_0000_0001, ClockWidth::Bits32), WidthValue::Bits32(1));
+    /// ```
     pub fn new(value: u64, width: ClockWidth) -> WidthValue {
         match width {
             ClockWidth::Bits32 => WidthValue::Bits32(low32(value)),
@@ -104,6 +188,15 @@ impl WidthValue {
     }
 
     /// The register image, exactly 4 or 8 bytes.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::WidthValue;
+    ///
+    /// assert_eq!(WidthValue::Bits64(0x0102).to_register().as_slice(), [2, 1, 0, 0, 0, 0, 0, 0]);
+    /// assert_eq!(WidthValue::Bits32(0x0102).to_register().as_slice(), [2, 1, 0, 0]);
+    /// ```
     pub fn to_register(self) -> RegisterBytes {
         match self {
             WidthValue::Bits32(v) => RegisterBytes::u32(v),
@@ -112,6 +205,14 @@ impl WidthValue {
     }
 
     /// The value zero-extended to 64 bits.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::offset::WidthValue;
+    ///
+    /// assert_eq!(WidthValue::Bits32(u32::MAX).as_u64(), 0xFFFF_FFFF);
+    /// ```
     pub fn as_u64(self) -> u64 {
         match self {
             WidthValue::Bits32(v) => u64::from(v),
@@ -123,6 +224,18 @@ impl WidthValue {
 /// REQ-DC-022: the 64-bit local time at which the latch frame entered the slave through
 /// `entry`. Exact whenever the EPU stamp follows the entry stamp by less than 2^32 ns (it
 /// follows by at most one round trip through the slave's subtree).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{offset, port::Port, topology::Latches};
+///
+/// // Entered through port 1 at local 0x…_0000_0100; the EPU stamped it 300 ns later.
+/// let latches = Latches::from_raw([0x0000_0400, 0x0000_0100, 0, 0], 0x5_0000_0400);
+/// assert_eq!(offset::entry_local_time(&latches, Port::P1), 0x5_0000_0100);
+/// // Through port 0 the EPU stamp is the entry time itself.
+/// assert_eq!(offset::entry_local_time(&latches, Port::P0), 0x5_0000_0400);
+/// ```
 pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
     // = epu − (low32(epu) − entry stamp mod 2^32); the kernel is SMT-proved (P4).
     crate::num::entry_local(latches.epu, u64::from(latches.at(entry).raw()))
@@ -132,6 +245,21 @@ pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
 /// `entry_local` (see [`entry_local_time`]), `delay_ns` after it passed the reference clock (the
 /// same value written to 0x0928; negative before the reference), when the master sampled
 /// `master_time` just before the latch. For the reference itself `delay_ns` is 0.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::{self, ClockWidth};
+/// use ecdc_core::time::SystemTime;
+///
+/// // The master sampled 1 s before the latch; the frame reached the slave 500 ns after the
+/// // reference clock, at the slave's local time 90 000.
+/// let master = SystemTime::from_nanos(1_000_000_000);
+/// let off = offset::initial_offset(master, 500, 90_000, ClockWidth::Bits64);
+/// // The slave's system time at that instant = the reference's then.
+/// assert_eq!(90_000u64.wrapping_add(off.as_u64()), 1_000_000_500);
+/// assert_eq!(off.to_register().as_slice().len(), 8);
+/// ```
 pub fn initial_offset(
     master_time: SystemTime,
     delay_ns: i64,
@@ -151,6 +279,18 @@ pub fn initial_offset(
 /// [`Word`] so the P4 SMT proof runs this code: `(master + delay) − entry_local` modulo 2^N
 /// (`delay` two's complement), reduced to the low 32 bits for a 32-bit slave. `initial_offset`
 /// runs it on `u64`; the reduction makes its `WidthValue::new` a plain type conversion.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::{self, ClockWidth, WidthValue};
+/// use ecdc_core::time::SystemTime;
+///
+/// let w = offset::initial_offset_word::<u64>(1_000_000_000, 500, 0x1_0000_0000, ClockWidth::Bits32);
+/// assert!(w <= u64::from(u32::MAX)); // reduced for a 32-bit slave
+/// let v = offset::initial_offset(SystemTime(1_000_000_000), 500, 0x1_0000_0000, ClockWidth::Bits32);
+/// assert_eq!(WidthValue::Bits32(w as u32), v);
+/// ```
 #[inline]
 pub fn initial_offset_word<W: Word>(master: W, delay: W, entry_local: W, width: ClockWidth) -> W {
     let offset = crate::num::offset_to(master.wrapping_add(delay), entry_local);
@@ -163,6 +303,18 @@ pub fn initial_offset_word<W: Word>(master: W, delay: W, entry_local: W, width: 
 /// REQ-DC-024: re-offset without a new latch (IgH style): given the offset currently in 0x0920
 /// and a system time read back from the slave when the reference's system time was
 /// `reference_time`, the offset that removes the difference. Computed modulo the slave's width.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::{self, WidthValue};
+/// use ecdc_core::time::SystemTime;
+///
+/// // The slave's system time read 1 000 050 while the reference read 1 000 000: 50 ns ahead.
+/// let current = WidthValue::Bits64(200);
+/// let new = offset::corrected_offset(current, 1_000_050, SystemTime(1_000_000));
+/// assert_eq!(new, WidthValue::Bits64(150));
+/// ```
 pub fn corrected_offset(
     current: WidthValue,
     read_system_time: u64,
@@ -186,6 +338,16 @@ pub fn corrected_offset(
 /// under running outputs, which can make it miss SYNC pulses until a 32-bit clock wraps (~4 s)
 /// or, on a 64-bit clock, forever (IgH Lambert patch 0009, docs/background/masters-dc.md §2.3 item 7). Unknown states
 /// count as running.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::offset::offset_write_permitted;
+///
+/// assert!(offset_write_permitted(0x0002)); // PRE-OP
+/// assert!(!offset_write_permitted(0x0008)); // OP: would move a running SYNC grid
+/// assert!(!offset_write_permitted(0x0000)); // unknown: treated as running
+/// ```
 pub const fn offset_write_permitted(al_status: u16) -> bool {
     matches!(al_status & 0x000F, 0x1..=0x3)
 }
