@@ -22,6 +22,19 @@ use crate::time::SystemTime;
 pub const MAX_START_LEAD_NS: u64 = 1 << 31;
 
 /// Why a SYNC start could not be computed.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::sync::{self, SyncError};
+/// use ecdc_core::time::SystemTime;
+///
+/// assert_eq!(sync::start_time(SystemTime(0), 100_000_000, 0, 0), Err(SyncError::ZeroCycle));
+/// assert_eq!(
+///     sync::start_time(SystemTime(0), 3_000_000_000, 1_000_000, 0),
+///     Err(SyncError::StartOutOfWindow) // 3 s ahead: a 32-bit slave would not accept it
+/// );
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum SyncError {
@@ -68,6 +81,19 @@ impl std::error::Error for SyncError {}
 /// 32-bit reference only the low 32 bits are meaningful; they are widened to the 64-bit time
 /// nearest `estimate` (the master's own estimate of system time, e.g. its latch sample plus the
 /// elapsed time), which is exact while the estimate is within ±2^31 ns.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{offset::ClockWidth, sync};
+/// use ecdc_core::time::SystemTime;
+///
+/// // A 32-bit reference read 0x100 just after its clock wrapped; the master's estimate is
+/// // slightly earlier.
+/// let estimate = SystemTime(0x7_FFFF_FF00);
+/// assert_eq!(sync::reference_now(0x100, ClockWidth::Bits32, estimate), SystemTime(0x8_0000_0100));
+/// assert_eq!(sync::reference_now(0x100, ClockWidth::Bits64, estimate), SystemTime(0x100));
+/// ```
 pub fn reference_now(read: u64, width: ClockWidth, estimate: SystemTime) -> SystemTime {
     match width {
         ClockWidth::Bits64 => SystemTime(read),
@@ -79,6 +105,20 @@ pub fn reference_now(read: u64, width: ClockWidth, estimate: SystemTime) -> Syst
 /// `margin_ns` the minimum lead (time to deliver the writes to every slave; IgH and SOEM use
 /// 100 ms), `period_ns` the grid period (the bus cycle, or a common multiple of the slaves'
 /// SYNC0 cycles) and `shift_ns` the SYNC0 shift relative to the grid.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::sync::{self, SyncError};
+/// use ecdc_core::time::SystemTime;
+///
+/// // 1 ms cycle, 100 ms margin, SYNC0 200 µs after the grid.
+/// let now = SystemTime(5_000_250_000);
+/// let start = sync::start_time(now, 100_000_000, 1_000_000, 200_000)?;
+/// assert_eq!(start, SystemTime(5_101_200_000));
+/// assert_eq!(start.phase_in(1_000_000), Some(200_000));
+/// # Ok::<(), SyncError>(())
+/// ```
 pub fn start_time(
     now: SystemTime,
     margin_ns: u64,
@@ -112,17 +152,49 @@ pub fn start_time(
 }
 
 /// REQ-DC-052: the 0x0990 image for a slave of `width` (8 bytes, or the low 32 bits in 4).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{offset::ClockWidth, sync};
+/// use ecdc_core::time::SystemTime;
+///
+/// let start = SystemTime(0x1_0000_0010);
+/// assert_eq!(sync::start_time_register(start, ClockWidth::Bits32).as_slice(), [0x10, 0, 0, 0]);
+/// assert_eq!(sync::start_time_register(start, ClockWidth::Bits64).as_slice().len(), 8);
+/// ```
 pub fn start_time_register(start: SystemTime, width: ClockWidth) -> RegisterBytes {
     WidthValue::new(start.as_nanos(), width).to_register()
 }
 
 /// REQ-DC-053: the 0x09A0 (SYNC0 cycle) or 0x09A4 (SYNC1 cycle) image: exactly 4 bytes.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::sync;
+///
+/// // 0x09A0 for a 1 ms SYNC0 cycle: 4 bytes, so nothing spills into 0x09A4.
+/// assert_eq!(sync::cycle_register(1_000_000).as_slice(), [0x40, 0x42, 0x0F, 0x00]);
+/// ```
 pub fn cycle_register(cycle_ns: u32) -> RegisterBytes {
     RegisterBytes::u32(cycle_ns)
 }
 
 /// The two activation registers, from an ESI-style AssignActivate word (low byte → 0x0980,
 /// high byte → 0x0981; e.g. 0x0300 = SYNC0, 0x0700 = SYNC0 + SYNC1).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::sync::Activation;
+///
+/// // The ESI's AssignActivate 0x0300: sync unit and SYNC0 on, cyclic unit kept by the master.
+/// let a = Activation::from_assign_activate(0x0300, 0x000C)?;
+/// assert_eq!((a.cyclic_unit_control, a.activation), (0x00, 0x03));
+/// assert!(a.sync0() && !a.sync1());
+/// # Ok::<(), ecdc_core::dc::sync::SyncError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Activation {
     /// 0x0980 Cyclic Unit Control.
@@ -137,6 +209,19 @@ impl Activation {
     pub const OFF: u8 = 0;
 
     /// REQ-DC-054: validates an AssignActivate word for an ESC with the given features 0x0008.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::sync::{Activation, SyncError};
+    ///
+    /// assert!(Activation::from_assign_activate(0x0700, 0x000C)?.sync1());
+    /// // SYNC0 without the sync unit bit.
+    /// assert_eq!(Activation::from_assign_activate(0x0200, 0x000C), Err(SyncError::SyncWithoutUnit));
+    /// // Enhanced activation bits on an ESC without them (features bit 8 clear).
+    /// assert_eq!(Activation::from_assign_activate(0x0B00, 0x000C), Err(SyncError::EnhancedUnsupported));
+    /// # Ok::<(), SyncError>(())
+    /// ```
     pub fn from_assign_activate(assign_activate: u16, features: u16) -> Result<Self, SyncError> {
         let [low, high] = assign_activate.to_le_bytes();
         if low & 0x01 != 0 {
@@ -160,16 +245,44 @@ impl Activation {
 
     /// The 2-byte image for one write at 0x0980 covering 0x0980 and 0x0981 (IgH style), in
     /// register order. Use it only after 0x0990/0x09A0/0x09A4 are written (REQ-DC-034).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::sync::Activation;
+    ///
+    /// let a = Activation::from_assign_activate(0x0700, 0x000C)?;
+    /// assert_eq!(a.to_register(), [0x00, 0x07]); // 0x0980, 0x0981
+    /// # Ok::<(), ecdc_core::dc::sync::SyncError>(())
+    /// ```
     pub const fn to_register(self) -> [u8; 2] {
         [self.cyclic_unit_control, self.activation]
     }
 
     /// Whether SYNC0 is enabled (0x0981 bit 1).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::sync::Activation;
+    ///
+    /// assert!(Activation { cyclic_unit_control: 0, activation: 0x03 }.sync0());
+    /// assert!(!Activation { cyclic_unit_control: 0, activation: Activation::OFF }.sync0());
+    /// ```
     pub const fn sync0(self) -> bool {
         self.activation & 0x02 != 0
     }
 
     /// Whether SYNC1 is enabled (0x0981 bit 2).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::sync::Activation;
+    ///
+    /// assert!(Activation { cyclic_unit_control: 0, activation: 0x07 }.sync1());
+    /// assert!(!Activation { cyclic_unit_control: 0, activation: 0x03 }.sync1());
+    /// ```
     pub const fn sync1(self) -> bool {
         self.activation & 0x04 != 0
     }
