@@ -25,12 +25,36 @@ pub const MARGIN: i64 = ONE >> 10;
 
 /// A closed-loop pole on the real axis in [0, 1), as a Q32 fraction (`u32`, so p < 1 holds by
 /// construction). p = 0 is dead-beat; p → 1 is an ever slower, quieter loop.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+///
+/// // The error decays as 0.5^k: a dead-beat-ish, fast loop.
+/// let p = Pole::from_micro(500_000)?;
+/// assert_eq!(p.q32(), 1 << 31);
+/// let g = PiGains::double_pole(p)?;
+/// assert_eq!((g.kp(), g.ki()), (3 * ONE / 4, ONE / 4));
+/// # Ok::<(), ecdc_core::servo::GainError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Pole(u32);
 
 impl Pole {
     /// The pole at `micro` / 1 000 000 (e.g. 990 000 = 0.99). Refuses ≥ 1.0: a pole on or
     /// outside the unit circle never converges.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::{GainError, Pole};
+    ///
+    /// // 0.99 at a 1 kHz cycle: a ~100 ms time constant.
+    /// assert_eq!(Pole::from_micro(990_000)?.q32(), 4_252_017_623);
+    /// assert_eq!(Pole::from_micro(1_000_000), Err(GainError::PoleOutsideUnitInterval));
+    /// # Ok::<(), GainError>(())
+    /// ```
     pub fn from_micro(micro: u32) -> Result<Self, GainError> {
         if micro >= 1_000_000 {
             return Err(GainError::PoleOutsideUnitInterval);
@@ -43,17 +67,46 @@ impl Pole {
     }
 
     /// The pole with raw Q32 value `raw` (p = raw / 2^32).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::Pole;
+    ///
+    /// assert_eq!(Pole::from_q32(1 << 31), Pole::from_micro(500_000)?);
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub const fn from_q32(raw: u32) -> Self {
         Pole(raw)
     }
 
     /// Raw Q32 value.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::Pole;
+    ///
+    /// assert_eq!(Pole::from_micro(250_000)?.q32(), 1 << 30);
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub const fn q32(self) -> u32 {
         self.0
     }
 }
 
 /// Why a gain set was refused.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::{GainError, PiGains, ONE};
+///
+/// // Kp = 1, Ki = 2: linuxptp's corner with a pole at z = −1, refused.
+/// assert_eq!(PiGains::from_q32(ONE, 2 * ONE), Err(GainError::JuryViolated));
+/// assert_eq!(PiGains::from_q32(ONE, 0), Err(GainError::KiNotPositive));
+/// assert_eq!(PiGains::from_q32(0, ONE), Err(GainError::KpOutOfRange));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GainError {
     /// A pole was given at or beyond 1.0.
@@ -67,6 +120,18 @@ pub enum GainError {
 }
 
 /// Admissible per-sample PI gains (normalised: the P and I gains per sample, dimensionless).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+///
+/// // Critically damped, pole 0.9: Kp = 1 − 0.81 = 0.19, Ki = 0.1² = 0.01.
+/// let g = PiGains::double_pole(Pole::from_micro(900_000)?)?;
+/// assert_eq!((g.kp() * 100 + ONE / 2) / ONE, 19); // Kp ≈ 0.19 (Q32, rounded)
+/// assert_eq!((g.ki() * 100 + ONE / 2) / ONE, 1); // Ki ≈ 0.01
+/// # Ok::<(), ecdc_core::servo::GainError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PiGains {
     kp: i64,
@@ -77,6 +142,20 @@ impl PiGains {
     /// REQ-SERVO-001: Kp = 1 − p₁p₂, Ki = (1 − p₁)(1 − p₂), then the REQ-SERVO-002 check
     /// (which real poles in [0, 1) pass unless Ki rounds to zero, i.e. a pole within 2^-32 of
     /// 1, or both poles are so near 1 that Kp < MARGIN).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+    ///
+    /// // Both poles at 0: dead-beat, Kp = Ki = 1.
+    /// let g = PiGains::from_poles(Pole::from_q32(0), Pole::from_q32(0))?;
+    /// assert_eq!((g.kp(), g.ki()), (ONE, ONE));
+    /// // Poles 0.5 and 0: Kp = 1, Ki = 0.5.
+    /// let g = PiGains::from_poles(Pole::from_q32(1 << 31), Pole::from_q32(0))?;
+    /// assert_eq!((g.kp(), g.ki()), (ONE, ONE / 2));
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub fn from_poles(p1: Pole, p2: Pole) -> Result<Self, GainError> {
         let (a, b) = (u128::from(p1.0), u128::from(p2.0));
         let one = 1u128 << FRAC_BITS;
@@ -90,12 +169,33 @@ impl PiGains {
     }
 
     /// Critically damped design: a double pole at `p` (Kp = 1 − p², Ki = (1 − p)²).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::{PiGains, Pole};
+    ///
+    /// let p = Pole::from_micro(990_000)?;
+    /// assert_eq!(PiGains::double_pole(p)?, PiGains::from_poles(p, p)?);
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub fn double_pole(p: Pole) -> Result<Self, GainError> {
         Self::from_poles(p, p)
     }
 
     /// REQ-SERVO-002: raw Q32 gains, accepted only inside the Jury stability region with margin:
     /// MARGIN ≤ Kp ≤ 2 − MARGIN, Ki ≥ 1 LSB, 2·Kp + Ki ≤ 4 − MARGIN.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::{PiGains, ONE};
+    ///
+    /// // Kp = 0.5, Ki = 0.125, given directly.
+    /// let g = PiGains::from_q32(ONE / 2, ONE / 8)?;
+    /// assert_eq!(g.kp(), ONE / 2);
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub fn from_q32(kp: i64, ki: i64) -> Result<Self, GainError> {
         const KP_MAX: i64 = 2 * ONE - MARGIN;
         const SUM_MAX: i64 = 4 * ONE - MARGIN;
@@ -117,11 +217,29 @@ impl PiGains {
     }
 
     /// Kp in Q32; always in [MARGIN, 2 − MARGIN].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::{PiGains, ONE};
+    ///
+    /// assert_eq!(PiGains::from_q32(ONE / 2, ONE / 8)?.kp(), ONE / 2);
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub const fn kp(self) -> i64 {
         self.kp
     }
 
     /// Ki in Q32; always in [1, 4 − MARGIN).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::{PiGains, ONE};
+    ///
+    /// assert_eq!(PiGains::from_q32(ONE / 2, ONE / 8)?.ki(), ONE / 8);
+    /// # Ok::<(), ecdc_core::servo::GainError>(())
+    /// ```
     pub const fn ki(self) -> i64 {
         self.ki
     }
