@@ -14,6 +14,18 @@ pub const CARRY_X_MAX: i64 = 1 << 62;
 
 /// Fractional remainder in [0, 1), Q32. The type itself is the invariant: a `u32` cannot hold
 /// anything outside [0, 2^32).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::carry::Carry;
+/// use ecdc_core::servo::gains::ONE;
+///
+/// // A command of 0.5 per period becomes 0, 1, 0, 1: the sum stays exact.
+/// let mut c = Carry::new();
+/// let out = [ONE / 2; 4].map(|x| c.quantize(x));
+/// assert_eq!(out, [0, 1, 0, 1]);
+/// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Carry {
     r: u32,
@@ -21,16 +33,47 @@ pub struct Carry {
 
 impl Carry {
     /// A quantiser with zero remainder.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::carry::Carry;
+    ///
+    /// assert_eq!(Carry::new().remainder(), 0);
+    /// ```
     pub const fn new() -> Self {
         Carry { r: 0 }
     }
 
     /// The remainder r in Q32, in [0, 2^32).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::carry::Carry;
+    /// use ecdc_core::servo::gains::ONE;
+    ///
+    /// let mut c = Carry::new();
+    /// assert_eq!(c.quantize(ONE + ONE / 4), 1);
+    /// assert_eq!(c.remainder(), 1 << 30); // 0.25 carried
+    /// ```
     pub const fn remainder(self) -> u32 {
         self.r
     }
 
     /// REQ-SERVO-040: emit ⌊x + r⌋ for a Q32 value `x`, keep the fraction.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::carry::Carry;
+    /// use ecdc_core::servo::gains::ONE;
+    ///
+    /// let mut c = Carry::new();
+    /// // −0.25 floors to −1 and carries +0.75; the next −0.25 then yields 0.
+    /// assert_eq!(c.quantize(-ONE / 4), -1);
+    /// assert_eq!(c.quantize(-ONE / 4), 0);
+    /// ```
     pub fn quantize(&mut self, x_q32: i64) -> i64 {
         let x = x_q32.clamp(CARRY_X_MAX.wrapping_neg(), CARRY_X_MAX);
         // |x| ≤ 2^62, r < 2^32: the sum fits in i64.
@@ -43,6 +86,18 @@ impl Carry {
     }
 
     /// Forget the remainder (after a step, so no stale fraction leaks into the new phase).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::carry::Carry;
+    /// use ecdc_core::servo::gains::ONE;
+    ///
+    /// let mut c = Carry::new();
+    /// c.quantize(ONE / 2);
+    /// c.reset(); // after a clock step
+    /// assert_eq!(c, Carry::new());
+    /// ```
     pub fn reset(&mut self) {
         self.r = 0;
     }
