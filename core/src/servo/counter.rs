@@ -21,6 +21,16 @@ pub const DELTA_MAX_NS: i64 = 1 << 40;
 pub const COUNT_HZ_MAX: u64 = 1 << 34;
 
 /// Why a compensator configuration was refused.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::counter::{CounterCompensator, CounterError};
+///
+/// assert_eq!(CounterCompensator::new(0, 1), Err(CounterError::CountRate));
+/// // 25 MHz × 1000 = 25 GHz is above the supported 2^34 Hz.
+/// assert_eq!(CounterCompensator::new(25_000_000, 1_000), Err(CounterError::CountRate));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum CounterError {
     /// f_slave·Npll must be in [1, COUNT_HZ_MAX].
@@ -28,6 +38,18 @@ pub enum CounterError {
 }
 
 /// Per-period counter compensation with carried remainder.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::counter::CounterCompensator;
+///
+/// // 25 MHz crystal, no PLL: one count is 40 ns. The slave gains 100 ns per period, i.e. 2.5
+/// // counts to drop; the carried half count makes the periods alternate −3, −2.
+/// let mut comp = CounterCompensator::new(25_000_000, 1)?;
+/// assert_eq!([comp.per_period(100), comp.per_period(100)], [-3, -2]);
+/// # Ok::<(), ecdc_core::servo::counter::CounterError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct CounterCompensator {
     count_hz: u64,
@@ -36,6 +58,16 @@ pub struct CounterCompensator {
 
 impl CounterCompensator {
     /// A compensator for a crystal of `crystal_hz` multiplied by `npll` (eq. 18's Npll).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::counter::CounterCompensator;
+    ///
+    /// let comp = CounterCompensator::new(25_000_000, 4)?; // 100 MHz fine counts
+    /// assert_eq!(comp.remainder(), 0);
+    /// # Ok::<(), ecdc_core::servo::counter::CounterError>(())
+    /// ```
     pub fn new(crystal_hz: u64, npll: u32) -> Result<Self, CounterError> {
         let count_hz = crystal_hz
             .checked_mul(u64::from(npll))
@@ -49,6 +81,17 @@ impl CounterCompensator {
 
     /// Exact correction −Δ·count_hz/10^9 in Q32 fine counts (rounded toward −∞), clamped to
     /// the carry input range. |Δ|·count_hz·2^32 ≤ 2^40·2^34·2^32 = 2^106 fits in i128.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::counter::CounterCompensator;
+    /// use ecdc_core::servo::gains::ONE;
+    ///
+    /// let comp = CounterCompensator::new(25_000_000, 1)?;
+    /// assert_eq!(comp.exact_q32(100), -5 * ONE / 2); // −2.5 counts
+    /// # Ok::<(), ecdc_core::servo::counter::CounterError>(())
+    /// ```
     pub fn exact_q32(&self, delta_ns: i64) -> i64 {
         let d = i128::from(delta_ns.clamp(-DELTA_MAX_NS, DELTA_MAX_NS));
         let num = d
@@ -62,6 +105,17 @@ impl CounterCompensator {
 
     /// REQ-SERVO-041: the fine counts N' to add to the slave counter this period (negative:
     /// drop counts) for a measured drift of `delta_ns` over the period.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::counter::CounterCompensator;
+    ///
+    /// let mut comp = CounterCompensator::new(25_000_000, 1)?;
+    /// // Slave 40 ns slow per period: add one count.
+    /// assert_eq!(comp.per_period(-40), 1);
+    /// # Ok::<(), ecdc_core::servo::counter::CounterError>(())
+    /// ```
     pub fn per_period(&mut self, delta_ns: i64) -> i64 {
         let x = self.exact_q32(delta_ns);
         self.carry.quantize(x)
@@ -69,6 +123,18 @@ impl CounterCompensator {
 
     /// As [`Self::per_period`] for a drift given in Q32 ns (a servo command), so the servo's
     /// fractional ns are not floored away before the conversion. |Δ| is clamped to 2^60.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::counter::CounterCompensator;
+    /// use ecdc_core::servo::gains::ONE;
+    ///
+    /// let mut a = CounterCompensator::new(25_000_000, 1)?;
+    /// let mut b = a;
+    /// assert_eq!(a.per_period_q32(100 * ONE), b.per_period(100));
+    /// # Ok::<(), ecdc_core::servo::counter::CounterError>(())
+    /// ```
     pub fn per_period_q32(&mut self, delta_q32: i64) -> i64 {
         let d = i128::from(delta_q32.clamp(-(1 << 60), 1 << 60));
         // |Δ|·count_hz ≤ 2^60·2^34 = 2^94: fits in i128.
@@ -82,6 +148,17 @@ impl CounterCompensator {
     }
 
     /// The carried remainder, Q32 fine counts in [0, 2^32).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::counter::CounterCompensator;
+    ///
+    /// let mut comp = CounterCompensator::new(25_000_000, 1)?;
+    /// comp.per_period(100); // −2.5 counts: −3 emitted, +0.5 carried
+    /// assert_eq!(comp.remainder(), 1 << 31);
+    /// # Ok::<(), ecdc_core::servo::counter::CounterError>(())
+    /// ```
     pub const fn remainder(&self) -> u32 {
         self.carry.remainder()
     }
