@@ -24,6 +24,18 @@ const M_Q16: i64 = FILTER_X_MAX << FILTER_FRAC;
 
 /// Two-pole offset filter state (REQ-SERVO-030). Primes on the first sample so a large initial
 /// offset does not ring through as a start-up transient from zero.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::filter::OffsetFilter;
+///
+/// // The first sample primes the filter; a drop to 0 then comes through smoothly.
+/// let mut f = OffsetFilter::new();
+/// assert_eq!(f.update(100), 100);
+/// assert_eq!(f.update(0), 67);
+/// assert_eq!(f.update(0), 39);
+/// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct OffsetFilter {
     u: i64,
@@ -33,6 +45,15 @@ pub struct OffsetFilter {
 
 impl OffsetFilter {
     /// An unprimed filter.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::filter::OffsetFilter;
+    ///
+    /// let f = OffsetFilter::new();
+    /// assert_eq!((f.output(), f.state_q16()), (0, (0, 0)));
+    /// ```
     pub const fn new() -> Self {
         OffsetFilter {
             u: 0,
@@ -42,11 +63,32 @@ impl OffsetFilter {
     }
 
     /// Raw state (U, Y) in Q16 ns, for proofs and diagnostics.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::filter::OffsetFilter;
+    ///
+    /// let mut f = OffsetFilter::new();
+    /// f.update(100);
+    /// assert_eq!(f.state_q16(), (100 << 16, 100 << 16));
+    /// ```
     pub const fn state_q16(&self) -> (i64, i64) {
         (self.u, self.y)
     }
 
     /// Rebuild from raw Q16 state (clamped to the invariant range), for proofs.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::filter::OffsetFilter;
+    ///
+    /// let mut f = OffsetFilter::new();
+    /// f.update(100);
+    /// let (u, y) = f.state_q16();
+    /// assert_eq!(OffsetFilter::from_state_q16(u, y), f);
+    /// ```
     pub fn from_state_q16(u: i64, y: i64) -> Self {
         OffsetFilter {
             u: u.clamp(-M_Q16, M_Q16),
@@ -56,6 +98,18 @@ impl OffsetFilter {
     }
 
     /// REQ-SERVO-030: filter one offset sample (ns); returns YOffset(k), rounded to ns.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::filter::OffsetFilter;
+    ///
+    /// let mut f = OffsetFilter::new();
+    /// f.update(0);
+    /// // A step input never overshoots: the output climbs towards 90.
+    /// let out = [90; 6].map(|x| f.update(x));
+    /// assert!(out.windows(2).all(|w| w[0] <= w[1] && w[1] <= 90));
+    /// ```
     pub fn update(&mut self, offset_ns: i64) -> i64 {
         let x = offset_ns.clamp(-FILTER_X_MAX, FILTER_X_MAX) << FILTER_FRAC;
         if !self.primed {
@@ -72,11 +126,32 @@ impl OffsetFilter {
     }
 
     /// Current output rounded to the nearest ns (ties toward +∞).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::filter::OffsetFilter;
+    ///
+    /// let mut f = OffsetFilter::new();
+    /// f.update(-25);
+    /// assert_eq!(f.output(), -25);
+    /// ```
     pub fn output(&self) -> i64 {
         self.y.wrapping_add(1 << (FILTER_FRAC - 1)) >> FILTER_FRAC
     }
 
     /// Forget all history (after a clock step).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::filter::OffsetFilter;
+    ///
+    /// let mut f = OffsetFilter::new();
+    /// f.update(1_000);
+    /// f.reset(); // the clock was stepped: old offsets mean nothing now
+    /// assert_eq!(f.update(-40), -40);
+    /// ```
     pub fn reset(&mut self) {
         *self = Self::new();
     }
