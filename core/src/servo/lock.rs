@@ -6,6 +6,19 @@
 //! cannot make the flag chatter.
 
 /// Lock thresholds.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::lock::{LockConfig, LockDetector};
+///
+/// // Lock after 3 samples within 100 ns; drop only beyond 500 ns.
+/// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 3 }.validate()?;
+/// let mut lock = LockDetector::new();
+/// let states = [50, -60, 70, 300, -600].map(|theta| lock.update(&cfg, theta));
+/// assert_eq!(states, [false, false, true, true, false]);
+/// # Ok::<(), ecdc_core::servo::lock::LockError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LockConfig {
     /// |θ| below this counts toward lock, ns.
@@ -17,6 +30,15 @@ pub struct LockConfig {
 }
 
 /// Why a lock configuration was refused.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::lock::{LockConfig, LockError};
+///
+/// let bad = LockConfig { low_ns: 500, high_ns: 100, count: 3 };
+/// assert_eq!(bad.validate(), Err(LockError::Thresholds));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LockError {
     /// Need low ≤ high and count ≥ 1.
@@ -25,6 +47,16 @@ pub enum LockError {
 
 impl LockConfig {
     /// Validate low ≤ high, count ≥ 1.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::lock::{LockConfig, LockError};
+    ///
+    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 3 };
+    /// assert_eq!(cfg.validate(), Ok(cfg));
+    /// assert_eq!(LockConfig { count: 0, ..cfg }.validate(), Err(LockError::Thresholds));
+    /// ```
     pub fn validate(self) -> Result<Self, LockError> {
         if self.low_ns > self.high_ns || self.count == 0 {
             return Err(LockError::Thresholds);
@@ -34,6 +66,17 @@ impl LockConfig {
 }
 
 /// Lock state.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::lock::{LockConfig, LockDetector};
+///
+/// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 1 };
+/// let mut lock = LockDetector::new();
+/// assert!(lock.update(&cfg, 20));
+/// assert!(lock.is_locked());
+/// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct LockDetector {
     below: u16,
@@ -42,6 +85,14 @@ pub struct LockDetector {
 
 impl LockDetector {
     /// Unlocked, no history.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::lock::LockDetector;
+    ///
+    /// assert!(!LockDetector::new().is_locked());
+    /// ```
     pub const fn new() -> Self {
         LockDetector {
             below: 0,
@@ -50,11 +101,36 @@ impl LockDetector {
     }
 
     /// Current state.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
+    ///
+    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 2 };
+    /// let mut lock = LockDetector::new();
+    /// lock.update(&cfg, 20);
+    /// assert!(!lock.is_locked()); // one of two samples
+    /// lock.update(&cfg, 30);
+    /// assert!(lock.is_locked());
+    /// ```
     pub const fn is_locked(&self) -> bool {
         self.locked
     }
 
     /// Feed one accepted error; returns the new state.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
+    ///
+    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 2 };
+    /// let mut lock = LockDetector::new();
+    /// // A sample between the thresholds breaks the run towards lock.
+    /// let states = [20, 200, 20, 20].map(|theta| lock.update(&cfg, theta));
+    /// assert_eq!(states, [false, false, false, true]);
+    /// ```
     pub fn update(&mut self, cfg: &LockConfig, theta: i64) -> bool {
         let a = theta.unsigned_abs();
         if self.locked {
@@ -74,6 +150,18 @@ impl LockDetector {
     }
 
     /// Drop lock and history.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
+    ///
+    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 1 };
+    /// let mut lock = LockDetector::new();
+    /// lock.update(&cfg, 0);
+    /// lock.unlock(); // the clock was stepped
+    /// assert!(!lock.is_locked());
+    /// ```
     pub fn unlock(&mut self) {
         *self = Self::new();
     }
