@@ -11,6 +11,16 @@
 pub const GATE_WINDOW: usize = 16;
 
 /// Gate configuration.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gate::GateConfig;
+///
+/// // κ = 5 (5 · 1.4826 in Q8), 8 samples before arming, 3 same-side rejections confirm.
+/// let cfg = GateConfig { kappa_q8: 1898, floor_ns: 100, min_samples: 8, confirm: 3 };
+/// assert_eq!(cfg, GateConfig::with_floor(100));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct GateConfig {
     /// κ·1.4826 in Q8 (κ = 5 → 1898). 0 disables the gate.
@@ -25,6 +35,16 @@ pub struct GateConfig {
 
 impl GateConfig {
     /// κ = 5, floor as given, 8 samples before arming, confirm after 3 (ecdc choices).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::GateConfig;
+    ///
+    /// // For a 1 ms cycle the master servo uses a floor of P/100 = 10 µs.
+    /// let cfg = GateConfig::with_floor(10_000);
+    /// assert_eq!((cfg.floor_ns, cfg.confirm), (10_000, 3));
+    /// ```
     pub const fn with_floor(floor_ns: u32) -> Self {
         GateConfig {
             kappa_q8: 1898,
@@ -36,6 +56,21 @@ impl GateConfig {
 }
 
 /// What the gate decided about one sample.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gate::{Gate, GateConfig, GateVerdict};
+///
+/// let cfg = GateConfig::with_floor(100);
+/// let mut gate = Gate::new();
+/// for theta in [10, -10, 5, -5, 0, 8, -8, 2] {
+///     gate.push(theta);
+/// }
+/// // A 5 µs spike is rejected; three on the same side are a real change.
+/// let v = [5_000, 5_000, 5_000].map(|theta| gate.judge(&cfg, theta));
+/// assert_eq!(v, [GateVerdict::Reject, GateVerdict::Reject, GateVerdict::Confirmed]);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GateVerdict {
     /// Inside the threshold (or the gate is not armed): use it.
@@ -47,6 +82,23 @@ pub enum GateVerdict {
 }
 
 /// Gate state: a ring of recent accepted errors plus the current rejection run.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gate::{Gate, GateConfig, GateVerdict};
+///
+/// let cfg = GateConfig::with_floor(100);
+/// let mut gate = Gate::new();
+/// for theta in [10, -10, 5, -5, 0, 8, -8, 2] {
+///     // Judge first, record only what was accepted.
+///     if gate.judge(&cfg, theta) == GateVerdict::Accept {
+///         gate.push(theta);
+///     }
+/// }
+/// assert_eq!(gate.judge(&cfg, 50), GateVerdict::Accept);
+/// assert_eq!(gate.judge(&cfg, -5_000), GateVerdict::Reject);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Gate {
     buf: [i64; GATE_WINDOW],
@@ -177,6 +229,16 @@ fn count_below(s: &[i64; GATE_WINDOW], x: i64) -> usize {
 
 impl Gate {
     /// An empty, unarmed gate.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::{Gate, GateConfig};
+    ///
+    /// let gate = Gate::new();
+    /// assert!(gate.is_empty());
+    /// assert_eq!(gate.threshold(&GateConfig::with_floor(100)), None); // not armed
+    /// ```
     pub const fn new() -> Self {
         Gate {
             buf: [0; GATE_WINDOW],
@@ -189,16 +251,53 @@ impl Gate {
     }
 
     /// Number of samples in the window.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::{Gate, GATE_WINDOW};
+    ///
+    /// let mut gate = Gate::new();
+    /// for theta in 0..20 {
+    ///     gate.push(theta);
+    /// }
+    /// assert_eq!(gate.len(), GATE_WINDOW); // the window keeps the last 16
+    /// ```
     pub const fn len(&self) -> usize {
         self.len as usize
     }
 
     /// True when the window is empty.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::Gate;
+    ///
+    /// let mut gate = Gate::new();
+    /// assert!(gate.is_empty());
+    /// gate.push(3);
+    /// assert!(!gate.is_empty());
+    /// ```
     pub const fn is_empty(&self) -> bool {
         self.len == 0
     }
 
     /// (median, threshold) of the current window, or `None` while not armed.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::{Gate, GateConfig};
+    ///
+    /// let cfg = GateConfig::with_floor(100);
+    /// let mut gate = Gate::new();
+    /// for theta in [10, -10, 5, -5, 0, 8, -8, 2] {
+    ///     gate.push(theta);
+    /// }
+    /// // Median 0; κ·MAD of this quiet window is below the floor, so the floor rules.
+    /// assert_eq!(gate.threshold(&cfg), Some((0, 100)));
+    /// ```
     #[inline]
     pub fn threshold(&self, cfg: &GateConfig) -> Option<(i64, i64)> {
         let n = self.len();
@@ -226,6 +325,22 @@ impl Gate {
     /// The same decision as comparing |θ − median| with [`Gate::threshold`]'s max(κ·MAD, floor),
     /// but the MAD is only computed when the distance exceeds the floor (below it the sample is
     /// inside the threshold whatever the MAD is).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::{Gate, GateConfig, GateVerdict};
+    ///
+    /// let cfg = GateConfig::with_floor(100);
+    /// let mut gate = Gate::new();
+    /// // Not armed yet: everything is accepted.
+    /// assert_eq!(gate.judge(&cfg, 1_000_000), GateVerdict::Accept);
+    /// for theta in [0; 8] {
+    ///     gate.push(theta);
+    /// }
+    /// assert_eq!(gate.judge(&cfg, 99), GateVerdict::Accept);
+    /// assert_eq!(gate.judge(&cfg, 101), GateVerdict::Reject);
+    /// ```
     #[inline(always)]
     pub fn judge(&mut self, cfg: &GateConfig, theta: i64) -> GateVerdict {
         let n = self.len();
@@ -258,6 +373,19 @@ impl Gate {
     }
 
     /// Record an accepted error.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::{Gate, GateConfig};
+    ///
+    /// let mut gate = Gate::new();
+    /// for theta in [30, 10, 20] {
+    ///     gate.push(theta);
+    /// }
+    /// let cfg = GateConfig { min_samples: 3, ..GateConfig::with_floor(100) };
+    /// assert_eq!(gate.threshold(&cfg).map(|(median, _)| median), Some(20));
+    /// ```
     #[inline(always)]
     pub fn push(&mut self, theta: i64) {
         let h = usize::from(self.head) % GATE_WINDOW;
@@ -279,6 +407,17 @@ impl Gate {
     }
 
     /// Forget the window (after a step or a confirmed change).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gate::Gate;
+    ///
+    /// let mut gate = Gate::new();
+    /// gate.push(5);
+    /// gate.clear(); // after a step, old errors predict nothing
+    /// assert!(gate.is_empty());
+    /// ```
     pub fn clear(&mut self) {
         *self = Self::new();
     }
