@@ -13,6 +13,16 @@ use crate::num::wrapping_diff;
 
 /// Why a measurement was refused. A refused measurement is a lost sample for the servo
 /// (holdover), never a wrong value.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::{mean_path_delay, Exchange, PtpError};
+///
+/// // The Delay_Req "arrived" before it was sent: the timestamps cannot be right.
+/// let e = Exchange { t1: 1_000, t2: 1_100, t3: 2_000, t4: 1_500 };
+/// assert_eq!(mean_path_delay(&e), Err(PtpError::NegativeDelay));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PtpError {
     /// (t2 − t1) + (t4 − t3) < 0: timestamps inconsistent (a path cannot be negative).
@@ -26,6 +36,18 @@ pub enum PtpError {
 }
 
 /// One two-way timestamp exchange, ns.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::{offset_and_delay, Exchange};
+///
+/// // Sync: sent at master 1 000, received at slave 1 600; Delay_Req: sent at slave 2 000,
+/// // received at master 2 400. Path 500 ns each way, slave 100 ns ahead.
+/// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+/// assert_eq!(offset_and_delay(&e)?, (100, 500));
+/// # Ok::<(), ecdc_core::servo::ieee1588::PtpError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Exchange {
     /// Sync egress at the master (Tm1).
@@ -39,6 +61,16 @@ pub struct Exchange {
 }
 
 /// REQ-SERVO-020: mean path delay ((t2 − t1) + (t4 − t3)) / 2, rounded toward −∞, ≥ 0.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::{mean_path_delay, Exchange};
+///
+/// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+/// assert_eq!(mean_path_delay(&e)?, 500); // (600 + 400) / 2
+/// # Ok::<(), ecdc_core::servo::ieee1588::PtpError>(())
+/// ```
 pub fn mean_path_delay(e: &Exchange) -> Result<i64, PtpError> {
     let ms = wrapping_diff::<u64>(e.t2, e.t1);
     let sm = wrapping_diff::<u64>(e.t4, e.t3);
@@ -50,6 +82,16 @@ pub fn mean_path_delay(e: &Exchange) -> Result<i64, PtpError> {
 }
 
 /// REQ-SERVO-021: offset from master Ts1 − Tm1 − Delay (eq. 1); positive = slave ahead.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::offset_from_master;
+///
+/// // Received 600 ns after it was sent, 500 of which are the path: slave 100 ns ahead.
+/// assert_eq!(offset_from_master(1_000, 1_600, 500)?, 100);
+/// # Ok::<(), ecdc_core::servo::ieee1588::PtpError>(())
+/// ```
 pub fn offset_from_master(t1: u64, t2: u64, delay: i64) -> Result<i64, PtpError> {
     wrapping_diff::<u64>(t2, t1)
         .checked_sub(delay)
@@ -57,6 +99,17 @@ pub fn offset_from_master(t1: u64, t2: u64, delay: i64) -> Result<i64, PtpError>
 }
 
 /// Offset and mean path delay of one exchange.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::{offset_and_delay, Exchange};
+///
+/// // The slave is 300 ns behind: its stamps read 300 less than the master's would.
+/// let e = Exchange { t1: 1_000, t2: 1_200, t3: 2_000, t4: 2_800 };
+/// assert_eq!(offset_and_delay(&e)?, (-300, 500));
+/// # Ok::<(), ecdc_core::servo::ieee1588::PtpError>(())
+/// ```
 pub fn offset_and_delay(e: &Exchange) -> Result<(i64, i64), PtpError> {
     let d = mean_path_delay(e)?;
     Ok((offset_from_master(e.t1, e.t2, d)?, d))
@@ -68,6 +121,17 @@ pub const RATE_PPB_MAX: i64 = 100_000_000;
 /// REQ-SERVO-022: crystal rate ratio over an interval (eq. 6), as the ppb correction r such
 /// that slave_rate · (1 + r·10^-9) = master rate: r = (Δm − Δs)·10^9 / Δs, rounded to nearest.
 /// Δm = master elapsed, Δs = slave elapsed (both > 0). Negative r: the slave is fast.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::{rate_ratio_ppb, PtpError};
+///
+/// // Over one master second the slave counted 1 µs more: it runs 1 000 ppb fast.
+/// assert_eq!(rate_ratio_ppb(0, 1_000_000_000, 0, 1_000_001_000)?, -1_000);
+/// assert_eq!(rate_ratio_ppb(5, 5, 0, 10), Err(PtpError::NonPositiveInterval));
+/// # Ok::<(), PtpError>(())
+/// ```
 pub fn rate_ratio_ppb(m0: u64, m_n: u64, s0: u64, s_n: u64) -> Result<i64, PtpError> {
     let dm = i128::from(wrapping_diff::<u64>(m_n, m0));
     let ds = i128::from(wrapping_diff::<u64>(s_n, s0));
@@ -91,6 +155,16 @@ pub fn rate_ratio_ppb(m0: u64, m_n: u64, s0: u64, s_n: u64) -> Result<i64, PtpEr
 
 /// REQ-SERVO-023: compose two rate corrections (eq. 6's Rs = RsΔ · ratio):
 /// (1 + a)(1 + b) − 1 = a + b + a·b/10^9 ppb, rounded toward zero, saturating.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::compound_ppb;
+///
+/// // (1 + 10^-3)(1 + 10^-3) − 1 = 2.001 · 10^-3.
+/// assert_eq!(compound_ppb(1_000_000, 1_000_000), 2_001_000);
+/// assert_eq!(compound_ppb(500, -500), 0);
+/// ```
 pub fn compound_ppb(a: i64, b: i64) -> i64 {
     let (a, b) = (i128::from(a), i128::from(b));
     let c = a
@@ -104,6 +178,20 @@ pub fn compound_ppb(a: i64, b: i64) -> i64 {
 /// either end of the baseline moves the ratio by about e/(n·h₀), so longer baselines shrink it
 /// as 1/n. The PTP servo runs it before its offset loop (`servo::ptp`, feature `ptp`;
 /// REQ-SERVO-124).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::RateEstimator;
+///
+/// // One (master, slave) pair per 1 ms period; the slave runs 100 ppm fast.
+/// let mut est = RateEstimator::new(4);
+/// let mut last = None;
+/// for k in 0..5u64 {
+///     last = est.push(k * 1_000_000, k * 1_000_100);
+/// }
+/// assert_eq!(last, Some(Ok(-99_990)));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RateEstimator {
     periods: u32,
@@ -113,6 +201,14 @@ pub struct RateEstimator {
 
 impl RateEstimator {
     /// Estimate over `periods` periods (0 is treated as 1).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::ieee1588::RateEstimator;
+    ///
+    /// assert_eq!(RateEstimator::new(0), RateEstimator::new(1));
+    /// ```
     pub const fn new(periods: u32) -> Self {
         RateEstimator {
             periods: if periods == 0 { 1 } else { periods },
@@ -123,6 +219,17 @@ impl RateEstimator {
 
     /// Feed one (master, slave) timestamp pair per period. Every `periods` pairs, returns the
     /// ratio over that baseline and re-anchors at the current pair.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::ieee1588::RateEstimator;
+    ///
+    /// let mut est = RateEstimator::new(2);
+    /// assert_eq!(est.push(0, 0), None); // anchor
+    /// assert_eq!(est.push(1_000_000, 1_000_000), None);
+    /// assert_eq!(est.push(2_000_000, 1_999_998), Some(Ok(1_000))); // slave 1 000 ppb slow
+    /// ```
     pub fn push(&mut self, master: u64, slave: u64) -> Option<Result<i64, PtpError>> {
         let Some((m0, s0)) = self.anchor else {
             self.anchor = Some((master, slave));
@@ -139,6 +246,17 @@ impl RateEstimator {
     }
 
     /// Drop the anchor (after a step of either clock).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::ieee1588::RateEstimator;
+    ///
+    /// let mut est = RateEstimator::new(1);
+    /// est.push(0, 0);
+    /// est.reset(); // the slave clock was stepped: the old anchor is meaningless
+    /// assert_eq!(est.push(5_000_000, 9_000_000), None); // a new anchor, no ratio
+    /// ```
     pub fn reset(&mut self) {
         self.anchor = None;
         self.count = 0;
