@@ -43,6 +43,22 @@ pub const THETA_MAX: i64 = 1 << THETA_BITS;
 pub const LIMIT_MAX_NS: i64 = 1 << 28;
 
 /// Output and integrator clamps, in Q32 ns per interval.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::pi::{pi_step, PiLimits};
+/// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+/// use ecdc_core::servo::ConfigError;
+///
+/// // At most 1 µs of correction per interval, integrator at most 500 ns.
+/// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
+/// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
+/// // A 2 µs error saturates the output at the limit.
+/// let step = pi_step(g, lim, 0, 2_000);
+/// assert_eq!((step.y, step.saturated), (1_000 * ONE, true));
+/// # Ok::<(), ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PiLimits {
     y_max: i64,
@@ -50,6 +66,16 @@ pub struct PiLimits {
 }
 
 /// Why a limit pair was refused.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::pi::{LimitError, PiLimits};
+///
+/// assert_eq!(PiLimits::from_ns(0, 0), Err(LimitError::OutputLimit));
+/// // The integrator limit may not exceed the output limit.
+/// assert_eq!(PiLimits::from_ns(100, 200), Err(LimitError::IntegratorLimit));
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LimitError {
     /// y_max must be in (0, LIMIT_MAX_NS·2^32].
@@ -61,6 +87,18 @@ pub enum LimitError {
 
 impl PiLimits {
     /// REQ-SERVO-011: limits in Q32 ns per interval, 0 < I_max ≤ y_max ≤ 2^60.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::pi::PiLimits;
+    ///
+    /// // 2.5 ns per interval: not expressible in whole ns.
+    /// let lim = PiLimits::from_q32(5 * ONE / 2, ONE)?;
+    /// assert_eq!(lim.y_max(), 5 * ONE / 2);
+    /// # Ok::<(), ecdc_core::servo::pi::LimitError>(())
+    /// ```
     pub fn from_q32(y_max: i64, i_max: i64) -> Result<Self, LimitError> {
         if y_max <= 0 || y_max > LIMIT_MAX_NS << FRAC_BITS {
             return Err(LimitError::OutputLimit);
@@ -72,6 +110,18 @@ impl PiLimits {
     }
 
     /// Limits in whole ns per interval.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::pi::PiLimits;
+    ///
+    /// // IgH's ±0.1 % of a 1 ms cycle.
+    /// let lim = PiLimits::from_ns(1_000, 1_000)?;
+    /// assert_eq!(lim, PiLimits::from_q32(1_000 * ONE, 1_000 * ONE)?);
+    /// # Ok::<(), ecdc_core::servo::pi::LimitError>(())
+    /// ```
     pub fn from_ns(y_max_ns: i64, i_max_ns: i64) -> Result<Self, LimitError> {
         if !(1..=LIMIT_MAX_NS).contains(&y_max_ns) {
             return Err(LimitError::OutputLimit);
@@ -84,17 +134,52 @@ impl PiLimits {
     }
 
     /// y_max in Q32.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::pi::PiLimits;
+    ///
+    /// assert_eq!(PiLimits::from_ns(1_000, 500)?.y_max(), 1_000 * ONE);
+    /// # Ok::<(), ecdc_core::servo::pi::LimitError>(())
+    /// ```
     pub const fn y_max(self) -> i64 {
         self.y_max
     }
 
     /// I_max in Q32.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::pi::PiLimits;
+    ///
+    /// assert_eq!(PiLimits::from_ns(1_000, 500)?.i_max(), 500 * ONE);
+    /// # Ok::<(), ecdc_core::servo::pi::LimitError>(())
+    /// ```
     pub const fn i_max(self) -> i64 {
         self.i_max
     }
 }
 
 /// Result of one PI step.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+/// use ecdc_core::servo::ConfigError;
+/// use ecdc_core::servo::pi::{pi_step, PiLimits, PiStep};
+///
+/// // Kp = 0.75, Ki = 0.25: a 100 ns error commands 75 + 25 = 100 ns of retard.
+/// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
+/// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
+/// let step = pi_step(g, lim, 0, 100);
+/// assert_eq!(step, PiStep { y: 100 * ONE, integrator: 25 * ONE, saturated: false });
+/// # Ok::<(), ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PiStep {
     /// Command y in Q32 ns per interval; |y| ≤ y_max.
@@ -113,6 +198,16 @@ fn clamp_mag(x: i64, limit: i64) -> i64 {
 
 /// The add/compare/clamp part of one PI step, as N-bit two's complement words (see
 /// [`pi_update`]).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::pi::pi_update;
+///
+/// // On plain u64 words: P term 75, I term 25, limits 1000 / 500.
+/// let u = pi_update::<u64>(0, 75, 25, 1_000, 500);
+/// assert_eq!((u.y, u.integrator, u.v, u.saturated), (100, 25, 100, false));
+/// ```
 pub struct PiUpdate<W: Word> {
     /// Command y = clamp(v, ±y_max).
     pub y: W,
@@ -141,6 +236,19 @@ fn clamp_word<W: Word>(x: W, limit: W) -> W {
 /// else I' = I. Branch-free (comparisons and [`Word::select`]), so the same code is proved
 /// symbolically. All sums wrap modulo 2^N; the module doc's bounds (and the SMT proof) show
 /// that they never wrap for admissible inputs.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::pi::pi_update;
+///
+/// // Saturated and the I term pushes further out: the integrator is held (no windup).
+/// let u = pi_update::<u64>(0, 1_500, 500, 1_000, 500);
+/// assert_eq!((u.y, u.integrator, u.saturated), (1_000, 0, true));
+/// // Saturated, but the I term pulls back towards the range: integrate.
+/// let u = pi_update::<u64>(0, 1_500, (-100i64) as u64, 1_000, 500);
+/// assert_eq!((u.y, u.integrator as i64), (1_000, -100));
+/// ```
 #[inline]
 pub fn pi_update<W: Word>(i: W, p_term: W, i_term: W, y_max: W, i_max: W) -> PiUpdate<W> {
     let i = clamp_word(i, i_max);
@@ -168,6 +276,22 @@ pub fn pi_update<W: Word>(i: W, p_term: W, i_term: W, y_max: W, i_max: W) -> PiU
 ///
 /// Total for every input: `i` outside ±I_max is first clamped to it (a corrupted state cannot
 /// leak into the output), `theta` is clamped to ±THETA_MAX.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+/// use ecdc_core::servo::ConfigError;
+/// use ecdc_core::servo::pi::{pi_step, PiLimits};
+///
+/// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
+/// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
+/// // Two intervals with the error 100 ns each: the integrator grows by Ki · θ = 25 ns.
+/// let s1 = pi_step(g, lim, 0, 100);
+/// let s2 = pi_step(g, lim, s1.integrator, 100);
+/// assert_eq!((s2.integrator, s2.y), (50 * ONE, 125 * ONE));
+/// # Ok::<(), ConfigError>(())
+/// ```
 pub fn pi_step(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
     let w = u64::from_signed;
     let r = pi_step_word::<u64>(
@@ -186,6 +310,15 @@ pub fn pi_step(g: PiGains, lim: PiLimits, i: i64, theta: i64) -> PiStep {
 }
 
 /// θ clamped to ±[`THETA_MAX`] on N-bit words (N ≥ 32), as two's complement.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::pi::{clamp_theta, THETA_MAX};
+///
+/// assert_eq!(clamp_theta::<u64>(1 << 40), THETA_MAX as u64);
+/// assert_eq!(clamp_theta::<u64>((-5i64) as u64) as i64, -5);
+/// ```
 #[inline]
 pub fn clamp_theta<W: Word>(theta: W) -> W {
     clamp_word(theta, W::lit(1).shl(THETA_BITS))
@@ -195,6 +328,17 @@ pub fn clamp_theta<W: Word>(theta: W) -> W {
 /// They wrap modulo 2^N; at N = 64 with admissible gains (Kp < 2^33, Ki < 2^34, see
 /// [`super::gains`]) and |θ| ≤ 2^28 they never do: |Kp·θ| ≤ 2^61 and |Ki·θ| ≤ 2^62 (module doc;
 /// proved on z3 through this function, `smt::props::pi_products_exact` in `ecdc-proofs`).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::ONE;
+/// use ecdc_core::servo::pi::pi_products;
+///
+/// let (kp, ki) = ((3 * ONE / 4) as u64, (ONE / 4) as u64);
+/// let (p, i) = pi_products::<u64>(kp, ki, 100);
+/// assert_eq!((p, i), (75 * ONE as u64, 25 * ONE as u64));
+/// ```
 #[inline]
 pub fn pi_products<W: Word>(kp: W, ki: W, theta: W) -> (W, W) {
     (kp.wrapping_mul(theta), ki.wrapping_mul(theta))
@@ -203,6 +347,21 @@ pub fn pi_products<W: Word>(kp: W, ki: W, theta: W) -> (W, W) {
 /// One whole PI step on N-bit two's complement words: θ clamp, the two products, then
 /// [`pi_update`]. [`pi_step`] runs it on `u64`; the SMT proofs run each of the three stages on
 /// z3 words, so every line of the step is covered at 64 bits.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::{PiGains, Pole};
+/// use ecdc_core::servo::pi::{pi_step, pi_step_word, PiLimits};
+/// use ecdc_core::servo::ConfigError;
+///
+/// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
+/// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
+/// let w = |x: i64| x as u64;
+/// let u = pi_step_word::<u64>(w(g.kp()), w(g.ki()), 0, w(-300), w(lim.y_max()), w(lim.i_max()));
+/// assert_eq!(u.y as i64, pi_step(g, lim, 0, -300).y);
+/// # Ok::<(), ConfigError>(())
+/// ```
 #[inline]
 pub fn pi_step_word<W: Word>(kp: W, ki: W, i: W, theta: W, y_max: W, i_max: W) -> PiUpdate<W> {
     let (p_term, i_term) = pi_products(kp, ki, clamp_theta(theta));
@@ -211,6 +370,18 @@ pub fn pi_step_word<W: Word>(kp: W, ki: W, i: W, theta: W, y_max: W, i_max: W) -
 
 /// Hold: the command used when a sample is missing, blanked or rejected — the integrator alone
 /// (the learned frequency), no P term, no integration (REQ-SERVO-071).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::gains::ONE;
+/// use ecdc_core::servo::pi::{hold, PiLimits};
+///
+/// let lim = PiLimits::from_ns(1_000, 500)?;
+/// assert_eq!(hold(lim, 40 * ONE), 40 * ONE); // keep the learned rate
+/// assert_eq!(hold(lim, 900 * ONE), 500 * ONE); // never beyond I_max
+/// # Ok::<(), ecdc_core::servo::pi::LimitError>(())
+/// ```
 #[inline]
 pub fn hold(lim: PiLimits, i: i64) -> i64 {
     clamp_mag(i, lim.i_max)
