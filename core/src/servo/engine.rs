@@ -25,6 +25,21 @@ use super::pi::{hold, pi_step, PiLimits};
 use crate::num::wrapping_diff;
 
 /// Engine configuration (validated by [`Servo::new`]).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Servo, ServoConfig, Verdict};
+///
+/// // The master loop's defaults for a 1 ms interval, but allow one phase step on the first
+/// // sample when the error exceeds 1 µs.
+/// let cfg = ServoConfig { first_step_ns: 1_000, ..MasterConfig::for_period(1_000_000)?.servo };
+/// let mut servo = Servo::new(cfg)?;
+/// let out = servo.update(Input::Sample { local_ns: 0, theta_ns: 5_000 });
+/// assert_eq!((out.verdict, out.step_ns), (Verdict::Stepped, 5_000));
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ServoConfig {
     /// Nominal sample interval h₀, ns (> 0). Samples are accepted when the local interval since
@@ -65,6 +80,17 @@ pub struct ServoConfig {
 }
 
 /// Why a configuration was refused.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{ConfigError, Servo, ServoConfig};
+///
+/// let cfg = ServoConfig { interval_ns: 0, ..MasterConfig::for_period(1_000_000)?.servo };
+/// assert_eq!(Servo::new(cfg).map(|s| s.mode()), Err(ConfigError::Interval));
+/// # Ok::<(), ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ConfigError {
     /// interval_ns must be > 0.
@@ -82,6 +108,21 @@ pub enum ConfigError {
 }
 
 /// Servo mode. A settled loop is Tracking with `locked == true`.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Mode, Servo};
+///
+/// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+/// assert_eq!(servo.mode(), Mode::Init);
+/// servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// assert_eq!(servo.mode(), Mode::Acquire);
+/// servo.update(Input::Missing);
+/// assert_eq!(servo.mode(), Mode::Holdover);
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Mode {
     /// No sample yet.
@@ -95,6 +136,21 @@ pub enum Mode {
 }
 
 /// What the engine did with one input.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Servo, Verdict};
+///
+/// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+/// let first = servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// assert_eq!(first.verdict, Verdict::Accepted);
+/// // 10 µs later instead of ~1 ms: not a plausible sample interval.
+/// let early = servo.update(Input::Sample { local_ns: 10_000, theta_ns: 100 });
+/// assert_eq!(early.verdict, Verdict::BadInterval);
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Verdict {
     /// Used by the PI.
@@ -114,6 +170,19 @@ pub enum Verdict {
 }
 
 /// One input per interval.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Servo, Verdict};
+///
+/// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+/// servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// // The frame of the next cycle was lost.
+/// assert_eq!(servo.update(Input::Missing).verdict, Verdict::Missing);
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Input {
     /// A measurement: local time of the sample (ns, wrapping) and the error θ (ns).
@@ -128,6 +197,20 @@ pub enum Input {
 }
 
 /// Engine output for one input.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Servo};
+///
+/// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+/// let out = servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// // Ahead by 100 ns: retard (positive command), within ±y_max, no step.
+/// assert!(out.command_q32 > 0 && out.command_q32 <= servo.config().limits.y_max());
+/// assert_eq!((out.step_ns, out.theta_ns, out.locked), (0, 100, false));
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Output {
     /// Retard command, Q32 ns per interval, |·| ≤ y_max (REQ-SERVO-012).
@@ -152,6 +235,20 @@ pub struct Output {
 }
 
 /// Event counters (diagnostics, ptp4l-style summaries).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Servo};
+///
+/// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+/// servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// servo.update(Input::Missing);
+/// let c = servo.counters();
+/// assert_eq!((c.inputs, c.accepted, c.held), (2, 1, 1));
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Counters {
     /// Inputs seen.
@@ -173,6 +270,27 @@ pub struct Counters {
 }
 
 /// The servo engine state.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::carry::Carry;
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::{Input, Servo};
+///
+/// // Close the loop on a simulated clock that drifts 20 ns per interval: θ' = θ + 20 − command,
+/// // the Q32 command applied in whole ns with its fraction carried.
+/// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+/// let (mut theta, mut carry) = (0i64, Carry::new());
+/// for k in 0..5_000u64 {
+///     let out = servo.update(Input::Sample { local_ns: k * 1_000_000, theta_ns: theta });
+///     theta += 20 - carry.quantize(out.command_q32);
+/// }
+/// assert!(servo.is_locked());
+/// // The integrator has learned the drift.
+/// assert_eq!((servo.integrator_q32() + (1 << 31)) >> 32, 20);
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Servo {
     cfg: ServoConfig,
@@ -197,6 +315,17 @@ pub struct Servo {
 
 impl Servo {
     /// Validate `cfg` and start in `Init` with integrator 0.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Mode, Servo};
+    ///
+    /// let servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// assert_eq!((servo.mode(), servo.integrator_q32()), (Mode::Init, 0));
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn new(cfg: ServoConfig) -> Result<Self, ConfigError> {
         if cfg.interval_ns == 0 {
             return Err(ConfigError::Interval);
@@ -229,6 +358,19 @@ impl Servo {
 
     /// Seed the integrator with a known frequency (Q32 ns per interval, clamped to ±I_max), e.g.
     /// the last learned value across a restart (linuxptp's `fadj`).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::Servo;
+    ///
+    /// // Restart with the drift learned before: 12 ns per interval.
+    /// let servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?.with_integrator(12 * ONE);
+    /// assert_eq!(servo.integrator_q32(), 12 * ONE);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn with_integrator(mut self, i_q32: i64) -> Self {
         self.set_integrator(i_q32);
         self
@@ -237,36 +379,129 @@ impl Servo {
     /// Load a known frequency into the integrator (Q32 ns per interval, clamped to ±I_max), e.g.
     /// a rate measured before the loop starts: the PI then starts at its equilibrium instead of
     /// integrating the whole rate error through the phase.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::Servo;
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// servo.set_integrator(i64::MAX);
+    /// // Clamped to I_max (1 µs per interval for a 1 ms cycle).
+    /// assert_eq!(servo.integrator_q32(), 1_000 * ONE);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn set_integrator(&mut self, i_q32: i64) {
         self.integrator = hold(self.cfg.limits, i_q32);
     }
 
     /// Configuration in use.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::Servo;
+    ///
+    /// let servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// assert_eq!(servo.config().interval_ns, 1_000_000);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn config(&self) -> &ServoConfig {
         &self.cfg
     }
 
     /// Current mode.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Input, Mode, Servo};
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// servo.update(Input::Sample { local_ns: 0, theta_ns: 0 });
+    /// assert_eq!(servo.mode(), Mode::Acquire);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn mode(&self) -> Mode {
         self.mode
     }
 
     /// Current lock flag.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Input, Servo};
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// // Lock needs 32 consecutive samples within P/50 = 20 µs.
+    /// for k in 0..32u64 {
+    ///     assert!(!servo.is_locked());
+    ///     servo.update(Input::Sample { local_ns: k * 1_000_000, theta_ns: 0 });
+    /// }
+    /// assert!(servo.is_locked());
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn is_locked(&self) -> bool {
         self.lock.is_locked()
     }
 
     /// Integrator (learned frequency), Q32 ns per interval, |·| ≤ I_max.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Input, Servo};
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// let out = servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+    /// assert_eq!(servo.integrator_q32(), out.integrator_q32);
+    /// assert!(servo.integrator_q32() > 0 && servo.integrator_q32() < 100 * ONE);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn integrator_q32(&self) -> i64 {
         self.integrator
     }
 
     /// Event counters.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Input, Servo};
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// servo.update(Input::Missing);
+    /// assert_eq!(servo.counters().held, 1);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn counters(&self) -> &Counters {
         &self.counters
     }
 
     /// Back to `Init`, keeping the learned frequency (a restart does not change the crystal's rate).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Mode, Servo};
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?.with_integrator(7 * ONE);
+    /// servo.reset();
+    /// // Back to Init, but the crystal's rate is still known.
+    /// assert_eq!((servo.mode(), servo.integrator_q32()), (Mode::Init, 7 * ONE));
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn reset(&mut self) {
         let i = self.integrator;
         let counters = self.counters;
@@ -335,6 +570,22 @@ impl Servo {
     }
 
     /// REQ-SERVO-070..090: process one input.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::{Input, Servo, Verdict};
+    ///
+    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
+    /// let a = servo.update(Input::Sample { local_ns: 0, theta_ns: -400 });
+    /// assert_eq!(a.verdict, Verdict::Accepted);
+    /// assert!(a.command_q32 < 0); // behind: advance
+    /// // A lost sample holds the learned rate: the integrator, no P term.
+    /// let b = servo.update(Input::Missing);
+    /// assert_eq!(b.command_q32, a.integrator_q32);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn update(&mut self, input: Input) -> Output {
         self.update_inline(input)
     }
