@@ -51,6 +51,18 @@ use crate::num::{fold, fold_near, low32, wrapping_diff};
 pub const PERIOD_MAX_NS: u32 = 1 << 29;
 
 /// Master-loop configuration.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::{MasterConfig, MasterServo};
+///
+/// // A 1 ms cycle whose app-time stamp is taken 30 µs before the frame passes the reference.
+/// let cfg = MasterConfig { target_ns: -30_000, ..MasterConfig::for_period(1_000_000)? };
+/// let servo = MasterServo::new(cfg)?;
+/// assert!(!servo.is_locked());
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MasterConfig {
     /// Cycle period P, ns, in [1000, PERIOD_MAX_NS].
@@ -75,6 +87,20 @@ impl MasterConfig {
     /// - lock below P/50 for 32 cycles, unlock above P/20 (linuxcnc: P/10);
     /// - gate κ = 5 with floor P/100; holdover 100 cycles; fault after 1000 saturated cycles
     ///   without progress.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::gains::ONE;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::ConfigError;
+    ///
+    /// let cfg = MasterConfig::for_period(1_000_000)?;
+    /// assert_eq!(cfg.servo.interval_ns, 1_000_000);
+    /// assert_eq!(cfg.servo.limits.y_max(), 1_000 * ONE); // P/1000 per cycle
+    /// assert_eq!(MasterConfig::for_period(500), Err(ConfigError::Parameter));
+    /// # Ok::<(), ConfigError>(())
+    /// ```
     pub fn for_period(period_ns: u32) -> Result<Self, ConfigError> {
         if !(1000..=PERIOD_MAX_NS).contains(&period_ns) {
             return Err(ConfigError::Parameter);
@@ -117,6 +143,20 @@ impl MasterConfig {
 }
 
 /// One cycle's input.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+/// use ecdc_core::servo::Verdict;
+///
+/// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+/// servo.update(MasterInput::Sample { local_ns: 0, app_ns: 5_000_000_000, ref_ns: 4_999_999_900 });
+/// // The cyclic frame did not come back: hold the learned rate.
+/// let out = servo.update(MasterInput::Lost);
+/// assert_eq!((out.engine.verdict, out.phase_error_ns), (Verdict::Missing, 0));
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum MasterInput {
     /// The FRMW came back.
@@ -133,6 +173,25 @@ pub enum MasterInput {
 }
 
 /// One cycle's output.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+///
+/// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+/// // App time is 3.25 cycles ahead of the reference: 3 whole cycles go into the app-time
+/// // base, the remaining quarter cycle is the phase error the loop slews away.
+/// let out = servo.update(MasterInput::Sample {
+///     local_ns: 0,
+///     app_ns: 5_003_250_000,
+///     ref_ns: 5_000_000_000,
+/// });
+/// assert_eq!(out.phase_error_ns, 250_000);
+/// assert_eq!(out.app_time_step_ns, -3_000_000);
+/// assert_eq!(out.deadline_correction_ns, 1_000); // slewing at the P/1000 limit
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MasterOutput {
     /// Add to the next wake-up deadline, ns (positive = wake later).
@@ -146,6 +205,26 @@ pub struct MasterOutput {
 }
 
 /// Master-follows-reference servo state.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+///
+/// // The master's timer gains 50 ns per 1 ms cycle on the reference: each wake-up comes 50 ns
+/// // earlier in DC terms than asked for. Simulate the loop: θ' = θ + 50 − correction.
+/// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+/// let (app, mut ref_lag) = (5_000_000_000u64, 0i64); // ref = app − θ
+/// for k in 0..4_000u64 {
+///     let app_k = app + k * 1_000_000;
+///     let ref_k = app_k.wrapping_add_signed(ref_lag);
+///     let out = servo.update(MasterInput::Sample { local_ns: k * 1_000_000, app_ns: app_k, ref_ns: ref_k });
+///     ref_lag -= 50 - out.deadline_correction_ns;
+/// }
+/// assert!(servo.is_locked());
+/// assert_eq!(servo.drift_ns_per_cycle(), 50);
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct MasterServo {
     period: u32,
@@ -160,6 +239,21 @@ pub struct MasterServo {
 
 impl MasterServo {
     /// Validate and build.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterServo};
+    /// use ecdc_core::servo::{ConfigError, Mode};
+    ///
+    /// let servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// assert_eq!(servo.mode(), Mode::Init);
+    /// // The engine's interval must be the cycle period.
+    /// let mut cfg = MasterConfig::for_period(1_000_000)?;
+    /// cfg.servo.interval_ns = 2_000_000;
+    /// assert_eq!(MasterServo::new(cfg).map(|s| s.mode()), Err(ConfigError::Parameter));
+    /// # Ok::<(), ConfigError>(())
+    /// ```
     pub fn new(cfg: MasterConfig) -> Result<Self, ConfigError> {
         if !(1000..=PERIOD_MAX_NS).contains(&cfg.period_ns)
             || cfg.servo.interval_ns != cfg.period_ns
@@ -184,27 +278,89 @@ impl MasterServo {
     }
 
     /// The engine (mode, lock, counters, integrator).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterServo};
+    ///
+    /// let servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// assert_eq!(servo.engine().config().interval_ns, 1_000_000);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn engine(&self) -> &Servo {
         &self.servo
     }
 
     /// Current mode.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+    /// use ecdc_core::servo::Mode;
+    ///
+    /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// servo.update(MasterInput::Sample { local_ns: 0, app_ns: 1_000_000, ref_ns: 1_000_000 });
+    /// assert_eq!(servo.mode(), Mode::Acquire);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn mode(&self) -> Mode {
         self.servo.mode()
     }
 
     /// Lock flag (hysteresis, REQ-SERVO-060).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+    ///
+    /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// // 32 cycles on the reference's grid: locked.
+    /// for k in 0..32u64 {
+    ///     let t = 1_000_000_000 + k * 1_000_000;
+    ///     servo.update(MasterInput::Sample { local_ns: t, app_ns: t, ref_ns: t });
+    /// }
+    /// assert!(servo.is_locked());
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn is_locked(&self) -> bool {
         self.servo.is_locked()
     }
 
     /// Event counters.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+    ///
+    /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// servo.update(MasterInput::Lost);
+    /// servo.update(MasterInput::Lost);
+    /// assert_eq!(servo.counters().held, 2);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn counters(&self) -> &Counters {
         self.servo.counters()
     }
 
     /// Start over (e.g. after the DC network was re-initialised): back to `Init`, app time is
     /// re-aligned by whole periods on the next sample, the learned drift is kept.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+    /// use ecdc_core::servo::Mode;
+    ///
+    /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// servo.update(MasterInput::Sample { local_ns: 0, app_ns: 1_000_000, ref_ns: 1_000_000 });
+    /// servo.reset(); // the DC network was re-initialised
+    /// assert_eq!(servo.mode(), Mode::Init);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn reset(&mut self) {
         self.servo.reset();
         self.carry.reset();
@@ -214,6 +370,22 @@ impl MasterServo {
     }
 
     /// Learned drift of the master's timer, ns per cycle (Q32 integrator rounded toward −∞).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+    ///
+    /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// assert_eq!(servo.drift_ns_per_cycle(), 0);
+    /// // Persistently 200 ns ahead: the integrator starts learning a retard.
+    /// for k in 0..10u64 {
+    ///     let t = 1_000_000_000 + k * 1_000_000;
+    ///     servo.update(MasterInput::Sample { local_ns: t, app_ns: t, ref_ns: t - 200 });
+    /// }
+    /// assert!(servo.drift_ns_per_cycle() > 0);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn drift_ns_per_cycle(&self) -> i64 {
         self.servo.integrator_q32() >> 32
     }
@@ -268,6 +440,20 @@ impl MasterServo {
     }
 
     /// REQ-SERVO-100..104: process one cycle.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterServo};
+    ///
+    /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
+    /// // The master is 250 ns ahead of the reference: wake later.
+    /// let out = servo.update(MasterInput::Sample { local_ns: 0, app_ns: 7_000_000, ref_ns: 6_999_750 });
+    /// assert_eq!(out.phase_error_ns, 250);
+    /// assert!(out.deadline_correction_ns > 0);
+    /// assert_eq!(out.app_time_step_ns, 0);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn update(&mut self, input: MasterInput) -> MasterOutput {
         match input {
             MasterInput::Lost => {
