@@ -24,6 +24,25 @@ use super::ieee1588::{compound_ppb, offset_and_delay, Exchange, RateEstimator};
 use super::pi::{PiLimits, LIMIT_MAX_NS};
 
 /// PTP servo configuration.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+///
+/// // 8 Hz Sync (125 ms), a PHC that can slew ±100 ppm, rate measured over 4 intervals first.
+/// let cfg = PtpConfig {
+///     servo: MasterConfig::for_period(125_000_000)?.servo,
+///     max_ppb: 100_000,
+///     offset_filter: false,
+///     counter: None,
+///     rate_periods: 4,
+/// };
+/// let servo = PtpServo::new(cfg)?;
+/// assert!(servo.measuring_rate());
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PtpConfig {
     /// Engine configuration (interval = sync interval; its `limits` are replaced by `max_ppb`).
@@ -45,6 +64,24 @@ pub struct PtpConfig {
 }
 
 /// Output per exchange.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::Exchange;
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+///
+/// let servo = MasterConfig::for_period(125_000_000)?.servo;
+/// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+/// let mut ptp = PtpServo::new(cfg)?;
+/// // Slave 100 ns ahead, 500 ns path.
+/// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+/// let out = ptp.sample(0, Some(&e));
+/// assert_eq!((out.offset_ns, out.delay_ns, out.step_ns), (100, 500, 0));
+/// assert!(out.freq_ppb < 0); // slow the slave down
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PtpOutput {
     /// Frequency adjustment to apply, ppb, |·| ≤ max_ppb.
@@ -66,6 +103,25 @@ pub struct PtpOutput {
 }
 
 /// IEEE 1588 slave-clock servo.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::ieee1588::Exchange;
+/// use ecdc_core::servo::master::MasterConfig;
+/// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+///
+/// let servo = MasterConfig::for_period(125_000_000)?.servo;
+/// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+/// let mut ptp = PtpServo::new(cfg)?;
+/// // One exchange per Sync interval; a lost one is `None`.
+/// let e = Exchange { t1: 1_000, t2: 1_300, t3: 2_000, t4: 2_700 };
+/// let first = ptp.sample(0, Some(&e));
+/// let lost = ptp.sample(125_000_000, None);
+/// assert_eq!(first.offset_ns, -200); // slave behind
+/// assert_eq!(lost.offset_ns, 0);
+/// # Ok::<(), ecdc_core::servo::ConfigError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PtpServo {
     servo: Servo,
@@ -80,6 +136,22 @@ pub struct PtpServo {
 impl PtpServo {
     /// Validate and build. Refuses max_ppb whose per-interval limit is below 1 ns or above
     /// 2^28 ns.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+    /// use ecdc_core::servo::ConfigError;
+    ///
+    /// let servo = MasterConfig::for_period(125_000_000)?.servo;
+    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+    /// assert!(PtpServo::new(cfg).is_ok());
+    /// // 1 ppb of 125 ms is below 1 ns per interval: the actuator could not act.
+    /// let tiny = PtpConfig { max_ppb: 1, ..cfg };
+    /// assert_eq!(PtpServo::new(tiny).map(|s| s.measuring_rate()), Err(ConfigError::Parameter));
+    /// # Ok::<(), ConfigError>(())
+    /// ```
     pub fn new(mut cfg: PtpConfig) -> Result<Self, ConfigError> {
         let h0 = u128::from(cfg.servo.interval_ns);
         // max_ppb·h₀ < 2^64, ·2^32 < 2^96: no overflow in u128.
@@ -108,17 +180,64 @@ impl PtpServo {
     }
 
     /// Whether the servo is still measuring the rate (REQ-SERVO-124).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::ieee1588::Exchange;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+    ///
+    /// let servo = MasterConfig::for_period(125_000_000)?.servo;
+    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 2 };
+    /// let mut ptp = PtpServo::new(cfg)?;
+    /// let e = |k: u64| Exchange { t1: k * 125_000_000, t2: k * 125_000_000 + 500, t3: 0, t4: 1_000 };
+    /// for k in 0..3 {
+    ///     assert!(ptp.measuring_rate());
+    ///     ptp.sample(k * 125_000_000, Some(&e(k)));
+    /// }
+    /// assert!(!ptp.measuring_rate()); // anchor plus two intervals measured
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn measuring_rate(&self) -> bool {
         self.rate.is_some()
     }
 
     /// The engine (mode, lock, counters).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+    /// use ecdc_core::servo::Mode;
+    ///
+    /// let servo = MasterConfig::for_period(125_000_000)?.servo;
+    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+    /// assert_eq!(PtpServo::new(cfg)?.engine().mode(), Mode::Init);
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub const fn engine(&self) -> &Servo {
         &self.servo
     }
 
     /// Start over (e.g. after a grandmaster change), keeping the learned frequency. With a rate
     /// phase configured the rate is measured again, on top of the kept frequency.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+    ///
+    /// let servo = MasterConfig::for_period(125_000_000)?.servo;
+    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 4 };
+    /// let mut ptp = PtpServo::new(cfg)?;
+    /// ptp.sample(0, None);
+    /// ptp.reset(); // a new grandmaster: measure its rate again
+    /// assert!(ptp.measuring_rate());
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn reset(&mut self) {
         self.servo.reset();
         if let Some(f) = self.filter.as_mut() {
@@ -129,6 +248,30 @@ impl PtpServo {
 
     /// REQ-SERVO-120: one exchange (t1..t4) taken at local time `local_ns`; `None` = lost.
     /// A refused exchange (negative delay, overflow) is treated as lost: holdover.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::ieee1588::Exchange;
+    /// use ecdc_core::servo::master::MasterConfig;
+    /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
+    ///
+    /// // A counter actuator: 25 MHz crystal, PLL ×4 (2.5 ns fine counts).
+    /// let servo = MasterConfig::for_period(125_000_000)?.servo;
+    /// let cfg = PtpConfig {
+    ///     servo,
+    ///     max_ppb: 100_000,
+    ///     offset_filter: false,
+    ///     counter: Some((25_000_000, 4)),
+    ///     rate_periods: 0,
+    /// };
+    /// let mut ptp = PtpServo::new(cfg)?;
+    /// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+    /// let out = ptp.sample(0, Some(&e));
+    /// // Slave ahead: drop fine counts this interval.
+    /// assert!(out.counter_counts.is_some_and(|n| n < 0));
+    /// # Ok::<(), ecdc_core::servo::ConfigError>(())
+    /// ```
     pub fn sample(&mut self, local_ns: u64, exchange: Option<&Exchange>) -> PtpOutput {
         let measured = exchange.and_then(|e| offset_and_delay(e).ok().map(|od| (e, od)));
         if self.rate.is_some() {
