@@ -17,6 +17,20 @@
 use crate::num::wrapping_diff;
 
 /// Configuration.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::refclock::{RefFollowConfig, RefFollower, RefWrite};
+///
+/// // 1 ms cycle, write every cycle, the frame passes the reference 2 µs after send, 32-bit
+/// // reference, refuse jumps above 10 µs.
+/// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 1, lead_ns: 2_000, ref_32bit: true, max_jump_ns: 10_000 };
+/// let mut follower = RefFollower::new(cfg)?;
+/// let w = follower.on_cycle(0x1_0000_0000)?;
+/// assert_eq!(w, Some(RefWrite { value: 2_000, len: 4 })); // low 32 bits
+/// # Ok::<(), ecdc_core::servo::refclock::RefError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RefFollowConfig {
     /// Cycle period, ns (> 0).
@@ -32,6 +46,20 @@ pub struct RefFollowConfig {
 }
 
 /// Why a write was refused.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::refclock::{RefError, RefFollowConfig, RefFollower};
+///
+/// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 1, lead_ns: 0, ref_32bit: false, max_jump_ns: 10_000 };
+/// let mut follower = RefFollower::new(cfg)?;
+/// follower.on_cycle(5_000_000_000)?;
+/// // The master's clock jumped 1 ms forward between two cycles.
+/// assert_eq!(follower.on_cycle(5_002_000_000), Err(RefError::Jump { deviation_ns: 1_000_000 }));
+/// assert_eq!(RefFollower::new(RefFollowConfig { every: 0, ..cfg }), Err(RefError::Config));
+/// # Ok::<(), RefError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum RefError {
     /// period_ns or every was 0.
@@ -45,6 +73,18 @@ pub enum RefError {
 
 /// One write to perform this cycle: FPWR of `len` bytes of `value` (little-endian) to 0x0910
 /// of the reference clock.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::refclock::RefWrite;
+///
+/// // The FPWR to queue: `len` bytes of `bytes()` to 0x0910 of the reference.
+/// let w = RefWrite { value: 0x0102_0304, len: 4 };
+/// let data = w.bytes();
+/// assert_eq!(&data[..usize::from(w.len)], [0x04, 0x03, 0x02, 0x01]);
+/// assert_eq!(RefWrite::REGISTER, 0x0910);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RefWrite {
     /// System time to write (only the low 32 bits matter when `len == 4`).
@@ -58,12 +98,38 @@ impl RefWrite {
     pub const REGISTER: u16 = 0x0910;
 
     /// Payload bytes, little-endian; only the first `len` are sent.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::refclock::RefWrite;
+    ///
+    /// assert_eq!(RefWrite { value: 1, len: 8 }.bytes(), [1, 0, 0, 0, 0, 0, 0, 0]);
+    /// ```
     pub fn bytes(&self) -> [u8; 8] {
         self.value.to_le_bytes()
     }
 }
 
 /// Schedule and value computation for reference-follows-master.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::servo::refclock::{RefFollowConfig, RefFollower};
+///
+/// // Every 10th cycle of 1 ms.
+/// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 10, lead_ns: 0, ref_32bit: false, max_jump_ns: 0 };
+/// let mut follower = RefFollower::new(cfg)?;
+/// let mut writes = 0;
+/// for k in 0..30u64 {
+///     if follower.on_cycle(k * 1_000_000)?.is_some() {
+///         writes += 1;
+///     }
+/// }
+/// assert_eq!(writes, 3);
+/// # Ok::<(), ecdc_core::servo::refclock::RefError>(())
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct RefFollower {
     cfg: RefFollowConfig,
@@ -74,6 +140,15 @@ pub struct RefFollower {
 
 impl RefFollower {
     /// Validate and build.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::refclock::{RefError, RefFollowConfig, RefFollower};
+    ///
+    /// let cfg = RefFollowConfig { period_ns: 0, every: 1, lead_ns: 0, ref_32bit: false, max_jump_ns: 0 };
+    /// assert_eq!(RefFollower::new(cfg), Err(RefError::Config));
+    /// ```
     pub fn new(cfg: RefFollowConfig) -> Result<Self, RefError> {
         if cfg.period_ns == 0 || cfg.every == 0 {
             return Err(RefError::Config);
@@ -88,6 +163,18 @@ impl RefFollower {
 
     /// REQ-SERVO-110/111: call once per cycle with the master's time at send (ns). Returns the
     /// write to queue this cycle, `Ok(None)` on cycles without a write, or the refusal.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::refclock::{RefFollowConfig, RefFollower, RefWrite};
+    ///
+    /// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 2, lead_ns: 1_500, ref_32bit: false, max_jump_ns: 10_000 };
+    /// let mut follower = RefFollower::new(cfg)?;
+    /// assert_eq!(follower.on_cycle(9_000_000)?, Some(RefWrite { value: 9_001_500, len: 8 }));
+    /// assert_eq!(follower.on_cycle(10_000_000)?, None); // not this cycle
+    /// # Ok::<(), ecdc_core::servo::refclock::RefError>(())
+    /// ```
     pub fn on_cycle(&mut self, master_send_ns: u64) -> Result<Option<RefWrite>, RefError> {
         let c = self.cycle;
         self.cycle = self.cycle.wrapping_add(1);
@@ -119,6 +206,21 @@ impl RefFollower {
 
     /// Forget the progression anchor (after the master's time was deliberately stepped and the
     /// offsets re-written); the next scheduled cycle writes again.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::servo::refclock::{RefFollowConfig, RefFollower};
+    ///
+    /// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 1, lead_ns: 0, ref_32bit: false, max_jump_ns: 10_000 };
+    /// let mut follower = RefFollower::new(cfg)?;
+    /// follower.on_cycle(5_000_000_000)?;
+    /// assert!(follower.on_cycle(9_000_000_000).is_err()); // jumped: writes stop
+    /// // After the offsets were re-written for the new time, re-anchor.
+    /// follower.resync();
+    /// assert!(follower.on_cycle(9_001_000_000)?.is_some());
+    /// # Ok::<(), ecdc_core::servo::refclock::RefError>(())
+    /// ```
     pub fn resync(&mut self) {
         self.last = None;
         self.blocked = false;
