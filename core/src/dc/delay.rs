@@ -756,8 +756,8 @@ pub struct Walk<W: Word, const N: usize> {
 }
 
 impl<W: Word, const N: usize> Walk<W, N> {
-    /// An empty result (no slave, not stopped): the initial value of an output buffer for
-    /// [`walk_in_place`].
+    /// An empty result (no slave, not stopped): the initial value of the output buffer that
+    /// [`compute_in_place`] fills through a [`DelayScratch`].
     ///
     /// # Examples
     ///
@@ -831,26 +831,7 @@ pub fn walk<W: Word, const N: usize>(
 /// stack. On `Ok`, `out` equals what `walk` returns; on `Err` its contents are unspecified.
 /// While the walk runs, `out.twice` holds each latched slave's doubled delay from the root
 /// (the hops read their ancestors' there); it becomes relative to `reference` at the end.
-///
-/// # Examples
-///
-/// ```
-/// use ecdc_core::dc::delay::{self, DelayError, Walk, WalkSlave};
-/// use ecdc_core::dc::topology::{SlaveSample, Topology};
-///
-/// let samples = [
-///     SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0),
-///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
-/// ];
-/// let topo = Topology::<8>::build(&samples).expect("a line of two slaves");
-/// let slaves = samples.map(|s| WalkSlave::from_sample(&s));
-/// let mut out = Walk::<u64, 8>::new();
-/// delay::walk_in_place(&slaves, &topo, 1, &mut out)?;
-/// // Relative to slave 1: slave 0 is 500 ns earlier, so twice that is −1000.
-/// assert_eq!(out.twice[0], Some(((-1_000i64) as u64, false)));
-/// # Ok::<(), DelayError>(())
-/// ```
-pub fn walk_in_place<W: Word, const N: usize>(
+pub(crate) fn walk_in_place<W: Word, const N: usize>(
     slaves: &[WalkSlave<W>],
     topology: &Topology<N>,
     reference: usize,
