@@ -125,7 +125,7 @@ impl State {
     ];
 
     /// True for the states that send a request list and wait for all replies.
-    pub const fn is_request_step(self) -> bool {
+    pub(crate) const fn is_request_step(self) -> bool {
         !matches!(
             self,
             State::Idle | State::Cyclic | State::RestartWait | State::Failed
