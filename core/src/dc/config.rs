@@ -2,6 +2,17 @@
 //! comes from (a citation, or "ecdc choice" with the reason).
 
 /// What the static drift compensation reads between bursts to decide convergence (REQ-DC-104).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, DriftCheck, DriftConfig, Machine};
+///
+/// // A large network: one BRD per check instead of one FPRD per slave.
+/// let cfg = Config { drift: DriftConfig { check: DriftCheck::Broadcast, ..DriftConfig::DEFAULT }, ..Config::DEFAULT };
+/// assert_eq!(Machine::<512>::new(cfg)?.config().drift.check, DriftCheck::Broadcast);
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DriftCheck {
     /// FPRD 0x092C of every DC slave: exact per-slave values, one datagram per slave.
@@ -14,6 +25,17 @@ pub enum DriftCheck {
 }
 
 /// Which datagram distributes the reference clock's time (static bursts and every cycle).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, DriftCommand};
+///
+/// // TwinCAT style: ARMW to the reference's position instead of FRMW to its station address.
+/// let cfg = Config { drift_command: DriftCommand::Armw, ..Config::DEFAULT };
+/// assert_eq!(cfg.validate(64), Ok(()));
+/// assert_eq!(Config::default().drift_command, DriftCommand::Frmw);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum DriftCommand {
     /// FRMW to the reference's station address (SOEM, IgH, ethercrab): independent of
@@ -24,6 +46,18 @@ pub enum DriftCommand {
 }
 
 /// Static drift compensation (ARMW/FRMW bursts with a convergence gate), REQ-DC-104.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, DriftConfig};
+///
+/// // Converge faster on a quiet test bench: a 200 ns gate held for 5 checks.
+/// let drift = DriftConfig { threshold_ns: 200, scatter_ns: 400, consecutive: 5, ..DriftConfig::DEFAULT };
+/// let cfg = Config { drift, ..Config::DEFAULT };
+/// assert_eq!(cfg.validate(16), Ok(()));
+/// assert_eq!(DriftConfig::default().burst_frames, 20);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct DriftConfig {
     /// FRMW frames per burst between two 0x092C checks. ecdc choice: 20. Convergence is bound
@@ -96,6 +130,19 @@ impl Default for DriftConfig {
 }
 
 /// SYNC0/SYNC1 programming for the DC slaves (REQ-DC-105).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, ConfigError, SyncConfig};
+///
+/// // SYNC0 and SYNC1 every 500 µs, SYNC0 shifted 100 µs into the cycle.
+/// let sync = SyncConfig { assign_activate: 0x0700, sync0_cycle_ns: 500_000, shift_ns: 100_000, ..SyncConfig::DEFAULT };
+/// assert_eq!(Config { sync: Some(sync), ..Config::DEFAULT }.validate(8), Ok(()));
+/// // A shift of a whole cycle or more is refused.
+/// let bad = SyncConfig { shift_ns: 500_000, ..sync };
+/// assert_eq!(Config { sync: Some(bad), ..Config::DEFAULT }.validate(8), Err(ConfigError::SyncCycle));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SyncConfig {
     /// AssignActivate word from the ESI, written as 2 bytes to 0x0980 (low byte 0x0980 cyclic
@@ -130,6 +177,19 @@ impl Default for SyncConfig {
 }
 
 /// Cyclic monitoring and lock detection (REQ-DC-106).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, ConfigError, MonitorConfig};
+///
+/// // A 250 µs cycle, locking below 100 ns.
+/// let monitor = MonitorConfig { cycle_ns: 250_000, lock_ns: 100, ..MonitorConfig::DEFAULT };
+/// assert_eq!(Config { monitor, ..Config::DEFAULT }.validate(8), Ok(()));
+/// // The lock threshold may not lie above the unlock threshold.
+/// let flat = MonitorConfig { lock_ns: 2_000, ..monitor };
+/// assert_eq!(Config { monitor: flat, ..Config::DEFAULT }.validate(8), Err(ConfigError::Hysteresis));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct MonitorConfig {
     /// Cycle period when the machine paces itself (`poll_transmit`); an embedding master that
@@ -182,6 +242,25 @@ impl Default for MonitorConfig {
 
 /// Complete machine configuration. `Config::default()` is a sane setup for a line or tree of
 /// ESCs; every field is documented with its source.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, Machine, Stations};
+///
+/// // Embedded in a host master that already addressed the slaves, with datagram indices
+/// // 0x00..=0x7F left to it (the machine owns 0x80..=0xFF), and ESCs whose t_Diff is 40 ns.
+/// let cfg = Config {
+///     stations: Stations::Adopt,
+///     index_first: 0x80,
+///     index_count: 0x80,
+///     t_diff_ns: 40,
+///     ..Config::DEFAULT
+/// };
+/// let dc = Machine::<32>::new(cfg)?;
+/// assert_eq!(dc.slave_t_diff(0), 40);
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Config {
     /// Station address of the first slave (position 0); slave `i` gets `station_base + i`.
@@ -301,6 +380,16 @@ impl Default for Config {
 }
 
 /// Why a [`Config`] was rejected by [`crate::dc::Machine::new`].
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, ConfigError, Machine};
+///
+/// // 0x0930 must be in 0x0080..=0x3FFF.
+/// let cfg = Config { speed_counter_start: 0x4000, ..Config::DEFAULT };
+/// assert_eq!(Machine::<8>::new(cfg).err(), Some(ConfigError::SpeedCounterStart));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ConfigError {
     /// `index_count` < 2 × MAX_INFLIGHT.
@@ -321,6 +410,17 @@ pub enum ConfigError {
 
 impl Config {
     /// Checks the invariants the machine relies on. `capacity` is the slave capacity `N`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, ConfigError};
+    ///
+    /// let cfg = Config { station_base: 0xFFF0, ..Config::DEFAULT };
+    /// // Station addresses 0xFFF0.. fit 16 slaves, not 17.
+    /// assert_eq!(cfg.validate(16), Ok(()));
+    /// assert_eq!(cfg.validate(17), Err(ConfigError::StationRange));
+    /// ```
     pub fn validate(&self, capacity: usize) -> Result<(), ConfigError> {
         if usize::from(self.index_count) < crate::dc::request::MAX_INFLIGHT.saturating_mul(2) {
             return Err(ConfigError::TooFewIndices);
@@ -362,6 +462,17 @@ impl Config {
 }
 
 /// Which slaves the bring-up measures t_Diff on (REQ-DC-120).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::config::{TdiffConfig, TdiffMode};
+/// use ecdc_core::dc::Config;
+///
+/// // A long line of identical ESCs: measure one slave per ESC type, use it for all.
+/// let tdiff = TdiffConfig { mode: TdiffMode::PerEscType, ..TdiffConfig::DEFAULT };
+/// assert_eq!(Config { tdiff, ..Config::DEFAULT }.validate(1024), Ok(()));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TdiffMode {
     /// Nothing is measured: per-slave overrides, [`TdiffConfig::types`] or
@@ -378,6 +489,17 @@ pub enum TdiffMode {
 }
 
 /// A user-supplied t_Diff for every ESC of one type and revision.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::config::{TdiffConfig, TdiffType};
+///
+/// // ESC type 0x11, revision 0x00 (low byte type, high byte revision): t_Diff 40 ns, not measured.
+/// let known = TdiffType { esc_type: 0x0011, t_diff_ns: 40 };
+/// let tdiff = TdiffConfig { types: [Some(known), None, None, None], ..TdiffConfig::DEFAULT };
+/// assert_eq!(tdiff.types[0].map(|t| t.t_diff_ns), Some(40));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TdiffType {
     /// 0x0000 (type, low byte) and 0x0001 (revision, high byte) as one little-endian word.
@@ -387,6 +509,20 @@ pub struct TdiffType {
 }
 
 /// t_Diff measurement settings (REQ-DC-120..126).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::config::{TdiffConfig, TdiffMode};
+/// use ecdc_core::dc::{Config, ConfigError};
+///
+/// // No port closing at all: use the configured t_Diff.
+/// let off = TdiffConfig { mode: TdiffMode::Off, ..TdiffConfig::DEFAULT };
+/// assert_eq!(Config { tdiff: off, ..Config::DEFAULT }.validate(8), Ok(()));
+/// // Measuring with zero rounds is refused.
+/// let zero = TdiffConfig { rounds: 0, ..TdiffConfig::DEFAULT };
+/// assert_eq!(Config { tdiff: zero, ..Config::DEFAULT }.validate(8), Err(ConfigError::Zero));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TdiffConfig {
     /// What is measured. Default [`TdiffMode::PerSlave`].
