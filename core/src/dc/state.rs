@@ -35,6 +35,19 @@
 //! and never panic (REQ-DC-110).
 
 /// One state of [`crate::dc::Machine`].
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, Machine, State};
+/// use ecdc_core::time::SystemTime;
+///
+/// let mut dc = Machine::<8>::new(Config::default())?;
+/// assert_eq!(dc.state(), State::Idle);
+/// dc.start(SystemTime::from_nanos(1_000_000_000));
+/// assert_eq!(dc.state(), State::CountSlaves);
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum State {
     /// Not started; `start` begins the bring-up.
@@ -134,6 +147,18 @@ impl State {
 
     /// The transition table. `RestartWait`/`Failed` are reachable from every state (faults);
     /// `Idle` from every state (`reset`); `CountSlaves` from `Idle`, `RestartWait`, `Failed`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::State;
+    ///
+    /// assert!(State::Idle.can_go(State::CountSlaves));
+    /// assert!(State::DriftCheck.can_go(State::Cyclic));
+    /// // Faults and `reset` are always possible; skipping steps is not.
+    /// assert!(State::Cyclic.can_go(State::RestartWait));
+    /// assert!(!State::CountSlaves.can_go(State::Cyclic));
+    /// ```
     pub const fn can_go(self, to: State) -> bool {
         use State::*;
         matches!(
@@ -178,6 +203,15 @@ impl State {
     }
 
     /// Short lower-case name, for logs and the CLI.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::State;
+    ///
+    /// assert_eq!(State::CountSlaves.name(), "count-slaves");
+    /// assert_eq!(State::Cyclic.name(), "cyclic");
+    /// ```
     pub const fn name(self) -> &'static str {
         match self {
             State::Idle => "idle",
