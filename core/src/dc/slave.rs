@@ -5,6 +5,17 @@
 use crate::wire::register::ReceiveTimes;
 
 /// DC capability from ESC features 0x0008 and the system-time probe.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::DcKind;
+///
+/// // A 32-bit DC slave: latches, a system time, 4-byte time registers.
+/// let k = DcKind::Bits32;
+/// assert!(k.has_latches() && k.has_system_time());
+/// assert_eq!(k.time_width(), 4);
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum DcKind {
     /// No DC unit (0x0008 bit 2 clear): only adds wire delay.
@@ -20,14 +31,42 @@ pub enum DcKind {
 
 impl DcKind {
     /// Has receive-time latches (takes part in delay measurement).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::DcKind;
+    ///
+    /// assert!(DcKind::DelayOnly.has_latches());
+    /// assert!(!DcKind::None.has_latches());
+    /// ```
     pub const fn has_latches(self) -> bool {
         !matches!(self, DcKind::None)
     }
     /// Has a system time (gets an offset, a delay, drift compensation, SYNC).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::DcKind;
+    ///
+    /// // Timed for delays, but no clock to synchronise.
+    /// assert!(!DcKind::DelayOnly.has_system_time());
+    /// assert!(DcKind::Bits64.has_system_time());
+    /// ```
     pub const fn has_system_time(self) -> bool {
         matches!(self, DcKind::Bits32 | DcKind::Bits64)
     }
     /// Width in bytes of 0x0910/0x0920/0x0990 on this slave (8, or 4 for 32-bit DC).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::DcKind;
+    ///
+    /// assert_eq!(DcKind::Bits64.time_width(), 8);
+    /// assert_eq!(DcKind::Bits32.time_width(), 4);
+    /// ```
     pub const fn time_width(self) -> u16 {
         match self {
             DcKind::Bits64 => 8,
@@ -37,6 +76,20 @@ impl DcKind {
 }
 
 /// One slave, by position (auto-increment order = processing order).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{DcKind, SlaveInfo};
+///
+/// // What `Machine::slaves` reports, e.g. for a per-slave table after a bring-up.
+/// fn describe(s: &SlaveInfo) -> (u16, u32, bool) {
+///     (s.station, s.delay_ns, s.dc.has_system_time())
+/// }
+/// let mut s = SlaveInfo::EMPTY;
+/// (s.station, s.dc, s.delay_ns) = (0x1002, DcKind::Bits64, 480);
+/// assert_eq!(describe(&s), (0x1002, 480, true));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct SlaveInfo {
     /// Station address assigned (0x0010).
@@ -123,6 +176,19 @@ impl SlaveInfo {
     /// REQ-DC-103: a slave may get a new 0x0920 (a step of its system time) only if its AL
     /// status was read in this bring-up and says INIT, PRE-OP or BOOT. SAFE-OP, OP, an error
     /// combination or an unread status all mean "possibly running": leave the offset alone.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::SlaveInfo;
+    ///
+    /// let mut s = SlaveInfo::EMPTY;
+    /// s.al_status = Some(0x0002); // PRE-OP
+    /// assert!(s.may_step_offset());
+    /// s.al_status = Some(0x0008); // OP: running outputs, leave its clock alone
+    /// assert!(!s.may_step_offset());
+    /// assert!(!SlaveInfo::EMPTY.may_step_offset()); // status not read
+    /// ```
     pub fn may_step_offset(&self) -> bool {
         matches!(
             self.al_status.map(|s| s & 0x0F),
