@@ -8,6 +8,19 @@ use crate::wire::register::{reg, typed};
 use crate::wire::{Address, Command};
 
 /// How the bring-up gets each slave's configured station address (0x0010).
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, Machine, Stations};
+///
+/// // The host master (SOEM, IgH, ethercrab) assigned 0x0010 already: read and keep them.
+/// let cfg = Config { stations: Stations::Adopt, ..Config::DEFAULT };
+/// let dc = Machine::<16>::new(cfg)?;
+/// assert_eq!(dc.config().stations, Stations::Adopt);
+/// assert_eq!(Config::default().stations, Stations::Assign);
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Stations {
     /// APWR 0x0010 of position `i` with `Config::station_base + i` (REQ-DC-100).
