@@ -57,6 +57,19 @@ const DL_CONTROL: u16 = 0x0100;
 const LOOP_CLOSED: u16 = 0b11;
 
 /// Where the `t_Diff` used for a slave came from.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{SlaveInfo, TdiffFallback, TdiffSource};
+///
+/// // Reporting where each slave's t_Diff came from, as `Machine::slaves` gives it.
+/// let mut s = SlaveInfo::EMPTY;
+/// s.t_diff_source = TdiffSource::SameType { from: 3 };
+/// assert_eq!(s.t_diff_source.to_string(), "same type as 3");
+/// let f = TdiffSource::Fallback(TdiffFallback::Running);
+/// assert_eq!(f.to_string(), "fallback: running");
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum TdiffSource {
     /// [`crate::dc::Config::t_diff_ns`]: nothing was measured or configured for this slave
@@ -100,6 +113,15 @@ impl core::fmt::Display for TdiffSource {
 }
 
 /// Why a wanted measurement was not used.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{TdiffFallback, TdiffSource};
+///
+/// let rejected = TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns: 900 });
+/// assert_eq!(rejected.to_string(), "fallback: measured 900 ns implausible");
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TdiffFallback {
     /// A slave reported SAFE-OP, OP or an unknown AL state, so no port was closed (REQ-DC-123).
