@@ -6,6 +6,24 @@ use crate::dc::state::State;
 use crate::wire::Command;
 
 /// A fault seen by the machine. Each variant carries what a user needs to find the cause.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Error, State};
+///
+/// // Faults arrive as `Event::Error`; a caller decides what to report.
+/// fn advice(e: &Error) -> &'static str {
+///     match e {
+///         Error::NoSlaves => "check the cable and the interface",
+///         Error::TooManySlaves { .. } => "raise the machine's capacity N",
+///         _ if e.is_retryable() => "transient: the machine retries",
+///         _ => "see the error text",
+///     }
+/// }
+/// assert_eq!(advice(&Error::Timeout { state: State::CountSlaves }), "transient: the machine retries");
+/// assert_eq!(Error::NoSlaves.to_string(), "no slave answered");
+/// ```
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Error {
@@ -107,6 +125,15 @@ pub enum Error {
 impl Error {
     /// Whether resending the same requests may help (lost frame, transient WKC) rather than the
     /// network being unusable as it is.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Error, State};
+    ///
+    /// assert!(Error::Timeout { state: State::ReadInfo }.is_retryable());
+    /// assert!(!Error::NoReferenceClock.is_retryable());
+    /// ```
     pub const fn is_retryable(&self) -> bool {
         matches!(
             self,
