@@ -6,6 +6,27 @@ use crate::dc::holdover::{HoldoverCause, ResumeCheck};
 
 /// Something the caller may want to know or act on. Events are queued in order; when the queue
 /// is full the oldest event is dropped and counted in `Stats::events_dropped`.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, Error, Event, Machine};
+/// use ecdc_core::time::SystemTime;
+/// use ecdc_core::wire::MAC_PROCESSED_BIT;
+///
+/// let mut dc = Machine::<8>::new(Config::default())?;
+/// let now = SystemTime::from_nanos(1_000_000_000);
+/// dc.start(now);
+/// let mut frame = [0u8; 1514];
+/// let len = dc.poll_transmit(now, &mut frame).expect("the slave count to send");
+/// // The count comes back with working counter 0: no slave on the wire.
+/// frame[6] |= MAC_PROCESSED_BIT;
+/// dc.handle_frame(now, &frame[..len]);
+/// assert_eq!(dc.poll_event(), Some(Event::Error(Error::NoSlaves)));
+/// assert_eq!(dc.poll_event(), Some(Event::Restarting)); // `auto_restart` is on
+/// assert_eq!(dc.poll_event(), None);
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[non_exhaustive]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Event {
