@@ -31,6 +31,22 @@ use crate::dc::event::Event;
 use crate::dc::machine::Machine;
 
 /// Why a hold-over began.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Event, HoldoverCause};
+///
+/// fn log(ev: &Event) -> Option<&'static str> {
+///     match ev {
+///         Event::HoldoverStarted { cause: HoldoverCause::Silence, .. } => Some("network silent"),
+///         Event::HoldoverStarted { cause: HoldoverCause::Stall, .. } => Some("master stalled"),
+///         _ => None,
+///     }
+/// }
+/// let ev = Event::HoldoverStarted { since: 5_000_000, cause: HoldoverCause::Stall };
+/// assert_eq!(log(&ev), Some("master stalled"));
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HoldoverCause {
     /// `max_lost_cycles` cycles in a row came back incomplete or not at all (wire silence, a
@@ -42,6 +58,22 @@ pub enum HoldoverCause {
 }
 
 /// What the resume check saw when it passed.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Event, ResumeCheck};
+///
+/// // The machine reports this when cyclic operation resumes after a hold-over.
+/// let ev = Event::HoldoverEnded {
+///     after_ns: 250_000_000,
+///     check: ResumeCheck { slaves: 12, al_status: 0x0008, bound_ns: 1_800 },
+/// };
+/// if let Event::HoldoverEnded { check, .. } = ev {
+///     assert_eq!(check.slaves, 12);
+///     assert!(check.bound_ns < 100_000); // within the default `holdover_check_ns`
+/// }
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ResumeCheck {
     /// Slaves answering BRD 0x0130 (equal to the bring-up's count).
@@ -53,6 +85,15 @@ pub struct ResumeCheck {
 }
 
 /// Why the resume check after a hold-over failed.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Error, ResumeFailure};
+///
+/// let e = Error::ResumeCheckFailed { failure: ResumeFailure::SlaveCount { expected: 12, found: 11 } };
+/// assert!(!e.is_retryable()); // the network changed: a new bring-up follows
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ResumeFailure {
     /// BRD 0x0130 (or BRD 0x092C) counted a different number of slaves.
@@ -229,11 +270,42 @@ impl<const N: usize> CyclicCx<'_, N> {
 
 impl<const N: usize> Machine<N> {
     /// Whether the cyclic phase is in hold-over.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// // Only a running cyclic phase can hold over.
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert!(!dc.in_holdover());
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn in_holdover(&self) -> bool {
         self.phase.cyclic().is_some_and(|c| c.holdover.is_some())
     }
 
     /// Master time at which the running re-initialisation pause ends (`RestartWait` only).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine, State};
+    /// use ecdc_core::time::SystemTime;
+    /// use ecdc_core::wire::MAC_PROCESSED_BIT;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// let mut frame = [0u8; 1514];
+    /// let len = dc.poll_transmit(now, &mut frame).expect("the slave count to send");
+    /// frame[6] |= MAC_PROCESSED_BIT; // came back with no slave counted
+    /// dc.handle_frame(now, &frame[..len]);
+    /// assert_eq!(dc.state(), State::RestartWait);
+    /// // The first pause is `restart_delay_ns` (10 ms).
+    /// assert_eq!(dc.restart_at(), Some(now.wrapping_add(10_000_000)));
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn restart_at(&self) -> Option<crate::time::SystemTime> {
         self.sh.timers.get(crate::dc::timer::Timer::Restart)
     }
