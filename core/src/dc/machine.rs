@@ -17,6 +17,23 @@ use crate::time::SystemTime;
 use crate::wire::{EthernetFrame, FrameBuilder};
 
 /// Counters for diagnostics. Every field only grows (saturating), except `lock_frames`.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, Machine};
+/// use ecdc_core::time::SystemTime;
+///
+/// let mut dc = Machine::<8>::new(Config::default())?;
+/// let now = SystemTime::from_nanos(1_000_000_000);
+/// dc.start(now);
+/// let mut frame = [0u8; 1514];
+/// assert!(dc.poll_transmit(now, &mut frame).is_some());
+/// dc.handle_frame(now, b"not an EtherCAT frame");
+/// let s = dc.stats();
+/// assert_eq!((s.frames_sent, s.frames_received, s.foreign_frames), (1, 1, 1));
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Stats {
     /// Transmissions (own frames, or appends into a caller's frame).
@@ -90,6 +107,29 @@ pub(crate) enum Item {
 ///
 /// No input (any bytes, any order, any timing) makes a method panic (REQ-CONV-008, property
 /// P6), and only datagrams matched by index, command, register, station and length are used.
+///
+/// # Examples
+///
+/// ```
+/// use ecdc_core::dc::{Config, Error, Event, Machine, State};
+/// use ecdc_core::time::SystemTime;
+/// use ecdc_core::wire::MAC_PROCESSED_BIT;
+///
+/// let mut dc = Machine::<8>::new(Config::default())?;
+/// let now = SystemTime::from_nanos(1_000_000_000);
+/// dc.start(now);
+/// // The first frame counts the slaves (BRD 0x0000): 60 bytes, EtherType 0x88A4.
+/// let mut frame = [0u8; 1514];
+/// let len = dc.poll_transmit(now, &mut frame).expect("the slave count to send");
+/// assert_eq!((len, &frame[12..14]), (60, &[0x88, 0xA4][..]));
+/// // It comes back with working counter 0: nobody is there. The machine reports it and
+/// // schedules a re-initialisation instead of failing for good.
+/// frame[6] |= MAC_PROCESSED_BIT;
+/// dc.handle_frame(now.wrapping_add(20_000), &frame[..len]);
+/// assert_eq!(dc.poll_event(), Some(Event::Error(Error::NoSlaves)));
+/// assert_eq!(dc.state(), State::RestartWait);
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct Machine<const N: usize> {
     /// The phase and its own data (`dc/phase.rs`).
@@ -105,6 +145,19 @@ impl<const N: usize> Machine<N> {
     /// `size_of::<Machine<N>>()`, 460 bytes per slave). Where that does not fit (e.g.
     /// thousands of slaves on a small thread stack), put a [`Machine::idle`] in a `static`
     /// and [`configure`](Self::configure) it in place.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, ConfigError, Machine, State};
+    ///
+    /// let dc = Machine::<64>::new(Config::default())?;
+    /// assert_eq!(dc.state(), State::Idle);
+    /// // 64 slaves from station 0xFFF0 would run past 0xFFFF.
+    /// let cfg = Config { station_base: 0xFFF0, ..Config::DEFAULT };
+    /// assert_eq!(Machine::<64>::new(cfg).err(), Some(ConfigError::StationRange));
+    /// # Ok::<(), ConfigError>(())
+    /// ```
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
         cfg.validate(N)?;
         Ok(Self::blank(cfg))
@@ -144,6 +197,20 @@ impl<const N: usize> Machine<N> {
     /// slave whose ports an interrupted `t_Diff` measurement may have left closed is still
     /// reopened first by the next [`start`](Self::start) (REQ-DC-124). On `Err` the machine is
     /// unchanged.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, ConfigError, Machine};
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// dc.configure(Config { latch_rounds: 8, ..Config::DEFAULT })?;
+    /// assert_eq!(dc.config().latch_rounds, 8);
+    /// // A refused configuration leaves the machine as it was.
+    /// assert_eq!(dc.configure(Config { latch_rounds: 0, ..Config::DEFAULT }), Err(ConfigError::Zero));
+    /// assert_eq!(dc.config().latch_rounds, 8);
+    /// # Ok::<(), ConfigError>(())
+    /// ```
     pub fn configure(&mut self, cfg: Config) -> Result<(), ConfigError> {
         cfg.validate(N)?;
         // Every field is named, so that a new one cannot be forgotten here.
@@ -205,6 +272,18 @@ impl<const N: usize> Machine<N> {
     // ----- commands -------------------------------------------------------------------------
 
     /// Starts (or restarts) the bring-up from `CountSlaves`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine, State};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// dc.start(SystemTime::from_nanos(1_000_000_000));
+    /// assert_eq!(dc.state(), State::CountSlaves);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn start(&mut self, _now: SystemTime) {
         self.reset();
         self.sh.restarts.streak = 0;
@@ -213,6 +292,22 @@ impl<const N: usize> Machine<N> {
     }
 
     /// Stops everything and returns to `Idle`; replies still in flight will be ignored.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine, State};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// let mut frame = [0u8; 1514];
+    /// assert!(dc.poll_transmit(now, &mut frame).is_some());
+    /// dc.reset(); // e.g. the application is shutting the bus down
+    /// assert_eq!((dc.state(), dc.is_awaiting_reply(), dc.poll_timeout()), (State::Idle, false, None));
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn reset(&mut self) {
         self.sh.stop_awaiting();
         self.enter(State::Idle);
@@ -221,6 +316,18 @@ impl<const N: usize> Machine<N> {
     /// Asks for a propagation-delay re-measurement during cyclic operation (ETG.1500
     /// "continuous propagation delay measurement"). It runs in spare room of the following
     /// cycles and rewrites only 0x0928 (REQ-DC-107). Ignored outside `Cyclic`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine, State};
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// // Outside `Cyclic` the request is ignored: nothing changes, nothing is sent.
+    /// dc.request_delay_measurement();
+    /// assert_eq!((dc.state(), dc.poll_timeout()), (State::Idle, None));
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn request_delay_measurement(&mut self) {
         if let Some(c) = self.phase.cyclic_mut() {
             c.remeasure_requested = true;
@@ -232,6 +339,19 @@ impl<const N: usize> Machine<N> {
     /// slave at the next delay measurement (REQ-DC-015: seed 000 eq. 23 is the line case with
     /// one common value; mixed ESC types need one per slave). Returns the previous override.
     /// Fails with [`ConfigError::Capacity`] when `position` is beyond the capacity `N`.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, ConfigError, Machine};
+    ///
+    /// // Slave 2 is a different ESC with t_Diff = 40 ns; the others use `Config::t_diff_ns`.
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.set_slave_t_diff(2, Some(40))?, None);
+    /// assert_eq!(dc.set_slave_t_diff(2, Some(45))?, Some(40));
+    /// assert_eq!(dc.set_slave_t_diff(8, Some(40)), Err(ConfigError::Capacity));
+    /// # Ok::<(), ConfigError>(())
+    /// ```
     pub fn set_slave_t_diff(
         &mut self,
         position: u16,
@@ -249,6 +369,17 @@ impl<const N: usize> Machine<N> {
     /// The configured `t_Diff` of the slave at `position`: its override, else
     /// `Config::t_diff_ns`. The value a bring-up used (measured or configured) and its source
     /// are in [`SlaveInfo::t_diff_ns`] / [`SlaveInfo::t_diff_source`].
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// let mut dc = Machine::<8>::new(Config { t_diff_ns: 20, ..Config::DEFAULT })?;
+    /// dc.set_slave_t_diff(1, Some(40))?;
+    /// assert_eq!((dc.slave_t_diff(0), dc.slave_t_diff(1)), (20, 40));
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn slave_t_diff(&self, position: u16) -> i32 {
         self.sh
             .line
@@ -262,14 +393,49 @@ impl<const N: usize> Machine<N> {
     // ----- getters --------------------------------------------------------------------------
 
     /// Current state.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine, State};
+    ///
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.state().name(), "idle");
+    /// assert_eq!(dc.state(), State::Idle);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn state(&self) -> State {
         self.phase.state()
     }
     /// The configuration.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.config().monitor.cycle_ns, 1_000_000);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn config(&self) -> &Config {
         &self.sh.cfg
     }
     /// The slaves found, in position order.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// // Filled by the bring-up (addresses, DC kind, delays, offsets) in position order,
+    /// // e.g. for the largest propagation delay on the network.
+    /// assert!(dc.slaves().is_empty());
+    /// let worst = dc.slaves().iter().map(|s| s.delay_ns).max();
+    /// assert_eq!(worst, None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn slaves(&self) -> &[SlaveInfo] {
         self.sh
             .line
@@ -278,34 +444,119 @@ impl<const N: usize> Machine<N> {
             .unwrap_or(&[])
     }
     /// Position of the reference clock, once chosen.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// // Chosen by the bring-up: the first slave with a system time.
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.reference(), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn reference(&self) -> Option<u16> {
         (self.sh.line.sys_count > 0).then_some(self.sh.line.reference)
     }
     /// Counters.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine, Stats};
+    ///
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(*dc.stats(), Stats::ZERO);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn stats(&self) -> &Stats {
         &self.sh.stats
     }
     /// Whether cyclic operation is locked.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Event, Machine};
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// // Lock is reported as `Event::Locked` and can be polled at any time.
+    /// while let Some(ev) = dc.poll_event() {
+    ///     assert!(!matches!(ev, Event::Locked { .. }));
+    /// }
+    /// assert!(!dc.is_locked());
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn is_locked(&self) -> bool {
         self.phase
             .cyclic()
             .is_some_and(|c| c.locked && c.holdover.is_none())
     }
     /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// // Only `Cyclic` reads the 0x092C bound.
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.diff_bound_ns(), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn diff_bound_ns(&self) -> Option<u32> {
         self.phase.cyclic().and_then(|c| c.bound_ns)
     }
     /// Reference system time returned by the last cyclic FRMW (64 bit; for a 32-bit reference,
     /// extended around the master's clock).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// // Only `Cyclic` has a reference time (from its FRMW).
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.reference_time(), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn reference_time(&self) -> Option<SystemTime> {
         self.phase.cyclic().and_then(|c| c.ref_time).map(SystemTime)
     }
     /// System time of the first SYNC0 pulse programmed in the last bring-up.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    ///
+    /// // Set once a bring-up programmed the SYNC units (`Config::sync`).
+    /// let dc = Machine::<8>::new(Config::default())?;
+    /// assert_eq!(dc.sync_start(), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn sync_start(&self) -> Option<SystemTime> {
         (self.sh.line.sync_start != 0).then_some(SystemTime(self.sh.line.sync_start))
     }
     /// Whether a transmitted frame's datagrams are still awaited (until all came back, the
     /// deadline passed, or `reset`/`start`). Only replies to that frame can be used.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// let mut frame = [0u8; 1514];
+    /// assert!(dc.poll_transmit(now, &mut frame).is_some());
+    /// assert!(dc.is_awaiting_reply());
+    /// // While a reply is awaited there is nothing more to send.
+    /// assert_eq!(dc.poll_transmit(now, &mut frame), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn is_awaiting_reply(&self) -> bool {
         self.sh.timers.is_set(Timer::Reply)
     }
@@ -313,6 +564,22 @@ impl<const N: usize> Machine<N> {
     // ----- output ---------------------------------------------------------------------------
 
     /// Next event, if any.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Error, Event, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// // A 20-byte buffer cannot hold a frame: reported as an event, not a panic.
+    /// assert_eq!(dc.poll_transmit(now, &mut [0u8; 20]), None);
+    /// assert_eq!(dc.poll_event(), Some(Event::Error(Error::BufferTooSmall)));
+    /// assert_eq!(dc.poll_event(), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     #[must_use]
     pub fn poll_event(&mut self) -> Option<Event> {
         self.sh.events.pop()
@@ -322,6 +589,23 @@ impl<const N: usize> Machine<N> {
     /// next: the earliest armed timer (a reply deadline, the next cycle, the end of a restart
     /// pause; `dc/timer.rs`), or the end of the pause before a burst's last FRMW while nothing
     /// is in flight. `None` when nothing is scheduled.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// assert_eq!(dc.poll_timeout(), None); // idle: nothing scheduled
+    /// dc.start(now);
+    /// let mut frame = [0u8; 1514];
+    /// assert!(dc.poll_transmit(now, &mut frame).is_some());
+    /// // The reply deadline: `response_timeout_ns` (10 ms) after sending.
+    /// assert_eq!(dc.poll_timeout(), Some(now.wrapping_add(10_000_000)));
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     #[must_use]
     pub fn poll_timeout(&self) -> Option<SystemTime> {
         let next = self.sh.timers.next();
@@ -342,6 +626,25 @@ impl<const N: usize> Machine<N> {
     /// restart pause starts the bring-up), because what to send depends on them: a caller
     /// that polls only transmissions still sees every deadline act, and one that also calls
     /// `handle_timeout` changes nothing by it.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    /// use ecdc_core::wire::{Command, EthernetFrame};
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// let mut buf = [0u8; 1514];
+    /// let len = dc.poll_transmit(now, &mut buf).expect("the slave count to send");
+    /// // Hand `&buf[..len]` to the NIC. Here: check it is the BRD that counts the slaves.
+    /// let frame = EthernetFrame::new_checked(&buf[..len]).expect("a well-formed frame");
+    /// assert_eq!(frame.ethertype(), 0x88A4);
+    /// assert_eq!(buf[16], Command::Brd as u8);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     #[must_use]
     pub fn poll_transmit(&mut self, now: SystemTime, buf: &mut [u8]) -> Option<usize> {
         self.handle_timeout(now);
@@ -370,6 +673,24 @@ impl<const N: usize> Machine<N> {
     /// and monitoring datagrams: the caller's cadence *is* the cycle. Returns whether anything
     /// was appended; datagrams that do not fit are left for the next call. Expired timers are
     /// handled first, as in [`poll_transmit`](Self::poll_transmit).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    /// use ecdc_core::wire::FrameBuilder;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// // The host master's own frame; its process-data datagrams would be pushed here too.
+    /// let mut buf = [0u8; 1514];
+    /// let mut frame = FrameBuilder::new(&mut buf).expect("a full-size buffer");
+    /// assert!(dc.poll_transmit_into(now, &mut frame));
+    /// assert_eq!(frame.finish(), Ok(60));
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn poll_transmit_into(&mut self, now: SystemTime, builder: &mut FrameBuilder<'_>) -> bool {
         self.handle_timeout(now);
         self.fill(now.0, builder, true)
@@ -378,6 +699,25 @@ impl<const N: usize> Machine<N> {
     // ----- input ----------------------------------------------------------------------------
 
     /// Handles an expiry of the time returned by `poll_timeout`; harmless when nothing expired.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// let mut frame = [0u8; 1514];
+    /// assert!(dc.poll_transmit(now, &mut frame).is_some());
+    /// // No reply by the deadline: counted, and the request is sent again.
+    /// let deadline = dc.poll_timeout().expect("a reply deadline");
+    /// dc.handle_timeout(deadline);
+    /// assert_eq!((dc.stats().timeouts, dc.stats().retries), (1, 1));
+    /// assert!(dc.poll_transmit(deadline, &mut frame).is_some());
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn handle_timeout(&mut self, now: SystemTime) {
         let at = now;
         let now = now.0;
@@ -402,6 +742,22 @@ impl<const N: usize> Machine<N> {
     /// Handles one received Ethernet frame (any bytes). Datagrams matched to requests in flight
     /// (index, command, register, station, length: REQ-DC-032) are used; everything else is
     /// counted in `Stats` and ignored.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<8>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// // Any bytes are safe to hand over; what is not a reply to us is only counted.
+    /// dc.handle_frame(now, &[0xFF; 3]);
+    /// dc.handle_frame(now, &[0u8; 60]);
+    /// assert_eq!(dc.stats().foreign_frames, 2);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn handle_frame(&mut self, now: SystemTime, bytes: &[u8]) {
         self.handle_frame_with(now, bytes, true);
     }
