@@ -20,6 +20,24 @@ use core::hash::{Hash, Hasher};
 use crate::dc::machine::Machine;
 
 /// A borrowed view of a machine's control state; `Eq` and `Hash` compare only it.
+///
+/// # Examples
+///
+/// ```
+/// use std::collections::HashSet;
+/// use ecdc_core::dc::{Config, Machine};
+/// use ecdc_core::time::SystemTime;
+///
+/// // An explicit-state model checker's visited set: states that react alike are stored once.
+/// let idle = Machine::<4>::new(Config::default())?;
+/// let mut started = idle.clone();
+/// started.start(SystemTime::from_nanos(1_000));
+/// let mut seen = HashSet::new();
+/// assert!(seen.insert(idle.control_state()));
+/// assert!(seen.insert(started.control_state()));
+/// assert!(!seen.insert(idle.clone().control_state())); // already explored
+/// # Ok::<(), ecdc_core::dc::ConfigError>(())
+/// ```
 #[derive(Clone, Copy)]
 pub struct ControlState<'m, const N: usize> {
     m: &'m Machine<N>,
@@ -27,6 +45,23 @@ pub struct ControlState<'m, const N: usize> {
 
 impl<const N: usize> Machine<N> {
     /// The machine's control state (see [`ControlState`]).
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut a = Machine::<4>::new(Config::default())?;
+    /// let mut b = a.clone();
+    /// a.start(SystemTime::from_nanos(1_000));
+    /// b.start(SystemTime::from_nanos(1_000));
+    /// // Foreign frames only change counters, which are not part of the control state.
+    /// b.handle_frame(SystemTime::from_nanos(2_000), &[0u8; 60]);
+    /// assert_ne!(a.stats(), b.stats());
+    /// assert!(a.control_state() == b.control_state());
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn control_state(&self) -> ControlState<'_, N> {
         ControlState { m: self }
     }
@@ -35,6 +70,22 @@ impl<const N: usize> Machine<N> {
     /// restart timer is armed exactly in `RestartWait`, the cycle timer exactly in `Cyclic`,
     /// and a reply is awaited only in a request step or in `Cyclic`. For model checkers, which
     /// check it after every input.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::dc::{Config, Machine};
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let mut dc = Machine::<4>::new(Config::default())?;
+    /// let now = SystemTime::from_nanos(1_000_000_000);
+    /// dc.start(now);
+    /// let mut frame = [0u8; 1514];
+    /// assert!(dc.poll_transmit(now, &mut frame).is_some());
+    /// // A model checker asserts this after every input.
+    /// assert_eq!(dc.invariant_violation(), None);
+    /// # Ok::<(), ecdc_core::dc::ConfigError>(())
+    /// ```
     pub fn invariant_violation(&self) -> Option<&'static str> {
         use crate::dc::timer::Timer;
         use crate::dc::State;
