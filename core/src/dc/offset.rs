@@ -230,7 +230,7 @@ impl WidthValue {
 /// ```
 /// use ecdc_core::dc::{offset, port::Port, topology::Latches};
 ///
-/// // Entered through port 1 at local 0x…_0000_0100; the EPU stamped it 300 ns later.
+/// // Entered through port 1 at local time 0x5_0000_0100; the EPU stamped it 0x300 ns later.
 /// let latches = Latches::from_raw([0x0000_0400, 0x0000_0100, 0, 0], 0x5_0000_0400);
 /// assert_eq!(offset::entry_local_time(&latches, Port::P1), 0x5_0000_0100);
 /// // Through port 0 the EPU stamp is the entry time itself.
@@ -252,8 +252,8 @@ pub fn entry_local_time(latches: &Latches, entry: Port) -> u64 {
 /// use ecdc_core::dc::offset::{self, ClockWidth};
 /// use ecdc_core::time::SystemTime;
 ///
-/// // The master sampled 1 s before the latch; the frame reached the slave 500 ns after the
-/// // reference clock, at the slave's local time 90 000.
+/// // The master's clock read 1 s (since 2000-01-01) just before the latch; the frame
+/// // reached the slave 500 ns after the reference clock, at the slave's local time 90 000.
 /// let master = SystemTime::from_nanos(1_000_000_000);
 /// let off = offset::initial_offset(master, 500, 90_000, ClockWidth::Bits64);
 /// // The slave's system time at that instant = the reference's then.
