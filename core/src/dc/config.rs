@@ -9,8 +9,17 @@
 /// use ecdc_core::dc::{Config, DriftCheck, DriftConfig, Machine};
 ///
 /// // A large network: one BRD per check instead of one FPRD per slave.
-/// let cfg = Config { drift: DriftConfig { check: DriftCheck::Broadcast, ..DriftConfig::DEFAULT }, ..Config::DEFAULT };
-/// assert_eq!(Machine::<512>::new(cfg)?.config().drift.check, DriftCheck::Broadcast);
+/// let cfg = Config {
+///     drift: DriftConfig {
+///         check: DriftCheck::Broadcast,
+///         ..DriftConfig::DEFAULT
+///     },
+///     ..Config::DEFAULT
+/// };
+/// assert_eq!(
+///     Machine::<512>::new(cfg)?.config().drift.check,
+///     DriftCheck::Broadcast
+/// );
 /// # Ok::<(), ecdc_core::dc::ConfigError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -32,7 +41,10 @@ pub enum DriftCheck {
 /// use ecdc_core::dc::{Config, DriftCommand};
 ///
 /// // TwinCAT style: ARMW to the reference's position instead of FRMW to its station address.
-/// let cfg = Config { drift_command: DriftCommand::Armw, ..Config::DEFAULT };
+/// let cfg = Config {
+///     drift_command: DriftCommand::Armw,
+///     ..Config::DEFAULT
+/// };
 /// assert_eq!(cfg.validate(64), Ok(()));
 /// assert_eq!(Config::default().drift_command, DriftCommand::Frmw);
 /// ```
@@ -53,8 +65,16 @@ pub enum DriftCommand {
 /// use ecdc_core::dc::{Config, DriftConfig};
 ///
 /// // Converge faster on a quiet test bench: a 200 ns gate held for 5 checks.
-/// let drift = DriftConfig { threshold_ns: 200, scatter_ns: 400, consecutive: 5, ..DriftConfig::DEFAULT };
-/// let cfg = Config { drift, ..Config::DEFAULT };
+/// let drift = DriftConfig {
+///     threshold_ns: 200,
+///     scatter_ns: 400,
+///     consecutive: 5,
+///     ..DriftConfig::DEFAULT
+/// };
+/// let cfg = Config {
+///     drift,
+///     ..Config::DEFAULT
+/// };
 /// assert_eq!(cfg.validate(16), Ok(()));
 /// assert_eq!(DriftConfig::default().burst_frames, 20);
 /// ```
@@ -137,11 +157,33 @@ impl Default for DriftConfig {
 /// use ecdc_core::dc::{Config, ConfigError, SyncConfig};
 ///
 /// // SYNC0 and SYNC1 every 500 µs, SYNC0 shifted 100 µs into the cycle.
-/// let sync = SyncConfig { assign_activate: 0x0700, sync0_cycle_ns: 500_000, shift_ns: 100_000, ..SyncConfig::DEFAULT };
-/// assert_eq!(Config { sync: Some(sync), ..Config::DEFAULT }.validate(8), Ok(()));
+/// let sync = SyncConfig {
+///     assign_activate: 0x0700,
+///     sync0_cycle_ns: 500_000,
+///     shift_ns: 100_000,
+///     ..SyncConfig::DEFAULT
+/// };
+/// assert_eq!(
+///     Config {
+///         sync: Some(sync),
+///         ..Config::DEFAULT
+///     }
+///     .validate(8),
+///     Ok(())
+/// );
 /// // A shift of a whole cycle or more is refused.
-/// let bad = SyncConfig { shift_ns: 500_000, ..sync };
-/// assert_eq!(Config { sync: Some(bad), ..Config::DEFAULT }.validate(8), Err(ConfigError::SyncCycle));
+/// let bad = SyncConfig {
+///     shift_ns: 500_000,
+///     ..sync
+/// };
+/// assert_eq!(
+///     Config {
+///         sync: Some(bad),
+///         ..Config::DEFAULT
+///     }
+///     .validate(8),
+///     Err(ConfigError::SyncCycle)
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct SyncConfig {
@@ -184,11 +226,32 @@ impl Default for SyncConfig {
 /// use ecdc_core::dc::{Config, ConfigError, MonitorConfig};
 ///
 /// // A 250 µs cycle, locking below 100 ns.
-/// let monitor = MonitorConfig { cycle_ns: 250_000, lock_ns: 100, ..MonitorConfig::DEFAULT };
-/// assert_eq!(Config { monitor, ..Config::DEFAULT }.validate(8), Ok(()));
+/// let monitor = MonitorConfig {
+///     cycle_ns: 250_000,
+///     lock_ns: 100,
+///     ..MonitorConfig::DEFAULT
+/// };
+/// assert_eq!(
+///     Config {
+///         monitor,
+///         ..Config::DEFAULT
+///     }
+///     .validate(8),
+///     Ok(())
+/// );
 /// // The lock threshold may not lie above the unlock threshold.
-/// let flat = MonitorConfig { lock_ns: 2_000, ..monitor };
-/// assert_eq!(Config { monitor: flat, ..Config::DEFAULT }.validate(8), Err(ConfigError::Hysteresis));
+/// let flat = MonitorConfig {
+///     lock_ns: 2_000,
+///     ..monitor
+/// };
+/// assert_eq!(
+///     Config {
+///         monitor: flat,
+///         ..Config::DEFAULT
+///     }
+///     .validate(8),
+///     Err(ConfigError::Hysteresis)
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct MonitorConfig {
@@ -387,8 +450,14 @@ impl Default for Config {
 /// use ecdc_core::dc::{Config, ConfigError, Machine};
 ///
 /// // 0x0930 must be in 0x0080..=0x3FFF.
-/// let cfg = Config { speed_counter_start: 0x4000, ..Config::DEFAULT };
-/// assert_eq!(Machine::<8>::new(cfg).err(), Some(ConfigError::SpeedCounterStart));
+/// let cfg = Config {
+///     speed_counter_start: 0x4000,
+///     ..Config::DEFAULT
+/// };
+/// assert_eq!(
+///     Machine::<8>::new(cfg).err(),
+///     Some(ConfigError::SpeedCounterStart)
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ConfigError {
@@ -416,7 +485,10 @@ impl Config {
     /// ```
     /// use ecdc_core::dc::{Config, ConfigError};
     ///
-    /// let cfg = Config { station_base: 0xFFF0, ..Config::DEFAULT };
+    /// let cfg = Config {
+    ///     station_base: 0xFFF0,
+    ///     ..Config::DEFAULT
+    /// };
     /// // Station addresses 0xFFF0.. fit 16 slaves, not 17.
     /// assert_eq!(cfg.validate(16), Ok(()));
     /// assert_eq!(cfg.validate(17), Err(ConfigError::StationRange));
@@ -470,8 +542,18 @@ impl Config {
 /// use ecdc_core::dc::Config;
 ///
 /// // A long line of identical ESCs: measure one slave per ESC type, use it for all.
-/// let tdiff = TdiffConfig { mode: TdiffMode::PerEscType, ..TdiffConfig::DEFAULT };
-/// assert_eq!(Config { tdiff, ..Config::DEFAULT }.validate(1024), Ok(()));
+/// let tdiff = TdiffConfig {
+///     mode: TdiffMode::PerEscType,
+///     ..TdiffConfig::DEFAULT
+/// };
+/// assert_eq!(
+///     Config {
+///         tdiff,
+///         ..Config::DEFAULT
+///     }
+///     .validate(1024),
+///     Ok(())
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TdiffMode {
@@ -496,8 +578,14 @@ pub enum TdiffMode {
 /// use ecdc_core::dc::config::{TdiffConfig, TdiffType};
 ///
 /// // ESC type 0x11, revision 0x00 (low byte type, high byte revision): t_Diff 40 ns, not measured.
-/// let known = TdiffType { esc_type: 0x0011, t_diff_ns: 40 };
-/// let tdiff = TdiffConfig { types: [Some(known), None, None, None], ..TdiffConfig::DEFAULT };
+/// let known = TdiffType {
+///     esc_type: 0x0011,
+///     t_diff_ns: 40,
+/// };
+/// let tdiff = TdiffConfig {
+///     types: [Some(known), None, None, None],
+///     ..TdiffConfig::DEFAULT
+/// };
 /// assert_eq!(tdiff.types[0].map(|t| t.t_diff_ns), Some(40));
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -517,11 +605,31 @@ pub struct TdiffType {
 /// use ecdc_core::dc::{Config, ConfigError};
 ///
 /// // No port closing at all: use the configured t_Diff.
-/// let off = TdiffConfig { mode: TdiffMode::Off, ..TdiffConfig::DEFAULT };
-/// assert_eq!(Config { tdiff: off, ..Config::DEFAULT }.validate(8), Ok(()));
+/// let off = TdiffConfig {
+///     mode: TdiffMode::Off,
+///     ..TdiffConfig::DEFAULT
+/// };
+/// assert_eq!(
+///     Config {
+///         tdiff: off,
+///         ..Config::DEFAULT
+///     }
+///     .validate(8),
+///     Ok(())
+/// );
 /// // Measuring with zero rounds is refused.
-/// let zero = TdiffConfig { rounds: 0, ..TdiffConfig::DEFAULT };
-/// assert_eq!(Config { tdiff: zero, ..Config::DEFAULT }.validate(8), Err(ConfigError::Zero));
+/// let zero = TdiffConfig {
+///     rounds: 0,
+///     ..TdiffConfig::DEFAULT
+/// };
+/// assert_eq!(
+///     Config {
+///         tdiff: zero,
+///         ..Config::DEFAULT
+///     }
+///     .validate(8),
+///     Err(ConfigError::Zero)
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct TdiffConfig {

@@ -228,7 +228,7 @@ impl<const N: usize> Delays<N> {
     /// # Examples
     ///
     /// ```
-    /// use ecdc_core::dc::delay::{self, Delays, DelayError};
+    /// use ecdc_core::dc::delay::{self, DelayError, Delays};
     /// use ecdc_core::dc::topology::{SlaveSample, Topology};
     ///
     /// let samples = [
@@ -293,7 +293,13 @@ impl<const N: usize> Delays<N> {
     /// use ecdc_core::dc::delay::{self, DelayError};
     /// use ecdc_core::dc::topology::{SlaveSample, Topology};
     ///
-    /// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+    /// let samples = [SlaveSample::from_registers(
+    ///     0x5600,
+    ///     0x000C,
+    ///     [90, 0, 0, 0],
+    ///     90,
+    ///     0,
+    /// )];
     /// let topo = Topology::<8>::build(&samples).expect("a single slave");
     /// assert!(!delay::compute(&samples, &topo, 0)?.is_empty());
     /// # Ok::<(), DelayError>(())
@@ -528,7 +534,13 @@ pub fn compute<const N: usize>(
 /// // Long-lived buffers (a static, or a field of the master's state) for 256 slaves.
 /// let mut scratch = DelayScratch::<256>::new();
 /// let mut delays = Delays::<256>::new();
-/// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+/// let samples = [SlaveSample::from_registers(
+///     0x5600,
+///     0x000C,
+///     [90, 0, 0, 0],
+///     90,
+///     0,
+/// )];
 /// let topo = Topology::<256>::build(&samples).expect("a single slave");
 /// delay::compute_in_place(&samples, &topo, 0, &mut scratch, &mut delays)?;
 /// assert_eq!(delays.ns(0), Some(0));
@@ -649,7 +661,10 @@ pub fn compute_in_place<const N: usize>(
 /// use ecdc_core::dc::delay::WalkSlave;
 ///
 /// // The walk's input, built by hand: 32-bit stamps widened to the word, t_Diff = −20 ns.
-/// let s = WalkSlave::<u64> { stamps: Some([1_000, 2_000, 0, 0]), t_diff: (-20i64) as u64 };
+/// let s = WalkSlave::<u64> {
+///     stamps: Some([1_000, 2_000, 0, 0]),
+///     t_diff: (-20i64) as u64,
+/// };
 /// assert_eq!(s.stamps.map(|t| t[1] - t[0]), Some(1_000));
 /// ```
 #[derive(Debug, Clone, Copy)]

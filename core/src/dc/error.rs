@@ -21,7 +21,12 @@ use crate::wire::Command;
 ///         _ => "see the error text",
 ///     }
 /// }
-/// assert_eq!(advice(&Error::Timeout { state: State::CountSlaves }), "transient: the machine retries");
+/// assert_eq!(
+///     advice(&Error::Timeout {
+///         state: State::CountSlaves
+///     }),
+///     "transient: the machine retries"
+/// );
 /// assert_eq!(Error::NoSlaves.to_string(), "no slave answered");
 /// ```
 #[non_exhaustive]
@@ -131,7 +136,10 @@ impl Error {
     /// ```
     /// use ecdc_core::dc::{Error, State};
     ///
-    /// assert!(Error::Timeout { state: State::ReadInfo }.is_retryable());
+    /// assert!(Error::Timeout {
+    ///     state: State::ReadInfo
+    /// }
+    /// .is_retryable());
     /// assert!(!Error::NoReferenceClock.is_retryable());
     /// ```
     pub const fn is_retryable(&self) -> bool {

@@ -18,7 +18,9 @@ use crate::dc::holdover::{HoldoverCause, ResumeCheck};
 /// let now = SystemTime::from_nanos(1_000_000_000);
 /// dc.start(now);
 /// let mut frame = [0u8; 1514];
-/// let len = dc.poll_transmit(now, &mut frame).expect("the slave count to send");
+/// let len = dc
+///     .poll_transmit(now, &mut frame)
+///     .expect("the slave count to send");
 /// // The count comes back with working counter 0: no slave on the wire.
 /// frame[6] |= MAC_PROCESSED_BIT;
 /// dc.handle_frame(now, &frame[..len]);

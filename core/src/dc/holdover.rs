@@ -39,12 +39,21 @@ use crate::dc::machine::Machine;
 ///
 /// fn log(ev: &Event) -> Option<&'static str> {
 ///     match ev {
-///         Event::HoldoverStarted { cause: HoldoverCause::Silence, .. } => Some("network silent"),
-///         Event::HoldoverStarted { cause: HoldoverCause::Stall, .. } => Some("master stalled"),
+///         Event::HoldoverStarted {
+///             cause: HoldoverCause::Silence,
+///             ..
+///         } => Some("network silent"),
+///         Event::HoldoverStarted {
+///             cause: HoldoverCause::Stall,
+///             ..
+///         } => Some("master stalled"),
 ///         _ => None,
 ///     }
 /// }
-/// let ev = Event::HoldoverStarted { since: 5_000_000, cause: HoldoverCause::Stall };
+/// let ev = Event::HoldoverStarted {
+///     since: 5_000_000,
+///     cause: HoldoverCause::Stall,
+/// };
 /// assert_eq!(log(&ev), Some("master stalled"));
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -67,7 +76,11 @@ pub enum HoldoverCause {
 /// // The machine reports this when cyclic operation resumes after a hold-over.
 /// let ev = Event::HoldoverEnded {
 ///     after_ns: 250_000_000,
-///     check: ResumeCheck { slaves: 12, al_status: 0x0008, bound_ns: 1_800 },
+///     check: ResumeCheck {
+///         slaves: 12,
+///         al_status: 0x0008,
+///         bound_ns: 1_800,
+///     },
 /// };
 /// if let Event::HoldoverEnded { check, .. } = ev {
 ///     assert_eq!(check.slaves, 12);
@@ -91,7 +104,12 @@ pub struct ResumeCheck {
 /// ```
 /// use ecdc_core::dc::{Error, ResumeFailure};
 ///
-/// let e = Error::ResumeCheckFailed { failure: ResumeFailure::SlaveCount { expected: 12, found: 11 } };
+/// let e = Error::ResumeCheckFailed {
+///     failure: ResumeFailure::SlaveCount {
+///         expected: 12,
+///         found: 11,
+///     },
+/// };
 /// assert!(!e.is_retryable()); // the network changed: a new bring-up follows
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -298,7 +316,9 @@ impl<const N: usize> Machine<N> {
     /// let now = SystemTime::from_nanos(1_000_000_000);
     /// dc.start(now);
     /// let mut frame = [0u8; 1514];
-    /// let len = dc.poll_transmit(now, &mut frame).expect("the slave count to send");
+    /// let len = dc
+    ///     .poll_transmit(now, &mut frame)
+    ///     .expect("the slave count to send");
     /// frame[6] |= MAC_PROCESSED_BIT; // came back with no slave counted
     /// dc.handle_frame(now, &frame[..len]);
     /// assert_eq!(dc.state(), State::RestartWait);

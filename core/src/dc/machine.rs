@@ -31,7 +31,10 @@ use crate::wire::{EthernetFrame, FrameBuilder};
 /// assert!(dc.poll_transmit(now, &mut frame).is_some());
 /// dc.handle_frame(now, b"not an EtherCAT frame");
 /// let s = dc.stats();
-/// assert_eq!((s.frames_sent, s.frames_received, s.foreign_frames), (1, 1, 1));
+/// assert_eq!(
+///     (s.frames_sent, s.frames_received, s.foreign_frames),
+///     (1, 1, 1)
+/// );
 /// # Ok::<(), ecdc_core::dc::ConfigError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -120,7 +123,9 @@ pub(crate) enum Item {
 /// dc.start(now);
 /// // The first frame counts the slaves (BRD 0x0000): 60 bytes, EtherType 0x88A4.
 /// let mut frame = [0u8; 1514];
-/// let len = dc.poll_transmit(now, &mut frame).expect("the slave count to send");
+/// let len = dc
+///     .poll_transmit(now, &mut frame)
+///     .expect("the slave count to send");
 /// assert_eq!((len, &frame[12..14]), (60, &[0x88, 0xA4][..]));
 /// // It comes back with working counter 0: nobody is there. The machine reports it and
 /// // schedules a re-initialisation instead of failing for good.
@@ -154,8 +159,14 @@ impl<const N: usize> Machine<N> {
     /// let dc = Machine::<64>::new(Config::default())?;
     /// assert_eq!(dc.state(), State::Idle);
     /// // 64 slaves from station 0xFFF0 would run past 0xFFFF.
-    /// let cfg = Config { station_base: 0xFFF0, ..Config::DEFAULT };
-    /// assert_eq!(Machine::<64>::new(cfg).err(), Some(ConfigError::StationRange));
+    /// let cfg = Config {
+    ///     station_base: 0xFFF0,
+    ///     ..Config::DEFAULT
+    /// };
+    /// assert_eq!(
+    ///     Machine::<64>::new(cfg).err(),
+    ///     Some(ConfigError::StationRange)
+    /// );
     /// # Ok::<(), ConfigError>(())
     /// ```
     pub fn new(cfg: Config) -> Result<Self, ConfigError> {
@@ -171,8 +182,8 @@ impl<const N: usize> Machine<N> {
     /// (`N` > 0xEFFF).
     ///
     /// ```
-    /// use std::sync::Mutex;
     /// use ecdc_core::dc::{Config, Machine, State};
+    /// use std::sync::Mutex;
     ///
     /// // 1024 slaves: about 460 KiB, in the program's data, not on a stack.
     /// static MACHINE: Mutex<Machine<1024>> = Mutex::new(Machine::idle());
@@ -204,10 +215,19 @@ impl<const N: usize> Machine<N> {
     /// use ecdc_core::dc::{Config, ConfigError, Machine};
     ///
     /// let mut dc = Machine::<8>::new(Config::default())?;
-    /// dc.configure(Config { latch_rounds: 8, ..Config::DEFAULT })?;
+    /// dc.configure(Config {
+    ///     latch_rounds: 8,
+    ///     ..Config::DEFAULT
+    /// })?;
     /// assert_eq!(dc.config().latch_rounds, 8);
     /// // A refused configuration leaves the machine as it was.
-    /// assert_eq!(dc.configure(Config { latch_rounds: 0, ..Config::DEFAULT }), Err(ConfigError::Zero));
+    /// assert_eq!(
+    ///     dc.configure(Config {
+    ///         latch_rounds: 0,
+    ///         ..Config::DEFAULT
+    ///     }),
+    ///     Err(ConfigError::Zero)
+    /// );
     /// assert_eq!(dc.config().latch_rounds, 8);
     /// # Ok::<(), ConfigError>(())
     /// ```
@@ -305,7 +325,10 @@ impl<const N: usize> Machine<N> {
     /// let mut frame = [0u8; 1514];
     /// assert!(dc.poll_transmit(now, &mut frame).is_some());
     /// dc.reset(); // e.g. the application is shutting the bus down
-    /// assert_eq!((dc.state(), dc.is_awaiting_reply(), dc.poll_timeout()), (State::Idle, false, None));
+    /// assert_eq!(
+    ///     (dc.state(), dc.is_awaiting_reply(), dc.poll_timeout()),
+    ///     (State::Idle, false, None)
+    /// );
     /// # Ok::<(), ecdc_core::dc::ConfigError>(())
     /// ```
     pub fn reset(&mut self) {
@@ -375,7 +398,10 @@ impl<const N: usize> Machine<N> {
     /// ```
     /// use ecdc_core::dc::{Config, Machine};
     ///
-    /// let mut dc = Machine::<8>::new(Config { t_diff_ns: 20, ..Config::DEFAULT })?;
+    /// let mut dc = Machine::<8>::new(Config {
+    ///     t_diff_ns: 20,
+    ///     ..Config::DEFAULT
+    /// })?;
     /// dc.set_slave_t_diff(1, Some(40))?;
     /// assert_eq!((dc.slave_t_diff(0), dc.slave_t_diff(1)), (20, 40));
     /// # Ok::<(), ecdc_core::dc::ConfigError>(())
@@ -638,7 +664,9 @@ impl<const N: usize> Machine<N> {
     /// let now = SystemTime::from_nanos(1_000_000_000);
     /// dc.start(now);
     /// let mut buf = [0u8; 1514];
-    /// let len = dc.poll_transmit(now, &mut buf).expect("the slave count to send");
+    /// let len = dc
+    ///     .poll_transmit(now, &mut buf)
+    ///     .expect("the slave count to send");
     /// // Hand `&buf[..len]` to the NIC. Here: check it is the BRD that counts the slaves.
     /// let frame = EthernetFrame::new_checked(&buf[..len]).expect("a well-formed frame");
     /// assert_eq!(frame.ethertype(), 0x88A4);

@@ -109,7 +109,10 @@ impl RegisterBytes {
     /// ```
     /// use ecdc_core::dc::offset::RegisterBytes;
     ///
-    /// assert_eq!(RegisterBytes::u32(1_000_000).as_slice(), 1_000_000u32.to_le_bytes());
+    /// assert_eq!(
+    ///     RegisterBytes::u32(1_000_000).as_slice(),
+    ///     1_000_000u32.to_le_bytes()
+    /// );
     /// ```
     pub const fn u32(v: u32) -> RegisterBytes {
         let b = v.to_le_bytes();
@@ -177,8 +180,14 @@ impl WidthValue {
     /// ```
     /// use ecdc_core::dc::offset::{ClockWidth, WidthValue};
     ///
-    /// assert_eq!(WidthValue::new(0x1_0000_0001, ClockWidth::Bits64), WidthValue::Bits64(0x1_0000_0001));
-    /// assert_eq!(WidthValue::new(0x1_0000_0001, ClockWidth::Bits32), WidthValue::Bits32(1));
+    /// assert_eq!(
+    ///     WidthValue::new(0x1_0000_0001, ClockWidth::Bits64),
+    ///     WidthValue::Bits64(0x1_0000_0001)
+    /// );
+    /// assert_eq!(
+    ///     WidthValue::new(0x1_0000_0001, ClockWidth::Bits32),
+    ///     WidthValue::Bits32(1)
+    /// );
     /// ```
     pub fn new(value: u64, width: ClockWidth) -> WidthValue {
         match width {
@@ -194,8 +203,14 @@ impl WidthValue {
     /// ```
     /// use ecdc_core::dc::offset::WidthValue;
     ///
-    /// assert_eq!(WidthValue::Bits64(0x0102).to_register().as_slice(), [2, 1, 0, 0, 0, 0, 0, 0]);
-    /// assert_eq!(WidthValue::Bits32(0x0102).to_register().as_slice(), [2, 1, 0, 0]);
+    /// assert_eq!(
+    ///     WidthValue::Bits64(0x0102).to_register().as_slice(),
+    ///     [2, 1, 0, 0, 0, 0, 0, 0]
+    /// );
+    /// assert_eq!(
+    ///     WidthValue::Bits32(0x0102).to_register().as_slice(),
+    ///     [2, 1, 0, 0]
+    /// );
     /// ```
     pub fn to_register(self) -> RegisterBytes {
         match self {
@@ -286,9 +301,15 @@ pub fn initial_offset(
 /// use ecdc_core::dc::offset::{self, ClockWidth, WidthValue};
 /// use ecdc_core::time::SystemTime;
 ///
-/// let w = offset::initial_offset_word::<u64>(1_000_000_000, 500, 0x1_0000_0000, ClockWidth::Bits32);
+/// let w =
+///     offset::initial_offset_word::<u64>(1_000_000_000, 500, 0x1_0000_0000, ClockWidth::Bits32);
 /// assert!(w <= u64::from(u32::MAX)); // reduced for a 32-bit slave
-/// let v = offset::initial_offset(SystemTime(1_000_000_000), 500, 0x1_0000_0000, ClockWidth::Bits32);
+/// let v = offset::initial_offset(
+///     SystemTime(1_000_000_000),
+///     500,
+///     0x1_0000_0000,
+///     ClockWidth::Bits32,
+/// );
 /// assert_eq!(WidthValue::Bits32(w as u32), v);
 /// ```
 #[inline]

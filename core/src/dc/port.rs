@@ -338,7 +338,10 @@ impl PortSet {
     /// use ecdc_core::dc::port::{Port, PortSet};
     ///
     /// // Port 3 comes before port 1 in processing order.
-    /// assert_eq!(PortSet::from_bits(0b1010).first_in_processing_order(), Some(Port::P3));
+    /// assert_eq!(
+    ///     PortSet::from_bits(0b1010).first_in_processing_order(),
+    ///     Some(Port::P3)
+    /// );
     /// assert_eq!(PortSet::EMPTY.first_in_processing_order(), None);
     /// ```
     pub fn first_in_processing_order(self) -> Option<Port> {
@@ -360,7 +363,10 @@ impl PortSet {
     /// assert_eq!(s.next_after(Port::P0), Some(Port::P1));
     /// assert_eq!(s.next_after(Port::P2), Some(Port::P0));
     /// // The only member comes back to itself.
-    /// assert_eq!(PortSet::from_bits(0b0001).next_after(Port::P0), Some(Port::P0));
+    /// assert_eq!(
+    ///     PortSet::from_bits(0b0001).next_after(Port::P0),
+    ///     Some(Port::P0)
+    /// );
     /// ```
     pub fn next_after(self, from: Port) -> Option<Port> {
         let mut p = from.next();
@@ -384,7 +390,7 @@ impl PortSet {
     /// use ecdc_core::dc::port::{Port, PortSet};
     ///
     /// let s = PortSet::from_bits(0b0111); // ports 0, 1, 2
-    /// // Walking 0 → 1 → 2, the port visited before 2 is 1.
+    ///                                     // Walking 0 → 1 → 2, the port visited before 2 is 1.
     /// assert_eq!(s.prev_before(Port::P2), Some(Port::P1));
     /// assert_eq!(s.prev_before(Port::P1), Some(Port::P0));
     /// ```

@@ -15,7 +15,10 @@ use crate::wire::{Address, Command};
 /// use ecdc_core::dc::{Config, Machine, Stations};
 ///
 /// // The host master (SOEM, IgH, ethercrab) assigned 0x0010 already: read and keep them.
-/// let cfg = Config { stations: Stations::Adopt, ..Config::DEFAULT };
+/// let cfg = Config {
+///     stations: Stations::Adopt,
+///     ..Config::DEFAULT
+/// };
 /// let dc = Machine::<16>::new(cfg)?;
 /// assert_eq!(dc.config().stations, Stations::Adopt);
 /// assert_eq!(Config::default().stations, Stations::Assign);

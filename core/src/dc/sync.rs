@@ -29,7 +29,10 @@ pub const MAX_START_LEAD_NS: u64 = 1 << 31;
 /// use ecdc_core::dc::sync::{self, SyncError};
 /// use ecdc_core::time::SystemTime;
 ///
-/// assert_eq!(sync::start_time(SystemTime(0), 100_000_000, 0, 0), Err(SyncError::ZeroCycle));
+/// assert_eq!(
+///     sync::start_time(SystemTime(0), 100_000_000, 0, 0),
+///     Err(SyncError::ZeroCycle)
+/// );
 /// assert_eq!(
 ///     sync::start_time(SystemTime(0), 3_000_000_000, 1_000_000, 0),
 ///     Err(SyncError::StartOutOfWindow) // 3 s ahead: a 32-bit slave would not accept it
@@ -91,8 +94,14 @@ impl std::error::Error for SyncError {}
 /// // A 32-bit reference read 0x100 just after its clock wrapped; the master's estimate is
 /// // slightly earlier.
 /// let estimate = SystemTime(0x7_FFFF_FF00);
-/// assert_eq!(sync::reference_now(0x100, ClockWidth::Bits32, estimate), SystemTime(0x8_0000_0100));
-/// assert_eq!(sync::reference_now(0x100, ClockWidth::Bits64, estimate), SystemTime(0x100));
+/// assert_eq!(
+///     sync::reference_now(0x100, ClockWidth::Bits32, estimate),
+///     SystemTime(0x8_0000_0100)
+/// );
+/// assert_eq!(
+///     sync::reference_now(0x100, ClockWidth::Bits64, estimate),
+///     SystemTime(0x100)
+/// );
 /// ```
 pub fn reference_now(read: u64, width: ClockWidth, estimate: SystemTime) -> SystemTime {
     match width {
@@ -160,8 +169,16 @@ pub fn start_time(
 /// use ecdc_core::time::SystemTime;
 ///
 /// let start = SystemTime(0x1_0000_0010);
-/// assert_eq!(sync::start_time_register(start, ClockWidth::Bits32).as_slice(), [0x10, 0, 0, 0]);
-/// assert_eq!(sync::start_time_register(start, ClockWidth::Bits64).as_slice().len(), 8);
+/// assert_eq!(
+///     sync::start_time_register(start, ClockWidth::Bits32).as_slice(),
+///     [0x10, 0, 0, 0]
+/// );
+/// assert_eq!(
+///     sync::start_time_register(start, ClockWidth::Bits64)
+///         .as_slice()
+///         .len(),
+///     8
+/// );
 /// ```
 pub fn start_time_register(start: SystemTime, width: ClockWidth) -> RegisterBytes {
     WidthValue::new(start.as_nanos(), width).to_register()
@@ -175,7 +192,10 @@ pub fn start_time_register(start: SystemTime, width: ClockWidth) -> RegisterByte
 /// use ecdc_core::dc::sync;
 ///
 /// // 0x09A0 for a 1 ms SYNC0 cycle: 4 bytes, so nothing spills into 0x09A4.
-/// assert_eq!(sync::cycle_register(1_000_000).as_slice(), [0x40, 0x42, 0x0F, 0x00]);
+/// assert_eq!(
+///     sync::cycle_register(1_000_000).as_slice(),
+///     [0x40, 0x42, 0x0F, 0x00]
+/// );
 /// ```
 pub fn cycle_register(cycle_ns: u32) -> RegisterBytes {
     RegisterBytes::u32(cycle_ns)
@@ -217,9 +237,15 @@ impl Activation {
     ///
     /// assert!(Activation::from_assign_activate(0x0700, 0x000C)?.sync1());
     /// // SYNC0 without the sync unit bit.
-    /// assert_eq!(Activation::from_assign_activate(0x0200, 0x000C), Err(SyncError::SyncWithoutUnit));
+    /// assert_eq!(
+    ///     Activation::from_assign_activate(0x0200, 0x000C),
+    ///     Err(SyncError::SyncWithoutUnit)
+    /// );
     /// // Enhanced activation bits on an ESC without them (features bit 8 clear).
-    /// assert_eq!(Activation::from_assign_activate(0x0B00, 0x000C), Err(SyncError::EnhancedUnsupported));
+    /// assert_eq!(
+    ///     Activation::from_assign_activate(0x0B00, 0x000C),
+    ///     Err(SyncError::EnhancedUnsupported)
+    /// );
     /// # Ok::<(), SyncError>(())
     /// ```
     pub fn from_assign_activate(assign_activate: u16, features: u16) -> Result<Self, SyncError> {
@@ -266,8 +292,16 @@ impl Activation {
     /// ```
     /// use ecdc_core::dc::sync::Activation;
     ///
-    /// assert!(Activation { cyclic_unit_control: 0, activation: 0x03 }.sync0());
-    /// assert!(!Activation { cyclic_unit_control: 0, activation: Activation::OFF }.sync0());
+    /// assert!(Activation {
+    ///     cyclic_unit_control: 0,
+    ///     activation: 0x03
+    /// }
+    /// .sync0());
+    /// assert!(!Activation {
+    ///     cyclic_unit_control: 0,
+    ///     activation: Activation::OFF
+    /// }
+    /// .sync0());
     /// ```
     pub const fn sync0(self) -> bool {
         self.activation & 0x02 != 0
@@ -280,8 +314,16 @@ impl Activation {
     /// ```
     /// use ecdc_core::dc::sync::Activation;
     ///
-    /// assert!(Activation { cyclic_unit_control: 0, activation: 0x07 }.sync1());
-    /// assert!(!Activation { cyclic_unit_control: 0, activation: 0x03 }.sync1());
+    /// assert!(Activation {
+    ///     cyclic_unit_control: 0,
+    ///     activation: 0x07
+    /// }
+    /// .sync1());
+    /// assert!(!Activation {
+    ///     cyclic_unit_control: 0,
+    ///     activation: 0x03
+    /// }
+    /// .sync1());
     /// ```
     pub const fn sync1(self) -> bool {
         self.activation & 0x04 != 0

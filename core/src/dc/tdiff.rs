@@ -120,7 +120,10 @@ impl core::fmt::Display for TdiffSource {
 /// use ecdc_core::dc::{TdiffFallback, TdiffSource};
 ///
 /// let rejected = TdiffSource::Fallback(TdiffFallback::Implausible { measured_ns: 900 });
-/// assert_eq!(rejected.to_string(), "fallback: measured 900 ns implausible");
+/// assert_eq!(
+///     rejected.to_string(),
+///     "fallback: measured 900 ns implausible"
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TdiffFallback {

@@ -59,7 +59,11 @@ impl Latches {
     /// use ecdc_core::wire::register::ReceiveTimes;
     ///
     /// // Straight from the 32-byte block read at 0x0900.
-    /// let read = ReceiveTimes { port: [1_000, 2_000, 0, 0], system_time: 0, epu: 1_000 };
+    /// let read = ReceiveTimes {
+    ///     port: [1_000, 2_000, 0, 0],
+    ///     system_time: 0,
+    ///     epu: 1_000,
+    /// };
     /// let l = Latches::from_raw(read.port, read.epu);
     /// assert_eq!(l.ports[1], PortTime(2_000));
     /// assert_eq!(l.epu, 1_000);
@@ -107,7 +111,10 @@ impl Latches {
 ///     latches: Some(Latches::from_raw([1_000, 2_000, 0, 0], 1_000)),
 ///     t_diff: 20,
 /// };
-/// assert_eq!(s, SlaveSample::from_registers(0x5A00, 0x0004, [1_000, 2_000, 0, 0], 1_000, 20));
+/// assert_eq!(
+///     s,
+///     SlaveSample::from_registers(0x5A00, 0x0004, [1_000, 2_000, 0, 0], 1_000, 20)
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct SlaveSample {
@@ -168,7 +175,13 @@ impl SlaveSample {
 /// ];
 /// let topo = Topology::<8>::build(&samples)?;
 /// // Slave 1 hangs off port 1 of slave 0.
-/// assert_eq!(topo.node(1).and_then(|n| n.parent), Some(Link { slave: 0, port: Port::P1 }));
+/// assert_eq!(
+///     topo.node(1).and_then(|n| n.parent),
+///     Some(Link {
+///         slave: 0,
+///         port: Port::P1
+///     })
+/// );
 /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -192,7 +205,9 @@ pub struct Link {
 ///     SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0),
 /// ];
 /// let topo = Topology::<8>::build(&samples)?;
-/// let first = topo.node(0).ok_or(ecdc_core::dc::topology::TopologyError::Capacity)?;
+/// let first = topo
+///     .node(0)
+///     .ok_or(ecdc_core::dc::topology::TopologyError::Capacity)?;
 /// assert_eq!(first.entry, Port::P0);
 /// assert_eq!(first.parent, None); // wired to the master
 /// assert_eq!(first.children, [None, Some(1), None, None]);
@@ -271,14 +286,26 @@ impl Node {
 /// use ecdc_core::dc::topology::{SlaveSample, Topology, TopologyError};
 ///
 /// // One slave reports port 1 open, but no second slave answered behind it.
-/// let samples = [SlaveSample::from_registers(0x5A00, 0x000C, [1_000, 2_000, 0, 0], 1_000, 0)];
+/// let samples = [SlaveSample::from_registers(
+///     0x5A00,
+///     0x000C,
+///     [1_000, 2_000, 0, 0],
+///     1_000,
+///     0,
+/// )];
 /// assert_eq!(
 ///     Topology::<8>::build(&samples),
-///     Err(TopologyError::DanglingPort { slave: 0, port: Port::P1 })
+///     Err(TopologyError::DanglingPort {
+///         slave: 0,
+///         port: Port::P1
+///     })
 /// );
 /// // A slave without any open port cannot have been reached.
 /// let dead = [SlaveSample::from_registers(0x0000, 0x0000, [0; 4], 0, 0)];
-/// assert_eq!(Topology::<8>::build(&dead), Err(TopologyError::NoOpenPort { slave: 0 }));
+/// assert_eq!(
+///     Topology::<8>::build(&dead),
+///     Err(TopologyError::NoOpenPort { slave: 0 })
+/// );
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -350,7 +377,10 @@ impl std::error::Error for TopologyError {}
 /// ];
 /// let topo = Topology::<8>::build(&samples)?;
 /// assert_eq!(topo.len(), 2);
-/// assert_eq!(topo.node(0).map(|n| n.children[Port::P1.index()]), Some(Some(1)));
+/// assert_eq!(
+///     topo.node(0).map(|n| n.children[Port::P1.index()]),
+///     Some(Some(1))
+/// );
 /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
 /// ```
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -491,7 +521,13 @@ impl<const N: usize> Topology<N> {
     /// ```
     /// use ecdc_core::dc::topology::{SlaveSample, Topology};
     ///
-    /// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+    /// let samples = [SlaveSample::from_registers(
+    ///     0x5600,
+    ///     0x000C,
+    ///     [90, 0, 0, 0],
+    ///     90,
+    ///     0,
+    /// )];
     /// assert_eq!(Topology::<8>::build(&samples)?.len(), 1);
     /// # Ok::<(), ecdc_core::dc::topology::TopologyError>(())
     /// ```
@@ -521,7 +557,13 @@ impl<const N: usize> Topology<N> {
     /// use ecdc_core::dc::port::Port;
     /// use ecdc_core::dc::topology::{SlaveSample, Topology};
     ///
-    /// let samples = [SlaveSample::from_registers(0x5600, 0x000C, [90, 0, 0, 0], 90, 0)];
+    /// let samples = [SlaveSample::from_registers(
+    ///     0x5600,
+    ///     0x000C,
+    ///     [90, 0, 0, 0],
+    ///     90,
+    ///     0,
+    /// )];
     /// let topo = Topology::<8>::build(&samples)?;
     /// assert_eq!(topo.node(0).map(|n| n.entry), Some(Port::P0));
     /// assert_eq!(topo.node(1), None); // beyond the slaves found, not beyond N
