@@ -29,7 +29,10 @@ pub const COUNT_HZ_MAX: u64 = 1 << 34;
 ///
 /// assert_eq!(CounterCompensator::new(0, 1), Err(CounterError::CountRate));
 /// // 25 MHz × 1000 = 25 GHz is above the supported 2^34 Hz.
-/// assert_eq!(CounterCompensator::new(25_000_000, 1_000), Err(CounterError::CountRate));
+/// assert_eq!(
+///     CounterCompensator::new(25_000_000, 1_000),
+///     Err(CounterError::CountRate)
+/// );
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum CounterError {

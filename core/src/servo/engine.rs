@@ -34,9 +34,15 @@ use crate::num::wrapping_diff;
 ///
 /// // The master loop's defaults for a 1 ms interval, but allow one phase step on the first
 /// // sample when the error exceeds 1 µs.
-/// let cfg = ServoConfig { first_step_ns: 1_000, ..MasterConfig::for_period(1_000_000)?.servo };
+/// let cfg = ServoConfig {
+///     first_step_ns: 1_000,
+///     ..MasterConfig::for_period(1_000_000)?.servo
+/// };
 /// let mut servo = Servo::new(cfg)?;
-/// let out = servo.update(Input::Sample { local_ns: 0, theta_ns: 5_000 });
+/// let out = servo.update(Input::Sample {
+///     local_ns: 0,
+///     theta_ns: 5_000,
+/// });
 /// assert_eq!((out.verdict, out.step_ns), (Verdict::Stepped, 5_000));
 /// # Ok::<(), ecdc_core::servo::ConfigError>(())
 /// ```
@@ -87,8 +93,14 @@ pub struct ServoConfig {
 /// use ecdc_core::servo::master::MasterConfig;
 /// use ecdc_core::servo::{ConfigError, Servo, ServoConfig};
 ///
-/// let cfg = ServoConfig { interval_ns: 0, ..MasterConfig::for_period(1_000_000)?.servo };
-/// assert_eq!(Servo::new(cfg).map(|s| s.mode()), Err(ConfigError::Interval));
+/// let cfg = ServoConfig {
+///     interval_ns: 0,
+///     ..MasterConfig::for_period(1_000_000)?.servo
+/// };
+/// assert_eq!(
+///     Servo::new(cfg).map(|s| s.mode()),
+///     Err(ConfigError::Interval)
+/// );
 /// # Ok::<(), ConfigError>(())
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -117,7 +129,10 @@ pub enum ConfigError {
 ///
 /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
 /// assert_eq!(servo.mode(), Mode::Init);
-/// servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// servo.update(Input::Sample {
+///     local_ns: 0,
+///     theta_ns: 100,
+/// });
 /// assert_eq!(servo.mode(), Mode::Acquire);
 /// servo.update(Input::Missing);
 /// assert_eq!(servo.mode(), Mode::Holdover);
@@ -144,10 +159,16 @@ pub enum Mode {
 /// use ecdc_core::servo::{Input, Servo, Verdict};
 ///
 /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-/// let first = servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// let first = servo.update(Input::Sample {
+///     local_ns: 0,
+///     theta_ns: 100,
+/// });
 /// assert_eq!(first.verdict, Verdict::Accepted);
 /// // 10 µs later instead of ~1 ms: not a plausible sample interval.
-/// let early = servo.update(Input::Sample { local_ns: 10_000, theta_ns: 100 });
+/// let early = servo.update(Input::Sample {
+///     local_ns: 10_000,
+///     theta_ns: 100,
+/// });
 /// assert_eq!(early.verdict, Verdict::BadInterval);
 /// # Ok::<(), ecdc_core::servo::ConfigError>(())
 /// ```
@@ -178,7 +199,10 @@ pub enum Verdict {
 /// use ecdc_core::servo::{Input, Servo, Verdict};
 ///
 /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-/// servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// servo.update(Input::Sample {
+///     local_ns: 0,
+///     theta_ns: 100,
+/// });
 /// // The frame of the next cycle was lost.
 /// assert_eq!(servo.update(Input::Missing).verdict, Verdict::Missing);
 /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -205,7 +229,10 @@ pub enum Input {
 /// use ecdc_core::servo::{Input, Servo};
 ///
 /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-/// let out = servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// let out = servo.update(Input::Sample {
+///     local_ns: 0,
+///     theta_ns: 100,
+/// });
 /// // Ahead by 100 ns: retard (positive command), within ±y_max, no step.
 /// assert!(out.command_q32 > 0 && out.command_q32 <= servo.config().limits.y_max());
 /// assert_eq!((out.step_ns, out.theta_ns, out.locked), (0, 100, false));
@@ -243,7 +270,10 @@ pub struct Output {
 /// use ecdc_core::servo::{Input, Servo};
 ///
 /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-/// servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+/// servo.update(Input::Sample {
+///     local_ns: 0,
+///     theta_ns: 100,
+/// });
 /// servo.update(Input::Missing);
 /// let c = servo.counters();
 /// assert_eq!((c.inputs, c.accepted, c.held), (2, 1, 1));
@@ -422,7 +452,10 @@ impl Servo {
     /// use ecdc_core::servo::{Input, Mode, Servo};
     ///
     /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-    /// servo.update(Input::Sample { local_ns: 0, theta_ns: 0 });
+    /// servo.update(Input::Sample {
+    ///     local_ns: 0,
+    ///     theta_ns: 0,
+    /// });
     /// assert_eq!(servo.mode(), Mode::Acquire);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
     /// ```
@@ -442,7 +475,10 @@ impl Servo {
     /// // Lock needs 32 consecutive samples within P/50 = 20 µs.
     /// for k in 0..32u64 {
     ///     assert!(!servo.is_locked());
-    ///     servo.update(Input::Sample { local_ns: k * 1_000_000, theta_ns: 0 });
+    ///     servo.update(Input::Sample {
+    ///         local_ns: k * 1_000_000,
+    ///         theta_ns: 0,
+    ///     });
     /// }
     /// assert!(servo.is_locked());
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -461,7 +497,10 @@ impl Servo {
     /// use ecdc_core::servo::{Input, Servo};
     ///
     /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-    /// let out = servo.update(Input::Sample { local_ns: 0, theta_ns: 100 });
+    /// let out = servo.update(Input::Sample {
+    ///     local_ns: 0,
+    ///     theta_ns: 100,
+    /// });
     /// assert_eq!(servo.integrator_q32(), out.integrator_q32);
     /// assert!(servo.integrator_q32() > 0 && servo.integrator_q32() < 100 * ONE);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -496,10 +535,14 @@ impl Servo {
     /// use ecdc_core::servo::master::MasterConfig;
     /// use ecdc_core::servo::{Mode, Servo};
     ///
-    /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?.with_integrator(7 * ONE);
+    /// let mut servo =
+    ///     Servo::new(MasterConfig::for_period(1_000_000)?.servo)?.with_integrator(7 * ONE);
     /// servo.reset();
     /// // Back to Init, but the crystal's rate is still known.
-    /// assert_eq!((servo.mode(), servo.integrator_q32()), (Mode::Init, 7 * ONE));
+    /// assert_eq!(
+    ///     (servo.mode(), servo.integrator_q32()),
+    ///     (Mode::Init, 7 * ONE)
+    /// );
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
     /// ```
     pub fn reset(&mut self) {
@@ -578,10 +621,13 @@ impl Servo {
     /// use ecdc_core::servo::{Input, Servo, Verdict};
     ///
     /// let mut servo = Servo::new(MasterConfig::for_period(1_000_000)?.servo)?;
-    /// let a = servo.update(Input::Sample { local_ns: 0, theta_ns: -400 });
+    /// let a = servo.update(Input::Sample {
+    ///     local_ns: 0,
+    ///     theta_ns: -400,
+    /// });
     /// assert_eq!(a.verdict, Verdict::Accepted);
     /// assert!(a.command_q32 < 0); // behind: advance
-    /// // A lost sample holds the learned rate: the integrator, no P term.
+    ///                             // A lost sample holds the learned rate: the integrator, no P term.
     /// let b = servo.update(Input::Missing);
     /// assert_eq!(b.command_q32, a.integrator_q32);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())

@@ -52,7 +52,10 @@ impl Pole {
     ///
     /// // 0.99 at a 1 kHz cycle: a ~100 ms time constant.
     /// assert_eq!(Pole::from_micro(990_000)?.q32(), 4_252_017_623);
-    /// assert_eq!(Pole::from_micro(1_000_000), Err(GainError::PoleOutsideUnitInterval));
+    /// assert_eq!(
+    ///     Pole::from_micro(1_000_000),
+    ///     Err(GainError::PoleOutsideUnitInterval)
+    /// );
     /// # Ok::<(), GainError>(())
     /// ```
     pub fn from_micro(micro: u32) -> Result<Self, GainError> {
@@ -103,7 +106,10 @@ impl Pole {
 /// use ecdc_core::servo::gains::{GainError, PiGains, ONE};
 ///
 /// // Kp = 1, Ki = 2: linuxptp's corner with a pole at z = −1, refused.
-/// assert_eq!(PiGains::from_q32(ONE, 2 * ONE), Err(GainError::JuryViolated));
+/// assert_eq!(
+///     PiGains::from_q32(ONE, 2 * ONE),
+///     Err(GainError::JuryViolated)
+/// );
 /// assert_eq!(PiGains::from_q32(ONE, 0), Err(GainError::KiNotPositive));
 /// assert_eq!(PiGains::from_q32(0, ONE), Err(GainError::KpOutOfRange));
 /// ```

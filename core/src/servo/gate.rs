@@ -18,7 +18,12 @@ pub const GATE_WINDOW: usize = 16;
 /// use ecdc_core::servo::gate::GateConfig;
 ///
 /// // κ = 5 (5 · 1.4826 in Q8), 8 samples before arming, 3 same-side rejections confirm.
-/// let cfg = GateConfig { kappa_q8: 1898, floor_ns: 100, min_samples: 8, confirm: 3 };
+/// let cfg = GateConfig {
+///     kappa_q8: 1898,
+///     floor_ns: 100,
+///     min_samples: 8,
+///     confirm: 3,
+/// };
 /// assert_eq!(cfg, GateConfig::with_floor(100));
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -69,7 +74,14 @@ impl GateConfig {
 /// }
 /// // A 5 µs spike is rejected; three on the same side are a real change.
 /// let v = [5_000, 5_000, 5_000].map(|theta| gate.judge(&cfg, theta));
-/// assert_eq!(v, [GateVerdict::Reject, GateVerdict::Reject, GateVerdict::Confirmed]);
+/// assert_eq!(
+///     v,
+///     [
+///         GateVerdict::Reject,
+///         GateVerdict::Reject,
+///         GateVerdict::Confirmed
+///     ]
+/// );
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GateVerdict {
@@ -383,7 +395,10 @@ impl Gate {
     /// for theta in [30, 10, 20] {
     ///     gate.push(theta);
     /// }
-    /// let cfg = GateConfig { min_samples: 3, ..GateConfig::with_floor(100) };
+    /// let cfg = GateConfig {
+    ///     min_samples: 3,
+    ///     ..GateConfig::with_floor(100)
+    /// };
     /// assert_eq!(gate.threshold(&cfg).map(|(median, _)| median), Some(20));
     /// ```
     #[inline(always)]

@@ -20,7 +20,12 @@ use crate::num::wrapping_diff;
 /// use ecdc_core::servo::ieee1588::{mean_path_delay, Exchange, PtpError};
 ///
 /// // The Delay_Req "arrived" before it was sent: the timestamps cannot be right.
-/// let e = Exchange { t1: 1_000, t2: 1_100, t3: 2_000, t4: 1_500 };
+/// let e = Exchange {
+///     t1: 1_000,
+///     t2: 1_100,
+///     t3: 2_000,
+///     t4: 1_500,
+/// };
 /// assert_eq!(mean_path_delay(&e), Err(PtpError::NegativeDelay));
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -44,7 +49,12 @@ pub enum PtpError {
 ///
 /// // Sync: sent at master 1 000, received at slave 1 600; Delay_Req: sent at slave 2 000,
 /// // received at master 2 400. Path 500 ns each way, slave 100 ns ahead.
-/// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+/// let e = Exchange {
+///     t1: 1_000,
+///     t2: 1_600,
+///     t3: 2_000,
+///     t4: 2_400,
+/// };
 /// assert_eq!(offset_and_delay(&e)?, (100, 500));
 /// # Ok::<(), ecdc_core::servo::ieee1588::PtpError>(())
 /// ```
@@ -106,7 +116,12 @@ pub fn offset_from_master(t1: u64, t2: u64, delay: i64) -> Result<i64, PtpError>
 /// use ecdc_core::servo::ieee1588::{offset_and_delay, Exchange};
 ///
 /// // The slave is 300 ns behind: its stamps read 300 less than the master's would.
-/// let e = Exchange { t1: 1_000, t2: 1_200, t3: 2_000, t4: 2_800 };
+/// let e = Exchange {
+///     t1: 1_000,
+///     t2: 1_200,
+///     t3: 2_000,
+///     t4: 2_800,
+/// };
 /// assert_eq!(offset_and_delay(&e)?, (-300, 500));
 /// # Ok::<(), ecdc_core::servo::ieee1588::PtpError>(())
 /// ```
@@ -129,7 +144,10 @@ pub const RATE_PPB_MAX: i64 = 100_000_000;
 ///
 /// // Over one master second the slave counted 1 µs more: it runs 1 000 ppb fast.
 /// assert_eq!(rate_ratio_ppb(0, 1_000_000_000, 0, 1_000_001_000)?, -1_000);
-/// assert_eq!(rate_ratio_ppb(5, 5, 0, 10), Err(PtpError::NonPositiveInterval));
+/// assert_eq!(
+///     rate_ratio_ppb(5, 5, 0, 10),
+///     Err(PtpError::NonPositiveInterval)
+/// );
 /// # Ok::<(), PtpError>(())
 /// ```
 pub fn rate_ratio_ppb(m0: u64, m_n: u64, s0: u64, s_n: u64) -> Result<i64, PtpError> {

@@ -13,7 +13,12 @@
 /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
 ///
 /// // Lock after 3 samples within 100 ns; drop only beyond 500 ns.
-/// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 3 }.validate()?;
+/// let cfg = LockConfig {
+///     low_ns: 100,
+///     high_ns: 500,
+///     count: 3,
+/// }
+/// .validate()?;
 /// let mut lock = LockDetector::new();
 /// let states = [50, -60, 70, 300, -600].map(|theta| lock.update(&cfg, theta));
 /// assert_eq!(states, [false, false, true, true, false]);
@@ -36,7 +41,11 @@ pub struct LockConfig {
 /// ```
 /// use ecdc_core::servo::lock::{LockConfig, LockError};
 ///
-/// let bad = LockConfig { low_ns: 500, high_ns: 100, count: 3 };
+/// let bad = LockConfig {
+///     low_ns: 500,
+///     high_ns: 100,
+///     count: 3,
+/// };
 /// assert_eq!(bad.validate(), Err(LockError::Thresholds));
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -53,9 +62,16 @@ impl LockConfig {
     /// ```
     /// use ecdc_core::servo::lock::{LockConfig, LockError};
     ///
-    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 3 };
+    /// let cfg = LockConfig {
+    ///     low_ns: 100,
+    ///     high_ns: 500,
+    ///     count: 3,
+    /// };
     /// assert_eq!(cfg.validate(), Ok(cfg));
-    /// assert_eq!(LockConfig { count: 0, ..cfg }.validate(), Err(LockError::Thresholds));
+    /// assert_eq!(
+    ///     LockConfig { count: 0, ..cfg }.validate(),
+    ///     Err(LockError::Thresholds)
+    /// );
     /// ```
     pub fn validate(self) -> Result<Self, LockError> {
         if self.low_ns > self.high_ns || self.count == 0 {
@@ -72,7 +88,11 @@ impl LockConfig {
 /// ```
 /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
 ///
-/// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 1 };
+/// let cfg = LockConfig {
+///     low_ns: 100,
+///     high_ns: 500,
+///     count: 1,
+/// };
 /// let mut lock = LockDetector::new();
 /// assert!(lock.update(&cfg, 20));
 /// assert!(lock.is_locked());
@@ -107,7 +127,11 @@ impl LockDetector {
     /// ```
     /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
     ///
-    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 2 };
+    /// let cfg = LockConfig {
+    ///     low_ns: 100,
+    ///     high_ns: 500,
+    ///     count: 2,
+    /// };
     /// let mut lock = LockDetector::new();
     /// lock.update(&cfg, 20);
     /// assert!(!lock.is_locked()); // one of two samples
@@ -125,7 +149,11 @@ impl LockDetector {
     /// ```
     /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
     ///
-    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 2 };
+    /// let cfg = LockConfig {
+    ///     low_ns: 100,
+    ///     high_ns: 500,
+    ///     count: 2,
+    /// };
     /// let mut lock = LockDetector::new();
     /// // A sample between the thresholds breaks the run towards lock.
     /// let states = [20, 200, 20, 20].map(|theta| lock.update(&cfg, theta));
@@ -156,7 +184,11 @@ impl LockDetector {
     /// ```
     /// use ecdc_core::servo::lock::{LockConfig, LockDetector};
     ///
-    /// let cfg = LockConfig { low_ns: 100, high_ns: 500, count: 1 };
+    /// let cfg = LockConfig {
+    ///     low_ns: 100,
+    ///     high_ns: 500,
+    ///     count: 1,
+    /// };
     /// let mut lock = LockDetector::new();
     /// lock.update(&cfg, 0);
     /// lock.unlock(); // the clock was stepped

@@ -58,7 +58,10 @@ pub const PERIOD_MAX_NS: u32 = 1 << 29;
 /// use ecdc_core::servo::master::{MasterConfig, MasterServo};
 ///
 /// // A 1 ms cycle whose app-time stamp is taken 30 µs before the frame passes the reference.
-/// let cfg = MasterConfig { target_ns: -30_000, ..MasterConfig::for_period(1_000_000)? };
+/// let cfg = MasterConfig {
+///     target_ns: -30_000,
+///     ..MasterConfig::for_period(1_000_000)?
+/// };
 /// let servo = MasterServo::new(cfg)?;
 /// assert!(!servo.is_locked());
 /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -151,10 +154,17 @@ impl MasterConfig {
 /// use ecdc_core::servo::Verdict;
 ///
 /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
-/// servo.update(MasterInput::Sample { local_ns: 0, app_ns: 5_000_000_000, ref_ns: 4_999_999_900 });
+/// servo.update(MasterInput::Sample {
+///     local_ns: 0,
+///     app_ns: 5_000_000_000,
+///     ref_ns: 4_999_999_900,
+/// });
 /// // The cyclic frame did not come back: hold the learned rate.
 /// let out = servo.update(MasterInput::Lost);
-/// assert_eq!((out.engine.verdict, out.phase_error_ns), (Verdict::Missing, 0));
+/// assert_eq!(
+///     (out.engine.verdict, out.phase_error_ns),
+///     (Verdict::Missing, 0)
+/// );
 /// # Ok::<(), ecdc_core::servo::ConfigError>(())
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -218,7 +228,11 @@ pub struct MasterOutput {
 /// for k in 0..4_000u64 {
 ///     let app_k = app + k * 1_000_000;
 ///     let ref_k = app_k.wrapping_add_signed(ref_lag);
-///     let out = servo.update(MasterInput::Sample { local_ns: k * 1_000_000, app_ns: app_k, ref_ns: ref_k });
+///     let out = servo.update(MasterInput::Sample {
+///         local_ns: k * 1_000_000,
+///         app_ns: app_k,
+///         ref_ns: ref_k,
+///     });
 ///     ref_lag -= 50 - out.deadline_correction_ns;
 /// }
 /// assert!(servo.is_locked());
@@ -251,7 +265,10 @@ impl MasterServo {
     /// // The engine's interval must be the cycle period.
     /// let mut cfg = MasterConfig::for_period(1_000_000)?;
     /// cfg.servo.interval_ns = 2_000_000;
-    /// assert_eq!(MasterServo::new(cfg).map(|s| s.mode()), Err(ConfigError::Parameter));
+    /// assert_eq!(
+    ///     MasterServo::new(cfg).map(|s| s.mode()),
+    ///     Err(ConfigError::Parameter)
+    /// );
     /// # Ok::<(), ConfigError>(())
     /// ```
     pub fn new(cfg: MasterConfig) -> Result<Self, ConfigError> {
@@ -301,7 +318,11 @@ impl MasterServo {
     /// use ecdc_core::servo::Mode;
     ///
     /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
-    /// servo.update(MasterInput::Sample { local_ns: 0, app_ns: 1_000_000, ref_ns: 1_000_000 });
+    /// servo.update(MasterInput::Sample {
+    ///     local_ns: 0,
+    ///     app_ns: 1_000_000,
+    ///     ref_ns: 1_000_000,
+    /// });
     /// assert_eq!(servo.mode(), Mode::Acquire);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
     /// ```
@@ -320,7 +341,11 @@ impl MasterServo {
     /// // 32 cycles on the reference's grid: locked.
     /// for k in 0..32u64 {
     ///     let t = 1_000_000_000 + k * 1_000_000;
-    ///     servo.update(MasterInput::Sample { local_ns: t, app_ns: t, ref_ns: t });
+    ///     servo.update(MasterInput::Sample {
+    ///         local_ns: t,
+    ///         app_ns: t,
+    ///         ref_ns: t,
+    ///     });
     /// }
     /// assert!(servo.is_locked());
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -356,7 +381,11 @@ impl MasterServo {
     /// use ecdc_core::servo::Mode;
     ///
     /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
-    /// servo.update(MasterInput::Sample { local_ns: 0, app_ns: 1_000_000, ref_ns: 1_000_000 });
+    /// servo.update(MasterInput::Sample {
+    ///     local_ns: 0,
+    ///     app_ns: 1_000_000,
+    ///     ref_ns: 1_000_000,
+    /// });
     /// servo.reset(); // the DC network was re-initialised
     /// assert_eq!(servo.mode(), Mode::Init);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -381,7 +410,11 @@ impl MasterServo {
     /// // Persistently 200 ns ahead: the integrator starts learning a retard.
     /// for k in 0..10u64 {
     ///     let t = 1_000_000_000 + k * 1_000_000;
-    ///     servo.update(MasterInput::Sample { local_ns: t, app_ns: t, ref_ns: t - 200 });
+    ///     servo.update(MasterInput::Sample {
+    ///         local_ns: t,
+    ///         app_ns: t,
+    ///         ref_ns: t - 200,
+    ///     });
     /// }
     /// assert!(servo.drift_ns_per_cycle() > 0);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
@@ -448,7 +481,11 @@ impl MasterServo {
     ///
     /// let mut servo = MasterServo::new(MasterConfig::for_period(1_000_000)?)?;
     /// // The master is 250 ns ahead of the reference: wake later.
-    /// let out = servo.update(MasterInput::Sample { local_ns: 0, app_ns: 7_000_000, ref_ns: 6_999_750 });
+    /// let out = servo.update(MasterInput::Sample {
+    ///     local_ns: 0,
+    ///     app_ns: 7_000_000,
+    ///     ref_ns: 6_999_750,
+    /// });
     /// assert_eq!(out.phase_error_ns, 250);
     /// assert!(out.deadline_correction_ns > 0);
     /// assert_eq!(out.app_time_step_ns, 0);

@@ -47,8 +47,8 @@ pub const LIMIT_MAX_NS: i64 = 1 << 28;
 /// # Examples
 ///
 /// ```
-/// use ecdc_core::servo::pi::{pi_step, PiLimits};
 /// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+/// use ecdc_core::servo::pi::{pi_step, PiLimits};
 /// use ecdc_core::servo::ConfigError;
 ///
 /// // At most 1 µs of correction per interval, integrator at most 500 ns.
@@ -74,7 +74,10 @@ pub struct PiLimits {
 ///
 /// assert_eq!(PiLimits::from_ns(0, 0), Err(LimitError::OutputLimit));
 /// // The integrator limit may not exceed the output limit.
-/// assert_eq!(PiLimits::from_ns(100, 200), Err(LimitError::IntegratorLimit));
+/// assert_eq!(
+///     PiLimits::from_ns(100, 200),
+///     Err(LimitError::IntegratorLimit)
+/// );
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum LimitError {
@@ -170,14 +173,21 @@ impl PiLimits {
 ///
 /// ```
 /// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
-/// use ecdc_core::servo::ConfigError;
 /// use ecdc_core::servo::pi::{pi_step, PiLimits, PiStep};
+/// use ecdc_core::servo::ConfigError;
 ///
 /// // Kp = 0.75, Ki = 0.25: a 100 ns error commands 75 + 25 = 100 ns of retard.
 /// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
 /// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
 /// let step = pi_step(g, lim, 0, 100);
-/// assert_eq!(step, PiStep { y: 100 * ONE, integrator: 25 * ONE, saturated: false });
+/// assert_eq!(
+///     step,
+///     PiStep {
+///         y: 100 * ONE,
+///         integrator: 25 * ONE,
+///         saturated: false
+///     }
+/// );
 /// # Ok::<(), ConfigError>(())
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -281,8 +291,8 @@ pub fn pi_update<W: Word>(i: W, p_term: W, i_term: W, y_max: W, i_max: W) -> PiU
 ///
 /// ```
 /// use ecdc_core::servo::gains::{PiGains, Pole, ONE};
-/// use ecdc_core::servo::ConfigError;
 /// use ecdc_core::servo::pi::{pi_step, PiLimits};
+/// use ecdc_core::servo::ConfigError;
 ///
 /// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
 /// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
@@ -358,7 +368,14 @@ pub fn pi_products<W: Word>(kp: W, ki: W, theta: W) -> (W, W) {
 /// let g = PiGains::double_pole(Pole::from_q32(1 << 31)).map_err(ConfigError::Gains)?;
 /// let lim = PiLimits::from_ns(1_000, 500).map_err(ConfigError::Limits)?;
 /// let w = |x: i64| x as u64;
-/// let u = pi_step_word::<u64>(w(g.kp()), w(g.ki()), 0, w(-300), w(lim.y_max()), w(lim.i_max()));
+/// let u = pi_step_word::<u64>(
+///     w(g.kp()),
+///     w(g.ki()),
+///     0,
+///     w(-300),
+///     w(lim.y_max()),
+///     w(lim.i_max()),
+/// );
 /// assert_eq!(u.y as i64, pi_step(g, lim, 0, -300).y);
 /// # Ok::<(), ConfigError>(())
 /// ```

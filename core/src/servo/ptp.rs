@@ -73,10 +73,21 @@ pub struct PtpConfig {
 /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
 ///
 /// let servo = MasterConfig::for_period(125_000_000)?.servo;
-/// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+/// let cfg = PtpConfig {
+///     servo,
+///     max_ppb: 100_000,
+///     offset_filter: false,
+///     counter: None,
+///     rate_periods: 0,
+/// };
 /// let mut ptp = PtpServo::new(cfg)?;
 /// // Slave 100 ns ahead, 500 ns path.
-/// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+/// let e = Exchange {
+///     t1: 1_000,
+///     t2: 1_600,
+///     t3: 2_000,
+///     t4: 2_400,
+/// };
 /// let out = ptp.sample(0, Some(&e));
 /// assert_eq!((out.offset_ns, out.delay_ns, out.step_ns), (100, 500, 0));
 /// assert!(out.freq_ppb < 0); // slow the slave down
@@ -112,10 +123,21 @@ pub struct PtpOutput {
 /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
 ///
 /// let servo = MasterConfig::for_period(125_000_000)?.servo;
-/// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+/// let cfg = PtpConfig {
+///     servo,
+///     max_ppb: 100_000,
+///     offset_filter: false,
+///     counter: None,
+///     rate_periods: 0,
+/// };
 /// let mut ptp = PtpServo::new(cfg)?;
 /// // One exchange per Sync interval; a lost one is `None`.
-/// let e = Exchange { t1: 1_000, t2: 1_300, t3: 2_000, t4: 2_700 };
+/// let e = Exchange {
+///     t1: 1_000,
+///     t2: 1_300,
+///     t3: 2_000,
+///     t4: 2_700,
+/// };
 /// let first = ptp.sample(0, Some(&e));
 /// let lost = ptp.sample(125_000_000, None);
 /// assert_eq!(first.offset_ns, -200); // slave behind
@@ -145,11 +167,20 @@ impl PtpServo {
     /// use ecdc_core::servo::ConfigError;
     ///
     /// let servo = MasterConfig::for_period(125_000_000)?.servo;
-    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+    /// let cfg = PtpConfig {
+    ///     servo,
+    ///     max_ppb: 100_000,
+    ///     offset_filter: false,
+    ///     counter: None,
+    ///     rate_periods: 0,
+    /// };
     /// assert!(PtpServo::new(cfg).is_ok());
     /// // 1 ppb of 125 ms is below 1 ns per interval: the actuator could not act.
     /// let tiny = PtpConfig { max_ppb: 1, ..cfg };
-    /// assert_eq!(PtpServo::new(tiny).map(|s| s.measuring_rate()), Err(ConfigError::Parameter));
+    /// assert_eq!(
+    ///     PtpServo::new(tiny).map(|s| s.measuring_rate()),
+    ///     Err(ConfigError::Parameter)
+    /// );
     /// # Ok::<(), ConfigError>(())
     /// ```
     pub fn new(mut cfg: PtpConfig) -> Result<Self, ConfigError> {
@@ -189,9 +220,20 @@ impl PtpServo {
     /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
     ///
     /// let servo = MasterConfig::for_period(125_000_000)?.servo;
-    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 2 };
+    /// let cfg = PtpConfig {
+    ///     servo,
+    ///     max_ppb: 100_000,
+    ///     offset_filter: false,
+    ///     counter: None,
+    ///     rate_periods: 2,
+    /// };
     /// let mut ptp = PtpServo::new(cfg)?;
-    /// let e = |k: u64| Exchange { t1: k * 125_000_000, t2: k * 125_000_000 + 500, t3: 0, t4: 1_000 };
+    /// let e = |k: u64| Exchange {
+    ///     t1: k * 125_000_000,
+    ///     t2: k * 125_000_000 + 500,
+    ///     t3: 0,
+    ///     t4: 1_000,
+    /// };
     /// for k in 0..3 {
     ///     assert!(ptp.measuring_rate());
     ///     ptp.sample(k * 125_000_000, Some(&e(k)));
@@ -213,7 +255,13 @@ impl PtpServo {
     /// use ecdc_core::servo::Mode;
     ///
     /// let servo = MasterConfig::for_period(125_000_000)?.servo;
-    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 0 };
+    /// let cfg = PtpConfig {
+    ///     servo,
+    ///     max_ppb: 100_000,
+    ///     offset_filter: false,
+    ///     counter: None,
+    ///     rate_periods: 0,
+    /// };
     /// assert_eq!(PtpServo::new(cfg)?.engine().mode(), Mode::Init);
     /// # Ok::<(), ecdc_core::servo::ConfigError>(())
     /// ```
@@ -231,7 +279,13 @@ impl PtpServo {
     /// use ecdc_core::servo::ptp::{PtpConfig, PtpServo};
     ///
     /// let servo = MasterConfig::for_period(125_000_000)?.servo;
-    /// let cfg = PtpConfig { servo, max_ppb: 100_000, offset_filter: false, counter: None, rate_periods: 4 };
+    /// let cfg = PtpConfig {
+    ///     servo,
+    ///     max_ppb: 100_000,
+    ///     offset_filter: false,
+    ///     counter: None,
+    ///     rate_periods: 4,
+    /// };
     /// let mut ptp = PtpServo::new(cfg)?;
     /// ptp.sample(0, None);
     /// ptp.reset(); // a new grandmaster: measure its rate again
@@ -266,7 +320,12 @@ impl PtpServo {
     ///     rate_periods: 0,
     /// };
     /// let mut ptp = PtpServo::new(cfg)?;
-    /// let e = Exchange { t1: 1_000, t2: 1_600, t3: 2_000, t4: 2_400 };
+    /// let e = Exchange {
+    ///     t1: 1_000,
+    ///     t2: 1_600,
+    ///     t3: 2_000,
+    ///     t4: 2_400,
+    /// };
     /// let out = ptp.sample(0, Some(&e));
     /// // Slave ahead: drop fine counts this interval.
     /// assert!(out.counter_counts.is_some_and(|n| n < 0));

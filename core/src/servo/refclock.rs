@@ -25,10 +25,22 @@ use crate::num::wrapping_diff;
 ///
 /// // 1 ms cycle, write every cycle, the frame passes the reference 2 µs after send, 32-bit
 /// // reference, refuse jumps above 10 µs.
-/// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 1, lead_ns: 2_000, ref_32bit: true, max_jump_ns: 10_000 };
+/// let cfg = RefFollowConfig {
+///     period_ns: 1_000_000,
+///     every: 1,
+///     lead_ns: 2_000,
+///     ref_32bit: true,
+///     max_jump_ns: 10_000,
+/// };
 /// let mut follower = RefFollower::new(cfg)?;
 /// let w = follower.on_cycle(0x1_0000_0000)?;
-/// assert_eq!(w, Some(RefWrite { value: 2_000, len: 4 })); // low 32 bits
+/// assert_eq!(
+///     w,
+///     Some(RefWrite {
+///         value: 2_000,
+///         len: 4
+///     })
+/// ); // low 32 bits
 /// # Ok::<(), ecdc_core::servo::refclock::RefError>(())
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -52,12 +64,26 @@ pub struct RefFollowConfig {
 /// ```
 /// use ecdc_core::servo::refclock::{RefError, RefFollowConfig, RefFollower};
 ///
-/// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 1, lead_ns: 0, ref_32bit: false, max_jump_ns: 10_000 };
+/// let cfg = RefFollowConfig {
+///     period_ns: 1_000_000,
+///     every: 1,
+///     lead_ns: 0,
+///     ref_32bit: false,
+///     max_jump_ns: 10_000,
+/// };
 /// let mut follower = RefFollower::new(cfg)?;
 /// follower.on_cycle(5_000_000_000)?;
 /// // The master's clock jumped 1 ms forward between two cycles.
-/// assert_eq!(follower.on_cycle(5_002_000_000), Err(RefError::Jump { deviation_ns: 1_000_000 }));
-/// assert_eq!(RefFollower::new(RefFollowConfig { every: 0, ..cfg }), Err(RefError::Config));
+/// assert_eq!(
+///     follower.on_cycle(5_002_000_000),
+///     Err(RefError::Jump {
+///         deviation_ns: 1_000_000
+///     })
+/// );
+/// assert_eq!(
+///     RefFollower::new(RefFollowConfig { every: 0, ..cfg }),
+///     Err(RefError::Config)
+/// );
 /// # Ok::<(), RefError>(())
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -80,7 +106,10 @@ pub enum RefError {
 /// use ecdc_core::servo::refclock::RefWrite;
 ///
 /// // The FPWR to queue: `len` bytes of `bytes()` to 0x0910 of the reference.
-/// let w = RefWrite { value: 0x0102_0304, len: 4 };
+/// let w = RefWrite {
+///     value: 0x0102_0304,
+///     len: 4,
+/// };
 /// let data = w.bytes();
 /// assert_eq!(&data[..usize::from(w.len)], [0x04, 0x03, 0x02, 0x01]);
 /// assert_eq!(RefWrite::REGISTER, 0x0910);
@@ -104,7 +133,10 @@ impl RefWrite {
     /// ```
     /// use ecdc_core::servo::refclock::RefWrite;
     ///
-    /// assert_eq!(RefWrite { value: 1, len: 8 }.bytes(), [1, 0, 0, 0, 0, 0, 0, 0]);
+    /// assert_eq!(
+    ///     RefWrite { value: 1, len: 8 }.bytes(),
+    ///     [1, 0, 0, 0, 0, 0, 0, 0]
+    /// );
     /// ```
     pub fn bytes(&self) -> [u8; 8] {
         self.value.to_le_bytes()
@@ -119,7 +151,13 @@ impl RefWrite {
 /// use ecdc_core::servo::refclock::{RefFollowConfig, RefFollower};
 ///
 /// // Every 10th cycle of 1 ms.
-/// let cfg = RefFollowConfig { period_ns: 1_000_000, every: 10, lead_ns: 0, ref_32bit: false, max_jump_ns: 0 };
+/// let cfg = RefFollowConfig {
+///     period_ns: 1_000_000,
+///     every: 10,
+///     lead_ns: 0,
+///     ref_32bit: false,
+///     max_jump_ns: 0,
+/// };
 /// let mut follower = RefFollower::new(cfg)?;
 /// let mut writes = 0;
 /// for k in 0..30u64 {
@@ -146,7 +184,13 @@ impl RefFollower {
     /// ```
     /// use ecdc_core::servo::refclock::{RefError, RefFollowConfig, RefFollower};
     ///
-    /// let cfg = RefFollowConfig { period_ns: 0, every: 1, lead_ns: 0, ref_32bit: false, max_jump_ns: 0 };
+    /// let cfg = RefFollowConfig {
+    ///     period_ns: 0,
+    ///     every: 1,
+    ///     lead_ns: 0,
+    ///     ref_32bit: false,
+    ///     max_jump_ns: 0,
+    /// };
     /// assert_eq!(RefFollower::new(cfg), Err(RefError::Config));
     /// ```
     pub fn new(cfg: RefFollowConfig) -> Result<Self, RefError> {
