@@ -620,7 +620,10 @@ pub fn fold<W: Word>(x: W::Signed, p: W) -> W::Signed {
 /// use ecdc_core::num;
 ///
 /// for x in [-2_300_000i64, 900_000, 5, i64::MIN] {
-///     assert_eq!(num::fold_near::<u64>(x, 1_000_000), num::fold::<u64>(x, 1_000_000));
+///     assert_eq!(
+///         num::fold_near::<u64>(x, 1_000_000),
+///         num::fold::<u64>(x, 1_000_000)
+///     );
 /// }
 /// ```
 #[inline]
@@ -877,7 +880,10 @@ pub fn corrected_offset<W: Word>(current: W, read: W, reference: W) -> W {
 ///
 /// // EPU stamp 0x1_0000_0100, entry port latched 0xFFFF_FF00 (just before the low 32 bits
 /// // wrapped): the frame entered at 0x0_FFFF_FF00 local time.
-/// assert_eq!(num::entry_local(0x1_0000_0100u64, 0xFFFF_FF00), 0x0_FFFF_FF00);
+/// assert_eq!(
+///     num::entry_local(0x1_0000_0100u64, 0xFFFF_FF00),
+///     0x0_FFFF_FF00
+/// );
 /// ```
 #[inline]
 pub fn entry_local<W: Word>(epu: W, entry: W) -> W {

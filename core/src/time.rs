@@ -77,7 +77,10 @@ impl SystemTime {
     ///
     /// // One second after 2000-01-01, as a host clock (CLOCK_REALTIME) would report it.
     /// let unix_ns = UNIX_TO_ETHERCAT_EPOCH_NS + 1_000_000_000;
-    /// assert_eq!(SystemTime::from_unix_nanos(unix_ns), Some(SystemTime::from_nanos(1_000_000_000)));
+    /// assert_eq!(
+    ///     SystemTime::from_unix_nanos(unix_ns),
+    ///     Some(SystemTime::from_nanos(1_000_000_000))
+    /// );
     /// // 1999 has no EtherCAT system time.
     /// assert_eq!(SystemTime::from_unix_nanos(0), None);
     /// ```
@@ -95,7 +98,10 @@ impl SystemTime {
     /// ```
     /// use ecdc_core::time::{SystemTime, UNIX_TO_ETHERCAT_EPOCH_NS};
     ///
-    /// assert_eq!(SystemTime::EPOCH.to_unix_nanos(), Some(UNIX_TO_ETHERCAT_EPOCH_NS));
+    /// assert_eq!(
+    ///     SystemTime::EPOCH.to_unix_nanos(),
+    ///     Some(UNIX_TO_ETHERCAT_EPOCH_NS)
+    /// );
     /// assert_eq!(SystemTime::from_nanos(u64::MAX).to_unix_nanos(), None);
     /// ```
     #[inline]
@@ -113,7 +119,10 @@ impl SystemTime {
     /// let t = SystemTime::from_nanos(1_000);
     /// assert_eq!(t.wrapping_add(500), SystemTime::from_nanos(1_500));
     /// // The 64-bit clock wraps instead of overflowing.
-    /// assert_eq!(SystemTime::from_nanos(u64::MAX).wrapping_add(2), SystemTime::from_nanos(1));
+    /// assert_eq!(
+    ///     SystemTime::from_nanos(u64::MAX).wrapping_add(2),
+    ///     SystemTime::from_nanos(1)
+    /// );
     /// ```
     #[inline]
     #[must_use]
@@ -148,8 +157,14 @@ impl SystemTime {
     /// ```
     /// use ecdc_core::time::SystemTime;
     ///
-    /// assert_eq!(SystemTime::from_nanos(1_000).wrapping_sub(400), SystemTime::from_nanos(600));
-    /// assert_eq!(SystemTime::EPOCH.wrapping_sub(1), SystemTime::from_nanos(u64::MAX));
+    /// assert_eq!(
+    ///     SystemTime::from_nanos(1_000).wrapping_sub(400),
+    ///     SystemTime::from_nanos(600)
+    /// );
+    /// assert_eq!(
+    ///     SystemTime::EPOCH.wrapping_sub(1),
+    ///     SystemTime::from_nanos(u64::MAX)
+    /// );
     /// ```
     #[inline]
     #[must_use]
@@ -169,7 +184,10 @@ impl SystemTime {
     /// assert_eq!(received.wrapping_since(sent), 2_500);
     /// assert_eq!(sent.wrapping_since(received), -2_500);
     /// // Still exact across the 2^64 wrap.
-    /// assert_eq!(SystemTime::from_nanos(5).wrapping_since(SystemTime::from_nanos(u64::MAX)), 6);
+    /// assert_eq!(
+    ///     SystemTime::from_nanos(5).wrapping_since(SystemTime::from_nanos(u64::MAX)),
+    ///     6
+    /// );
     /// ```
     #[inline]
     pub fn wrapping_since(self, earlier: SystemTime) -> i64 {
@@ -237,7 +255,10 @@ impl SystemTime {
     /// use ecdc_core::time::SystemTime;
     ///
     /// // 1 ms cycle: 2 500 000 ns is 500 µs into the third cycle.
-    /// assert_eq!(SystemTime::from_nanos(2_500_000).phase_in(1_000_000), Some(500_000));
+    /// assert_eq!(
+    ///     SystemTime::from_nanos(2_500_000).phase_in(1_000_000),
+    ///     Some(500_000)
+    /// );
     /// assert_eq!(SystemTime::from_nanos(2_500_000).phase_in(0), None);
     /// ```
     #[inline]
@@ -254,7 +275,10 @@ impl SystemTime {
     /// use ecdc_core::time::SystemTime;
     ///
     /// let now = SystemTime::from_nanos(2_500_000);
-    /// assert_eq!(now.next_multiple_of(1_000_000), Some(SystemTime::from_nanos(3_000_000)));
+    /// assert_eq!(
+    ///     now.next_multiple_of(1_000_000),
+    ///     Some(SystemTime::from_nanos(3_000_000))
+    /// );
     /// // A time already on the grid stays where it is.
     /// assert_eq!(
     ///     SystemTime::from_nanos(3_000_000).next_multiple_of(1_000_000),
@@ -398,7 +422,12 @@ impl PortTime {
     ///
     /// // Ports in processing order 0, 3, 1, 2; port 3 is closed. Port 1's latch wrapped, so port
     /// // 0 (just before the wrap) is the earliest.
-    /// let ports = [Some(PortTime(u32::MAX - 100)), None, Some(PortTime(200)), Some(PortTime(900))];
+    /// let ports = [
+    ///     Some(PortTime(u32::MAX - 100)),
+    ///     None,
+    ///     Some(PortTime(200)),
+    ///     Some(PortTime(900)),
+    /// ];
     /// assert_eq!(PortTime::earliest(&ports), Some(0));
     /// assert_eq!(PortTime::earliest(&[None, None]), None);
     /// ```

@@ -251,7 +251,10 @@ impl<V: RegisterValue> Register<V> {
     /// use ecdc_core::wire::{register::typed, Error};
     ///
     /// // A datagram's data may be longer than the register: only the first bytes count.
-    /// assert_eq!(typed::SPEED_COUNTER_DIFF.decode(&[0xF6, 0xFF, 0xAA]), Ok(-10));
+    /// assert_eq!(
+    ///     typed::SPEED_COUNTER_DIFF.decode(&[0xF6, 0xFF, 0xAA]),
+    ///     Ok(-10)
+    /// );
     /// assert_eq!(typed::SYSTEM_TIME.decode(&[0; 4]), Err(Error::Truncated));
     /// ```
     pub fn decode(self, data: &[u8]) -> Result<V> {
@@ -267,7 +270,10 @@ impl<V: RegisterValue> Register<V> {
     /// let mut data = [0u8; 4];
     /// typed::SYNC0_CYCLE.encode(1_000_000, &mut data)?;
     /// assert_eq!(data, 1_000_000u32.to_le_bytes());
-    /// assert_eq!(typed::SYSTEM_TIME.encode(0, &mut data), Err(Error::Truncated));
+    /// assert_eq!(
+    ///     typed::SYSTEM_TIME.encode(0, &mut data),
+    ///     Err(Error::Truncated)
+    /// );
     /// # Ok::<(), Error>(())
     /// ```
     pub fn encode(self, value: V, out: &mut [u8]) -> Result<()> {
@@ -370,7 +376,10 @@ impl EscFeatures {
     /// ```
     /// use ecdc_core::wire::{register::EscFeatures, Error};
     ///
-    /// assert_eq!(EscFeatures::parse(&[0x04, 0x00]), Ok(EscFeatures(EscFeatures::DC)));
+    /// assert_eq!(
+    ///     EscFeatures::parse(&[0x04, 0x00]),
+    ///     Ok(EscFeatures(EscFeatures::DC))
+    /// );
     /// assert_eq!(EscFeatures::parse(&[0x04]), Err(Error::Truncated));
     /// ```
     pub fn parse(data: &[u8]) -> Result<EscFeatures> {
@@ -433,7 +442,10 @@ impl EscFeatures {
     /// ```
     /// use ecdc_core::wire::register::EscFeatures;
     ///
-    /// assert_eq!(EscFeatures(EscFeatures::DC | EscFeatures::DC_64BIT).dc_time_width(), 8);
+    /// assert_eq!(
+    ///     EscFeatures(EscFeatures::DC | EscFeatures::DC_64BIT).dc_time_width(),
+    ///     8
+    /// );
     /// assert_eq!(EscFeatures(EscFeatures::DC).dc_time_width(), 4);
     /// ```
     pub const fn dc_time_width(self) -> usize {
@@ -453,7 +465,11 @@ impl EscFeatures {
 /// use ecdc_core::wire::register::{DlStatus, PortState};
 ///
 /// // Port 1 has a link and communication; its loop is open, so frames go on through it.
-/// let open = PortState { link: true, loop_closed: false, communication: true };
+/// let open = PortState {
+///     link: true,
+///     loop_closed: false,
+///     communication: true,
+/// };
 /// assert_eq!(DlStatus(0x0820).port(1), open);
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -582,7 +598,14 @@ impl DlStatus {
     /// use ecdc_core::wire::register::{DlStatus, PortState};
     ///
     /// let p0 = DlStatus(0x0210).port(0);
-    /// assert_eq!(p0, PortState { link: true, loop_closed: false, communication: true });
+    /// assert_eq!(
+    ///     p0,
+    ///     PortState {
+    ///         link: true,
+    ///         loop_closed: false,
+    ///         communication: true
+    ///     }
+    /// );
     /// ```
     pub const fn port(self, port: u8) -> PortState {
         PortState {
@@ -599,8 +622,16 @@ impl DlStatus {
     /// use ecdc_core::wire::register::{DlStatus, PortState};
     ///
     /// // A slave at the end of a line: link on port 0 only, ports 1..3 looped back.
-    /// let open = PortState { link: true, loop_closed: false, communication: true };
-    /// let closed = PortState { link: false, loop_closed: true, communication: false };
+    /// let open = PortState {
+    ///     link: true,
+    ///     loop_closed: false,
+    ///     communication: true,
+    /// };
+    /// let closed = PortState {
+    ///     link: false,
+    ///     loop_closed: true,
+    ///     communication: false,
+    /// };
     /// let dl = DlStatus::from_ports([open, closed, closed, closed], 0);
     /// assert_eq!(dl, DlStatus(0x5610));
     /// assert_eq!(dl.port(0), open);
@@ -763,7 +794,11 @@ impl SystemTimeDifference {
 /// ```
 /// use ecdc_core::wire::register::ReceiveTimes;
 ///
-/// let times = ReceiveTimes { port: [1_000, 1_900, 0, 0], system_time: 5_000, epu: 1_000 };
+/// let times = ReceiveTimes {
+///     port: [1_000, 1_900, 0, 0],
+///     system_time: 5_000,
+///     epu: 1_000,
+/// };
 /// let mut block = [0u8; ReceiveTimes::LEN];
 /// times.emit(&mut block)?;
 /// let read = ReceiveTimes::parse(&block)?;
@@ -845,7 +880,11 @@ impl ReceiveTimes {
     /// ```
     /// use ecdc_core::wire::{register::ReceiveTimes, Error};
     ///
-    /// let t = ReceiveTimes { port: [1, 2, 3, 4], system_time: 5, epu: 6 };
+    /// let t = ReceiveTimes {
+    ///     port: [1, 2, 3, 4],
+    ///     system_time: 5,
+    ///     epu: 6,
+    /// };
     /// let mut out = [0u8; 32];
     /// t.emit(&mut out)?;
     /// assert_eq!(out[..4], [1, 0, 0, 0]);
