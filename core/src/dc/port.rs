@@ -412,6 +412,28 @@ impl PortSet {
 mod tests {
     use super::*;
 
+    /// REQ-DC-011 port by port: a port is open with its communication bit set and its loop bit
+    /// clear, and only then; the other ports' bits and the link bits do not matter.
+    // verifies: REQ-DC-011
+    #[test]
+    fn dl_status_port_by_port() {
+        for p in Port::PROCESSING_ORDER {
+            let n = u32::from(p.number());
+            let loop_closed = 1u16 << (8 + 2 * n);
+            let communication = 1u16 << (9 + 2 * n);
+            let others = 0xFF00 & !(loop_closed | communication);
+            for rest in [0u16, others, 0x00F0] {
+                let open =
+                    PortSet::from_dl_status(rest & !(loop_closed | communication) | communication);
+                assert!(open.contains(p), "{p:?} open");
+                let closed = PortSet::from_dl_status(rest | communication | loop_closed);
+                assert!(!closed.contains(p), "{p:?} loop closed");
+                let silent = PortSet::from_dl_status(rest & !communication);
+                assert!(!silent.contains(p), "{p:?} without communication");
+            }
+        }
+    }
+
     /// `from_number` inverts `number` on 0..=3 and refuses every other number.
     #[test]
     fn port_from_number() {
