@@ -36,15 +36,7 @@ impl<const N: usize> Shared<N> {
             let open = PortSet::from_dl_status(s.dl_status);
             let mut ports = open;
             let latches = if s.dc.has_latches() {
-                let mut changed = PortSet::EMPTY;
-                for p in Port::PROCESSING_ORDER {
-                    let k = p.index();
-                    let before = s.times_before.get(k).copied().unwrap_or(0);
-                    let after = s.times_after.get(k).copied().unwrap_or(0);
-                    if open.contains(p) && before != after {
-                        changed = changed.with(p);
-                    }
-                }
+                let changed = open.passed(&s.times_before, &s.times_after);
                 if changed.is_empty() {
                     return Err(Error::Measurement { station: s.station });
                 }

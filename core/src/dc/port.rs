@@ -301,6 +301,21 @@ impl PortSet {
         PortSet(self.0 | port.mask())
     }
 
+    /// The ports of `self` whose receive time differs between two reads of 0x0900..0x090F
+    /// (`before`, `after`, indexed by port number): the ports a frame passed in between. An
+    /// open port whose time did not move was bypassed (REQ-DC-101).
+    #[inline]
+    #[must_use]
+    pub(crate) fn passed(self, before: &[u32; 4], after: &[u32; 4]) -> PortSet {
+        let mut out = PortSet::EMPTY;
+        for p in Port::PROCESSING_ORDER {
+            if self.contains(p) && before.get(p.index()) != after.get(p.index()) {
+                out = out.with(p);
+            }
+        }
+        out
+    }
+
     /// Number of ports in the set (0..=4).
     ///
     /// # Examples
@@ -432,6 +447,20 @@ mod tests {
                 assert!(!silent.contains(p), "{p:?} without communication");
             }
         }
+    }
+
+    /// `passed` keeps the ports of the set whose time moved, and no other.
+    #[test]
+    fn passed_ports() {
+        let open = PortSet::EMPTY.with(Port::P0).with(Port::P1).with(Port::P3);
+        let before = [10, 20, 30, 40];
+        assert_eq!(open.passed(&before, &before), PortSet::EMPTY);
+        let after = [11, 20, 31, 41];
+        assert_eq!(
+            open.passed(&before, &after),
+            PortSet::EMPTY.with(Port::P0).with(Port::P3)
+        );
+        assert_eq!(PortSet::EMPTY.passed(&before, &after), PortSet::EMPTY);
     }
 
     /// `from_number` inverts `number` on 0..=3 and refuses every other number.

@@ -775,13 +775,7 @@ impl<const N: usize> Machine<N> {
             let open = PortSet::from_dl_status(s.dl_status);
             let mut ports = open;
             let latches = if s.dc.has_latches() {
-                let mut ch = PortSet::EMPTY;
-                for p in Port::PROCESSING_ORDER {
-                    if open.contains(p) && changed(cur, prev, p) {
-                        ch = ch.with(p);
-                    }
-                }
-                ports = ch;
+                ports = open.passed(prev, cur);
                 Some(Latches::from_raw(*cur, 0))
             } else {
                 None
