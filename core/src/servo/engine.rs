@@ -22,6 +22,7 @@ use super::gains::PiGains;
 use super::gate::{Gate, GateConfig, GateVerdict};
 use super::lock::{LockConfig, LockDetector};
 use super::pi::{hold, pi_step, PiLimits};
+use super::run::SignRun;
 use crate::num::wrapping_diff;
 
 /// Engine configuration (validated by [`Servo::new`]).
@@ -332,8 +333,7 @@ pub struct Servo {
     lock: LockDetector,
     gear_run: u16,
     acquired: u32,
-    step_run: u8,
-    step_positive: bool,
+    step_run: SignRun,
     blank_left: u8,
     sat_run: u32,
     sat_start: u64,
@@ -374,8 +374,7 @@ impl Servo {
             lock: LockDetector::new(),
             gear_run: 0,
             acquired: 0,
-            step_run: 0,
-            step_positive: false,
+            step_run: SignRun::new(),
             blank_left: 0,
             sat_run: 0,
             sat_start: 0,
@@ -576,7 +575,7 @@ impl Servo {
         self.gate.clear();
         self.gear_run = 0;
         self.acquired = 0;
-        self.step_run = 0;
+        self.step_run.clear();
     }
 
     /// Count a missing/invalid interval; re-acquire after `holdover_max` of them.
@@ -689,19 +688,12 @@ impl Servo {
                 return self.step(theta);
             }
         } else if self.cfg.step_ns > 0 && mag > self.cfg.step_ns {
-            let positive = theta > 0;
-            if self.step_run == 0 || positive != self.step_positive {
-                self.step_run = 1;
-                self.step_positive = positive;
-            } else {
-                self.step_run = self.step_run.saturating_add(1);
-            }
-            if self.step_run >= self.cfg.step_confirm {
+            if self.step_run.push(theta > 0) >= self.cfg.step_confirm {
                 return self.step(theta);
             }
             return self.held(Verdict::StepPending, theta);
         } else {
-            self.step_run = 0;
+            self.step_run.clear();
         }
         // Outlier gate (Tracking only).
         if self.mode == Mode::Tracking {

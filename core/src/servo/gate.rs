@@ -7,6 +7,8 @@
 //! `confirm` rejections on the same side is a real change, not noise: the caller then re-acquires
 //! or steps (REQ-SERVO-050).
 
+use super::run::SignRun;
+
 /// Window length (power of two; the median of 16 is cheap to sort on the stack).
 pub const GATE_WINDOW: usize = 16;
 
@@ -119,8 +121,7 @@ pub struct Gate {
     sorted: [i64; GATE_WINDOW],
     len: u8,
     head: u8,
-    run: u8,
-    run_positive: bool,
+    run: SignRun,
 }
 
 impl Default for Gate {
@@ -257,8 +258,7 @@ impl Gate {
             sorted: [0; GATE_WINDOW],
             len: 0,
             head: 0,
-            run: 0,
-            run_positive: false,
+            run: SignRun::new(),
         }
     }
 
@@ -358,7 +358,7 @@ impl Gate {
         let n = self.len();
         // Not armed: exactly when `threshold` is None (n ≤ GATE_WINDOW always holds).
         if cfg.kappa_q8 == 0 || n < usize::from(cfg.min_samples.max(3)) || n > GATE_WINDOW {
-            self.run = 0;
+            self.run.clear();
             return GateVerdict::Accept;
         }
         // n in [3, 16]: the median index (n − 1)/2 is in bounds.
@@ -366,18 +366,11 @@ impl Gate {
         let e = theta.clamp(-WINDOW_CLAMP, WINDOW_CLAMP).wrapping_sub(med);
         let dist = e.wrapping_abs();
         if dist <= i64::from(cfg.floor_ns) || dist <= self.spread(cfg, n) {
-            self.run = 0;
+            self.run.clear();
             return GateVerdict::Accept;
         }
-        let positive = e > 0;
-        if self.run == 0 || positive != self.run_positive {
-            self.run = 1;
-            self.run_positive = positive;
-        } else {
-            self.run = self.run.saturating_add(1);
-        }
-        if self.run >= cfg.confirm.max(1) {
-            self.run = 0;
+        if self.run.push(e > 0) >= cfg.confirm.max(1) {
+            self.run.clear();
             GateVerdict::Confirmed
         } else {
             GateVerdict::Reject

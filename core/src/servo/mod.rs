@@ -9,7 +9,8 @@
 //! - [`gains`]: pole placement → Q32 gains, stability-region refusal;
 //! - [`pi`]: the PI kernel with output/integrator clamps and conditional integration (P5 core);
 //! - [`carry`]: error-feedback quantiser (fractional remainder carried);
-//! - [`gate`]: median/MAD outlier gate; [`lock`]: lock detector with hysteresis;
+//! - [`gate`]: median/MAD outlier gate; [`lock`]: lock detector with hysteresis; `run`: the
+//!   same-sign run both the gate and the engine's step policy confirm with;
 //! - [`engine`]: the generic mode machine (acquire → track, steps, blanking, holdover);
 //! - [`master`]: master-follows-reference (wake-up deadline correction, whole-period steps);
 //! - `refclock` (feature `refclock`): reference-follows-master (value and schedule of the FPWR
@@ -38,6 +39,7 @@ pub mod pi;
 pub mod ptp;
 #[cfg(any(test, feature = "refclock"))]
 pub mod refclock;
+mod run;
 #[cfg(test)]
 mod test_rng;
 
