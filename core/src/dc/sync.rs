@@ -334,6 +334,26 @@ impl Activation {
 mod tests {
     use super::*;
 
+    /// Every error says what went wrong, each in its own words.
+    #[test]
+    fn error_messages() {
+        let all = [
+            SyncError::ZeroCycle,
+            SyncError::StartOutOfWindow,
+            SyncError::Overflow,
+            SyncError::DebugPulse,
+            SyncError::SyncWithoutUnit,
+            SyncError::EnhancedUnsupported,
+            SyncError::PdiOwnsCyclicUnit,
+        ];
+        let texts: std::vec::Vec<_> = all.iter().map(|e| std::format!("{e}")).collect();
+        for (i, t) in texts.iter().enumerate() {
+            assert!(t.len() > 10, "{t}");
+            assert!(texts[..i].iter().all(|u| u != t), "{t} twice");
+        }
+        assert_eq!(texts[0], "SYNC grid period is 0");
+    }
+
     // verifies: REQ-DC-055
     #[test]
     fn start_on_grid_with_shift() {
