@@ -1119,6 +1119,15 @@ fn t_diff_of<W: Word>(slaves: &[WalkSlave<W>], i: u16) -> Result<W, DelayError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Errors name the slave.
+    #[test]
+    fn error_messages() {
+        assert_eq!(
+            std::format!("{}", DelayError::NonDcJunction { slave: 3 }),
+            "slave 3: non-DC junction between DC slaves"
+        );
+    }
     use crate::dc::port::PortSet;
     use crate::dc::topology::Latches;
 

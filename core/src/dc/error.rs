@@ -215,3 +215,24 @@ impl core::fmt::Display for Error {
 
 #[cfg(feature = "std")]
 impl std::error::Error for Error {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Errors name the datagram or slave they concern.
+    #[test]
+    fn error_messages() {
+        let e = Error::SlaveLost { station: 0x1002 };
+        assert_eq!(std::format!("{e}"), "slave 0x1002 lost");
+        assert_eq!(
+            std::format!(
+                "{}",
+                Error::Timeout {
+                    state: State::ReadInfo
+                }
+            ),
+            std::format!("no reply in step {}", State::ReadInfo)
+        );
+    }
+}

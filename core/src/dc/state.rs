@@ -253,6 +253,13 @@ impl core::fmt::Display for State {
 mod tests {
     use super::*;
 
+    /// The display name is the state's name.
+    #[test]
+    fn display_is_the_name() {
+        assert_eq!(std::format!("{}", State::Cyclic), State::Cyclic.name());
+        assert!(!State::Cyclic.name().is_empty());
+    }
+
     /// The bring-up path is a chain of allowed transitions, and nothing jumps over the offset
     /// write or the drift gate.
     #[test]

@@ -1061,6 +1061,17 @@ fn configured(t_diff: &[Option<i32>], cfg: &TdiffConfig, i: u16, s: &SlaveInfo) 
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// Where a t_Diff came from, in words.
+    #[test]
+    fn source_display() {
+        assert_eq!(
+            std::format!("{}", TdiffSource::SameType { from: 4 }),
+            "same type as 4"
+        );
+        assert_eq!(std::format!("{}", TdiffSource::Measured), "measured");
+    }
     use super::mean;
 
     #[test]

@@ -690,6 +690,23 @@ fn attach<const N: usize>(
 mod tests {
     use super::*;
 
+    /// Errors name the slave and what is wrong with it.
+    #[test]
+    fn error_messages_name_the_slave() {
+        let e = TopologyError::DanglingPort {
+            slave: 7,
+            port: Port::P3,
+        };
+        assert_eq!(
+            std::format!("{e}"),
+            "slave 7: open port 3 leads to no slave"
+        );
+        assert_eq!(
+            std::format!("{}", TopologyError::Capacity),
+            "more slaves than the configured capacity"
+        );
+    }
+
     fn sample(ports: &[Port], times: Option<[u32; 4]>) -> SlaveSample {
         let mut set = PortSet::EMPTY;
         for p in ports {

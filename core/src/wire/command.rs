@@ -236,6 +236,12 @@ impl fmt::Display for Command {
 mod tests {
     use super::*;
 
+    /// A command displays as its name.
+    #[test]
+    fn display_is_the_name() {
+        assert_eq!(std::format!("{}", Command::Frmw), "FRMW");
+    }
+
     /// REQ-WIRE-017: codes 0..=14 decode to the command with that code, 15..=255 are errors.
     // verifies: REQ-WIRE-017
     #[test]

@@ -110,3 +110,18 @@ impl fmt::Display for Error {
 
 #[cfg(feature = "std")]
 impl std::error::Error for Error {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Errors say which field is wrong, with its value.
+    #[test]
+    fn error_messages() {
+        assert_eq!(
+            std::format!("{}", Error::NotEtherCat { ethertype: 0x0800 }),
+            "EtherType 0x0800 is not EtherCAT (0x88a4)"
+        );
+        assert_eq!(std::format!("{}", Error::Truncated), "buffer truncated");
+    }
+}
