@@ -334,6 +334,26 @@ impl Activation {
 mod tests {
     use super::*;
 
+    /// REQ-DC-054: SYNC0 or SYNC1 without the sync unit (0x0981 bit 0) is refused, with it
+    /// accepted, whichever of the two is asked for.
+    // verifies: REQ-DC-054
+    #[test]
+    fn sync_needs_the_unit() {
+        for sync in [0x0200u16, 0x0400, 0x0600] {
+            assert_eq!(
+                Activation::from_assign_activate(sync, 0),
+                Err(SyncError::SyncWithoutUnit),
+                "{sync:#06x}"
+            );
+            let with_unit = Activation::from_assign_activate(sync | 0x0100, 0).unwrap();
+            assert_eq!(with_unit.activation, ((sync | 0x0100) >> 8) as u8);
+        }
+        assert!(
+            Activation::from_assign_activate(0x0100, 0).is_ok(),
+            "unit alone"
+        );
+    }
+
     /// Every error says what went wrong, each in its own words.
     #[test]
     fn error_messages() {
