@@ -449,6 +449,18 @@ mod tests {
         }
     }
 
+    /// `with` adds a port (twice is once), `len` counts the members.
+    #[test]
+    fn with_and_len() {
+        assert_eq!(PortSet::EMPTY.len(), 0);
+        let one = PortSet::EMPTY.with(Port::P2);
+        assert_eq!((one.len(), one.with(Port::P2)), (1, one));
+        let three = one.with(Port::P0).with(Port::P3).with(Port::P0);
+        assert_eq!(three.len(), 3);
+        assert!(three.contains(Port::P0) && !three.contains(Port::P1));
+        assert_eq!(PortSet::from_bits(0x0F).len(), 4);
+    }
+
     /// `passed` keeps the ports of the set whose time moved, and no other.
     #[test]
     fn passed_ports() {
