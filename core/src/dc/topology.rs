@@ -690,6 +690,23 @@ fn attach<const N: usize>(
 mod tests {
     use super::*;
 
+    /// Latches are kept exactly when features bit 2 (DC) is set, whatever the other bits.
+    #[test]
+    fn from_registers_keeps_latches_of_dc_slaves() {
+        let times = [1_000, 2_000, 0, 0];
+        for (features, dc) in [
+            (0x0004u16, true),
+            (0xFFFF, true),
+            (0x0008, false),
+            (0xFFFB, false),
+            (0, false),
+        ] {
+            let s = SlaveSample::from_registers(0x0200, features, times, 1_000, 7);
+            assert_eq!(s.latches.is_some(), dc, "{features:#06x}");
+            assert_eq!((s.ports, s.t_diff), (PortSet::from_dl_status(0x0200), 7));
+        }
+    }
+
     /// Errors name the slave and what is wrong with it.
     #[test]
     fn error_messages_name_the_slave() {
