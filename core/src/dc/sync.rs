@@ -352,6 +352,22 @@ mod tests {
             Activation::from_assign_activate(0x0100, 0).is_ok(),
             "unit alone"
         );
+        let off = Activation::from_assign_activate(0x0000, 0).unwrap();
+        assert_eq!(
+            off.to_register(),
+            [0, 0],
+            "no SYNC, no unit: nothing to refuse"
+        );
+        // Which SYNC signals the accepted word enables.
+        for (word, s0, s1) in [
+            (0x0100u16, false, false),
+            (0x0300, true, false),
+            (0x0500, false, true),
+            (0x0700, true, true),
+        ] {
+            let a = Activation::from_assign_activate(word, 0).unwrap();
+            assert_eq!((a.sync0(), a.sync1()), (s0, s1), "{word:#06x}");
+        }
     }
 
     /// Every error says what went wrong, each in its own words.
