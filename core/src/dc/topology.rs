@@ -755,6 +755,28 @@ mod tests {
         );
     }
 
+    /// `downstream_ports` counts a node's open ports but its entry; `is_empty` and `clear`
+    /// agree with `new`.
+    #[test]
+    fn counts_and_clear() {
+        use Port::*;
+        let s = [
+            sample(&[P0, P1, P3], Some([0, 5000, 0, 900])),
+            sample(&[P0], Some([100, 0, 0, 0])),
+            sample(&[P0], Some([1000, 0, 0, 0])),
+        ];
+        let mut t = Topology::<4>::build(&s).unwrap();
+        let down: std::vec::Vec<u32> = (0..3)
+            .map(|i| t.node(i).unwrap().downstream_ports())
+            .collect();
+        assert_eq!(down, [2, 0, 0]);
+        assert_eq!(Node::EMPTY.downstream_ports(), 0);
+        assert!(!t.is_empty() && Topology::<4>::new().is_empty());
+        t.clear();
+        assert_eq!(t, Topology::<4>::new());
+        assert!(t.is_empty());
+    }
+
     #[test]
     fn line_and_cross() {
         use Port::*;

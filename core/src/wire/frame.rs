@@ -858,6 +858,12 @@ mod tests {
                 }
             }
             assert!(accepted > 50, "{accepted}");
+            // Where the ADP is not compared, any ADP is accepted (slaves change it).
+            for at in [4usize, 5, 18, 19] {
+                let mut v = b.clone();
+                v[at] ^= 0x5A;
+                assert_eq!(matches_pattern(&v, 2, by), !with_adp, "ADP byte {at}");
+            }
         }
     }
 
