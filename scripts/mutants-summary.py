@@ -5,7 +5,9 @@ usage: scripts/mutants-summary.py [--tsv] SOURCE... > table
 
 Each SOURCE is a cargo-mutants `--output` directory (the one holding mutants.out/) or a TSV
 written by `--tsv` (earlier results). A mutant named in several sources takes its outcome from
-the last one, so `mutants.tsv NEW_DIR` updates the committed results with a re-run.
+the last one, so `mutants.tsv NEW_DIR` updates the committed results with a re-run; a run
+directory also replaces earlier rows of the same file and mutation text at other line numbers
+(a re-run at a later commit, where lines moved).
 Prints, as Markdown: per file caught / missed / timeout / unviable and the score
 caught / (caught + missed + timeout); per area (dc/, wire/, servo/, num+time) the same; then
 every missed or timed-out mutant. `--tsv` prints one row per mutant instead (file, line,
@@ -36,14 +38,26 @@ def load(sources):
                 by_name[name] = (f, int(ln), k, name)
             continue
         data = json.loads((Path(src) / "mutants.out" / "outcomes.json").read_text())
+        new = {}
         for o in data["outcomes"]:
             m = o["scenario"]
             if not isinstance(m, dict) or "Mutant" not in m:
                 continue  # the baseline
             m = m["Mutant"]
-            by_name[m["name"]] = (m["file"], m["span"]["start"]["line"],
-                                  KINDS.get(o["summary"], o["summary"]), m["name"])
+            new[m["name"]] = (m["file"], m["span"]["start"]["line"],
+                              KINDS.get(o["summary"], o["summary"]), m["name"])
+        # A run at a later commit supersedes every earlier row with the same file and mutation
+        # text (the name without its line:col, which moves when lines above are added): re-runs
+        # select mutants by function, so they hold all of a function's mutants of that text.
+        redone = {(f, text(name)) for f, _, _, name in new.values()}
+        by_name = {k: v for k, v in by_name.items() if (v[0], text(k)) not in redone}
+        by_name.update(new)
     return sorted(by_name.values())
+
+
+def text(name):
+    """A mutant's name without its position: `file:line:col: what` -> `what`."""
+    return name.split(": ", 1)[-1]
 
 
 def score(c):
