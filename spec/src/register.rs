@@ -4,35 +4,6 @@
 //! A DC ESC is either 64-bit or 32-bit (ESC Features 0x0008 bit 3). A 32-bit ESC keeps only the
 //! low 32 bits of system time, offset and start time (REQ-CONV-003).
 
-/// Register addresses and byte widths (REQ-DC-040).
-pub mod addr {
-    /// ESC Features Supported (2 bytes): bit 2 DC available, bit 3 DC width (1 = 64 bit), bit 8
-    /// enhanced DC SYNC activation.
-    pub const ESC_FEATURES: u16 = 0x0008;
-    /// ESC DL Status (2 bytes): per port i, bit 8+2i loop closed, bit 9+2i communication.
-    pub const DL_STATUS: u16 = 0x0110;
-    /// Receive Time Port 0..3 (4 bytes each, local time). A write to 0x0900 latches all of them.
-    pub const RECEIVE_TIME_PORT0: u16 = 0x0900;
-    /// System Time (8 bytes, 4 on 32-bit ESCs).
-    pub const SYSTEM_TIME: u16 = 0x0910;
-    /// Receive Time ECAT Processing Unit (8 bytes, local time).
-    pub const RECEIVE_TIME_EPU: u16 = 0x0918;
-    /// System Time Offset (8 bytes, 4 on 32-bit ESCs).
-    pub const SYSTEM_TIME_OFFSET: u16 = 0x0920;
-    /// System Time Delay (4 bytes).
-    pub const SYSTEM_TIME_DELAY: u16 = 0x0928;
-    /// Cyclic Unit Control (1 byte; AssignActivate low byte).
-    pub const CYCLIC_UNIT_CONTROL: u16 = 0x0980;
-    /// Activation (1 byte; AssignActivate high byte).
-    pub const SYNC_ACTIVATION: u16 = 0x0981;
-    /// Start Time Cyclic Operation (8 bytes, 4 on 32-bit ESCs).
-    pub const START_TIME: u16 = 0x0990;
-    /// SYNC0 Cycle Time (4 bytes).
-    pub const SYNC0_CYCLE: u16 = 0x09A0;
-    /// SYNC1 Cycle Time (4 bytes).
-    pub const SYNC1_CYCLE: u16 = 0x09A4;
-}
-
 /// Width in bits of a DC ESC's system time.
 pub fn modulus(width_bits: u32) -> i128 {
     1i128 << width_bits
@@ -43,7 +14,7 @@ pub fn wrap(x: i128, width_bits: u32) -> i128 {
     x.rem_euclid(modulus(width_bits))
 }
 
-/// Byte width of the System Time Offset (0x0920) write for an ESC of `width_bits`.
+/// Byte width of the System Time Offset (0x0920) write for an ESC of `width_bits` (REQ-DC-040).
 pub fn offset_register_bytes(width_bits: u32) -> usize {
     if width_bits == 64 {
         8
