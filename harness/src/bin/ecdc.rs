@@ -36,15 +36,8 @@ fn main() -> std::process::ExitCode {
     let _ = ecdc_harness::runtime::sys::default_sigpipe();
     let mut cli = Cli::parse();
     // `--duration 10s` and the older `--duration-ms 10000` fill one field.
-    match &mut cli.command {
-        Command::Simulate(a) => a.duration_ms = a.duration.take().unwrap_or(a.duration_ms),
-        Command::Bench(cli::bench::Args {
-            cmd: cli::bench::BenchCmd::Dc(a),
-        }) => a.duration_ms = a.duration.take().or(a.duration_ms),
-        Command::Bench(cli::bench::Args {
-            cmd: cli::bench::BenchCmd::Sensitivity(a),
-        }) => a.duration_ms = a.duration.take().or(a.duration_ms),
-        _ => {}
+    if let Command::Simulate(a) = &mut cli.command {
+        a.duration_ms = a.duration.take().unwrap_or(a.duration_ms);
     }
     let result = match &cli.command {
         Command::Decode(args) => cli::decode::run(args),

@@ -84,15 +84,8 @@ pub struct DcArgs {
     /// Run only these schemes (repeatable) [default: all six].
     #[arg(long = "scheme", value_enum)]
     pub schemes: Vec<SchemeName>,
-    /// Override every scenario's simulated duration: `10s`, `500ms` (a bare number is seconds),
-    /// whole ms from 1ms to 1h.
-    #[arg(long, allow_negative_numbers = true, conflicts_with = "duration_ms",
-          value_parser = super::validate::duration_ms)]
-    pub duration: Option<u64>,
-    /// The same in ms (1..=3600000): the older spelling of `--duration`.
-    #[arg(long, allow_negative_numbers = true,
-          value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
-    pub duration_ms: Option<u64>,
+    #[command(flatten)]
+    pub duration: super::validate::DurationOverride,
     /// Exit with status 3 when ecdc misses a target in any scenario (it stops early, does not
     /// lock before the last 10 % of the run, a DC slave never fires SYNC0, or the skew max
     /// exceeds 100 ns; docs/bench.md). The files are written either way.
@@ -106,8 +99,7 @@ impl Default for DcArgs {
             out: PathBuf::from("benches/results"),
             scenarios: Vec::new(),
             schemes: Vec::new(),
-            duration: None,
-            duration_ms: None,
+            duration: Default::default(),
             check: false,
         }
     }
@@ -341,7 +333,7 @@ pub fn command(args: &DcArgs) -> String {
     for s in &args.schemes {
         c.push_str(&format!(" --scheme {}", scheme_label(*s)));
     }
-    if let Some(d) = args.duration_ms {
+    if let Some(d) = args.duration.ms() {
         c.push_str(&format!(" --duration-ms {d}"));
     }
     c
@@ -665,7 +657,7 @@ pub fn run_dc(args: &DcArgs) -> anyhow::Result<DcReport> {
         scenarios: Vec::new(),
     };
     for which in scenarios {
-        let (r, series) = run_scenario(which, &schemes, args.duration_ms)?;
+        let (r, series) = run_scenario(which, &schemes, args.duration.ms())?;
         let title = format!("ecdc bench dc — {}", r.name);
         let svg = render_bench(&title, &r.title, &format!("produced by: {cmd}"), &series);
         let p = args.out.join(format!("dc-{}.svg", r.name));

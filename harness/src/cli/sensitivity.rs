@@ -36,23 +36,16 @@ pub struct SensitivityArgs {
     /// Output directory (created if missing).
     #[arg(long, default_value = "benches/results")]
     pub out: PathBuf,
-    /// Simulated duration of every run: `10s`, `500ms` (a bare number is seconds), whole ms
-    /// from 1ms to 1h [default: 10s, seed 000's Fig. 10 length].
-    #[arg(long, allow_negative_numbers = true, conflicts_with = "duration_ms",
-          value_parser = super::validate::duration_ms)]
-    pub duration: Option<u64>,
-    /// The same in ms (1..=3600000): the older spelling of `--duration`.
-    #[arg(long, allow_negative_numbers = true,
-          value_parser = super::validate::u64_in(1, super::validate::MAX_DURATION_MS))]
-    pub duration_ms: Option<u64>,
+    // Default: 10s, seed 000's Fig. 10 length.
+    #[command(flatten)]
+    pub duration: super::validate::DurationOverride,
 }
 
 impl Default for SensitivityArgs {
     fn default() -> Self {
         SensitivityArgs {
             out: PathBuf::from("benches/results"),
-            duration: None,
-            duration_ms: None,
+            duration: Default::default(),
         }
     }
 }
@@ -232,7 +225,7 @@ pub fn command(args: &SensitivityArgs) -> String {
         "cargo run --release -p ecdc-harness --bin ecdc -- bench sensitivity --out {}",
         args.out.display()
     );
-    if let Some(d) = args.duration_ms {
+    if let Some(d) = args.duration.ms() {
         c.push_str(&format!(" --duration-ms {d}"));
     }
     c
@@ -242,7 +235,8 @@ pub fn command(args: &SensitivityArgs) -> String {
 pub fn run_grid(args: &SensitivityArgs) -> anyhow::Result<SensitivityReport> {
     let base = BenchScenario::Seed000Line6.scenario()?;
     let duration_ns = args
-        .duration_ms
+        .duration
+        .ms()
         .unwrap_or_else(|| BenchScenario::Seed000Line6.duration_ms())
         .saturating_mul(1_000_000);
     let mut cells = Vec::new();

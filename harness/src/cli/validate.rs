@@ -172,6 +172,27 @@ pub fn seconds(s: &str) -> Result<f64, String> {
     duration_ns(s).map(|ns| ns as f64 / 1e9)
 }
 
+/// `--duration` and its older spelling `--duration-ms`, for the commands whose runs each have
+/// their own default length (`bench dc`, `bench sensitivity`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::Args)]
+pub struct DurationOverride {
+    /// Simulated duration of every run: `10s`, `500ms` (a bare number is seconds), whole ms
+    /// from 1ms to 1h [default: each run's own length].
+    #[arg(long, allow_negative_numbers = true, conflicts_with = "duration_ms",
+          value_parser = duration_ms)]
+    pub duration: Option<u64>,
+    /// The same in ms (1..=3600000): the older spelling of `--duration`.
+    #[arg(long, allow_negative_numbers = true, value_parser = u64_in(1, MAX_DURATION_MS))]
+    pub duration_ms: Option<u64>,
+}
+
+impl DurationOverride {
+    /// The duration given, in ms, whichever spelling gave it.
+    pub fn ms(&self) -> Option<u64> {
+        self.duration.or(self.duration_ms)
+    }
+}
+
 /// Value parser for a simulated duration in whole ms, 1..=[`MAX_DURATION_MS`], written with
 /// [`duration_ns`]'s syntax (`simulate --duration 10s`).
 pub fn duration_ms(s: &str) -> Result<u64, String> {
@@ -412,7 +433,7 @@ pub fn simulate_slaves(
 
 /// `bench dc`'s checks, before the output directory is created.
 pub fn bench_dc_args(a: &super::bench::DcArgs) -> anyhow::Result<()> {
-    if let Some(d) = a.duration_ms {
+    if let Some(d) = a.duration.ms() {
         if !(1..=MAX_DURATION_MS).contains(&d) {
             return Err(usage(format!(
                 "--duration-ms {d}: valid: 1..={MAX_DURATION_MS}"
