@@ -35,7 +35,7 @@ fn two_slave_scenario_behaviour() {
     let e = scheme(&r, "ecdc");
     assert!(e.lock_frames.is_some(), "{e:?}");
     assert_eq!(e.sync0_slaves, 2, "{e:?}");
-    assert!(e.skew_max_ns.unwrap() < 100, "{e:?}");
+    assert!(e.skew.max_ns.unwrap() < 100, "{e:?}");
     // The fixed bursts are exactly their documented length (seed 000's gate comes after).
     assert_eq!(scheme(&r, "seed000").static_drift_frames, Some(15_000));
     assert_eq!(
@@ -62,12 +62,12 @@ fn two_slave_scenario_behaviour() {
         at(1_900_000_000),
         at(500_000_000)
     );
-    assert!(u.skew_mean_ns.unwrap() > 100.0 * e.skew_mean_ns.unwrap().max(1.0));
+    assert!(u.skew.mean_ns.unwrap() > 100.0 * e.skew.mean_ns.unwrap().max(1.0));
     // Every scheme's skew distribution is sorted and matches its pair count.
     for (s, res) in series.iter().zip(&r.schemes) {
         assert_eq!(s.skews.len(), res.skew_pairs, "{}", s.name);
         assert!(s.skews.windows(2).all(|w| w[0] <= w[1]));
-        assert_eq!(s.skews.last().copied(), res.skew_max_ns);
+        assert_eq!(s.skews.last().copied(), res.skew.max_ns);
     }
 }
 
@@ -230,7 +230,7 @@ fn every_scheme_survives_frame_loss() {
     assert_eq!(scheme(&r, "ethercrab").static_drift_frames, Some(10_000));
     let e = scheme(&r, "ecdc");
     assert!(e.lock_frames.is_some(), "{e:?}");
-    assert!(e.skew_max_ns.unwrap() < 100, "{e:?}");
+    assert!(e.skew.max_ns.unwrap() < 100, "{e:?}");
 }
 
 /// The 32-bit scenario: its full 10 s cross a wrap of the reference's 32-bit system time inside
@@ -256,8 +256,8 @@ fn dc32_scenario_crosses_a_wrap() {
     }
     let e = scheme(&r, "ecdc");
     assert!(e.lock_frames.is_some(), "{e:?}");
-    assert!(e.skew_max_ns.unwrap() < 100, "{e:?}");
-    assert!(scheme(&r, "igh").skew_max_ns.unwrap() < 300);
+    assert!(e.skew.max_ns.unwrap() < 100, "{e:?}");
+    assert!(scheme(&r, "igh").skew.max_ns.unwrap() < 300);
     let c = scheme(&r, "ethercrab");
     assert!(c.error.is_none(), "{c:?}");
     assert_eq!(c.sync0_slaves, 0, "{c:?}");

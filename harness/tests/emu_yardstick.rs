@@ -59,9 +59,9 @@ fn agree(s: &mut dyn Scheme, run: RunOpts) {
     eprintln!(
         "{name}: simulate lock_ms {:?} skew mean {:?} p99 {:?} max {:?} pairs {} window {:?}..{}",
         sum.lock_ms,
-        sum.skew_mean_ns,
-        sum.skew_p99_ns,
-        sum.skew_max_ns,
+        sum.skew.mean_ns,
+        sum.skew.p99_ns,
+        sum.skew.max_ns,
         sum.skew_samples,
         sum.window_start_ns,
         sum.window_end_ns
@@ -89,22 +89,22 @@ fn agree(s: &mut dyn Scheme, run: RunOpts) {
     let mut sorted = skews.clone();
     sorted.sort_unstable();
     assert_eq!(rep.pairs, skews.len() as u64, "{name}");
-    assert_eq!(rep.skew_max_ns, sorted.last().copied(), "{name}");
+    assert_eq!(rep.skew.max_ns, sorted.last().copied(), "{name}");
     assert_eq!(
-        rep.skew_p99_ns,
+        rep.skew.p99_ns,
         ecdc_harness::emu::yardstick::percentile(&sorted, 99.0),
         "{name}"
     );
     let mean = skews.iter().sum::<u64>() as f64 / skews.len() as f64;
     assert!(
-        (rep.skew_mean_ns.expect("mean") - mean).abs() < 1e-9,
+        (rep.skew.mean_ns.expect("mean") - mean).abs() < 1e-9,
         "{name}"
     );
     // Against simulate's own (exact last-half) window: the same steady state.
-    let d_mean = (rep.skew_mean_ns.unwrap() - sum.skew_mean_ns.unwrap()).abs();
+    let d_mean = (rep.skew.mean_ns.unwrap() - sum.skew.mean_ns.unwrap()).abs();
     assert!(d_mean <= 0.5, "{name}: mean differs by {d_mean}");
-    assert!(rep.skew_max_ns >= sum.skew_max_ns, "{name}");
-    let d_p99 = rep.skew_p99_ns.unwrap().abs_diff(sum.skew_p99_ns.unwrap());
+    assert!(rep.skew.max_ns >= sum.skew.max_ns, "{name}");
+    let d_p99 = rep.skew.p99_ns.unwrap().abs_diff(sum.skew.p99_ns.unwrap());
     assert!(d_p99 <= 2, "{name}: p99 differs by {d_p99}");
 
     // Lock: simulate's rule over the same samples, timed from the first SYNC0 edge. Before
@@ -196,7 +196,7 @@ fn yardstick_agrees_with_simulate_on_a_master_that_never_locks() {
     assert_eq!(y.lock_time(), None);
     let sorted = sorted_window_skews(&y, &rec);
     let exact = ecdc_harness::emu::yardstick::percentile(&sorted, 99.0).unwrap();
-    let p99 = rep.skew_p99_ns.unwrap();
+    let p99 = rep.skew.p99_ns.unwrap();
     assert!(
         exact > 4096,
         "the skews should be microseconds, p99 {exact}"
@@ -205,7 +205,7 @@ fn yardstick_agrees_with_simulate_on_a_master_that_never_locks() {
         p99 >= exact && p99 - exact <= exact / 128,
         "{p99} vs {exact}"
     );
-    assert_eq!(rep.skew_max_ns, sorted.last().copied());
+    assert_eq!(rep.skew.max_ns, sorted.last().copied());
     assert_eq!(rep.pairs, sorted.len() as u64);
 }
 
@@ -231,9 +231,9 @@ fn yardstick_on_a_mixed_tree_counts_only_the_slaves_that_fire() {
     let sorted = sorted_window_skews(&y, &rec);
     assert!(!sorted.is_empty());
     assert_eq!(rep.pairs, sorted.len() as u64);
-    assert_eq!(rep.skew_max_ns, sorted.last().copied());
+    assert_eq!(rep.skew.max_ns, sorted.last().copied());
     assert_eq!(
-        rep.skew_p99_ns,
+        rep.skew.p99_ns,
         ecdc_harness::emu::yardstick::percentile(&sorted, 99.0)
     );
     let slaves = y.slaves(s.net());

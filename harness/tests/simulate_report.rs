@@ -106,7 +106,7 @@ fn default_scenario_short_run_reports_four_schemes() {
     // ecdc locks (true time) and its skew is in the tens of ns at most.
     let e = &report.schemes["ecdc"];
     assert!(e.lock_frames.is_some(), "ecdc did not lock");
-    assert!(e.skew_max_ns.unwrap() < 200, "{e:?}");
+    assert!(e.skew.max_ns.unwrap() < 200, "{e:?}");
 
     // Both seed 000 schemes: exactly the fixed burst, and the cyclic frames after it.
     let s = &report.schemes["seed000"];
@@ -188,7 +188,7 @@ fn default_scenario_short_run_reports_four_schemes() {
     // see above).
     for c in [e, p] {
         assert!(
-            u.skew_mean_ns.unwrap() > 10.0 * c.skew_mean_ns.unwrap(),
+            u.skew.mean_ns.unwrap() > 10.0 * c.skew.mean_ns.unwrap(),
             "{}",
             c.name
         );

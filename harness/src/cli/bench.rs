@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
+use crate::emu::yardstick::SkewSummary;
 use crate::emu::{EscKind, Network, Scenario, SlaveSpec};
 use crate::report::svg::{render_bench, BenchSeries};
 use crate::report::table::{given_text, markdown};
@@ -232,10 +233,8 @@ pub struct SchemeResult {
     pub lock_ms: Option<f64>,
     pub static_drift_frames: Option<u64>,
     pub dist_frames: u64,
-    pub skew_mean_ns: Option<f64>,
-    pub skew_p99_ns: Option<u64>,
-    pub skew_max_ns: Option<u64>,
-    pub skew_signed_mean_ns: Option<f64>,
+    #[serde(flatten)]
+    pub skew: SkewSummary,
     pub skew_pairs: usize,
     /// Slaves (reference included) with a SYNC0 edge in the steady-state window.
     pub sync0_slaves: usize,
@@ -260,10 +259,7 @@ impl SchemeResult {
             lock_ms: s.lock_ms,
             static_drift_frames: s.static_drift_frames,
             dist_frames: s.dist_frames,
-            skew_mean_ns: s.skew_mean_ns,
-            skew_p99_ns: s.skew_p99_ns,
-            skew_max_ns: s.skew_max_ns,
-            skew_signed_mean_ns: s.skew_signed_mean_ns,
+            skew: s.skew,
             skew_pairs: s.skew_samples,
             sync0_slaves,
             window_start_ns: s.window_start_ns,
@@ -521,9 +517,9 @@ fn rows(r: &ScenarioResult, with_scenario: bool) -> Vec<Vec<String>> {
                 opt(s.lock_frames),
                 lock_ms_cell(s.lock_ms, r.duration_ns),
                 opt(s.static_drift_frames),
-                optf(s.skew_mean_ns, 1),
-                opt(s.skew_p99_ns),
-                opt(s.skew_max_ns),
+                optf(s.skew.mean_ns, 1),
+                opt(s.skew.p99_ns),
+                opt(s.skew.max_ns),
                 s.skew_pairs.to_string(),
                 format!("{}/{}", s.sync0_slaves, r.dc_slaves),
                 given_text(&s.given),

@@ -35,7 +35,7 @@ pub fn bench_scenario(r: &ScenarioResult) -> Vec<String> {
             e.sync0_slaves, r.dc_slaves
         )));
     }
-    match e.skew_max_ns {
+    match e.skew.max_ns {
         None => missed.push(at("no SYNC0 skew samples in the window".into())),
         Some(m) if m > BENCH_SKEW_MAX_NS => {
             missed.push(at(format!("skew max {m} ns > {BENCH_SKEW_MAX_NS} ns")))

@@ -202,9 +202,9 @@ fn sync_line(s: &SyncReport) -> String {
         "; SYNC0 firing {} pairs {} skew mean {} p99 {} max {} ns; {lock}",
         s.slaves_firing,
         s.pairs,
-        ns(s.skew_mean_ns),
-        int(s.skew_p99_ns),
-        int(s.skew_max_ns)
+        ns(s.skew.mean_ns),
+        int(s.skew.p99_ns),
+        int(s.skew.max_ns)
     )
 }
 

@@ -206,11 +206,11 @@ fn judge(schemes: &[SchemeResult]) -> (Option<f64>, Option<String>, bool) {
     let ecdc = schemes
         .iter()
         .find(|s| s.name == "ecdc")
-        .and_then(|s| s.skew_mean_ns);
+        .and_then(|s| s.skew.mean_ns);
     let best = schemes
         .iter()
         .filter(|s| s.name != "ecdc" && s.error.is_none())
-        .filter_map(|s| s.skew_mean_ns.map(|m| (m, s.name.clone())))
+        .filter_map(|s| s.skew.mean_ns.map(|m| (m, s.name.clone())))
         .min_by(|a, b| a.0.total_cmp(&b.0));
     match (ecdc, best) {
         (Some(e), Some((b, name))) => (Some(e - b), Some(name), e <= b + TIE_NS),
@@ -304,8 +304,8 @@ fn rows(rep: &SensitivityReport) -> (Vec<String>, Vec<Vec<String>>) {
                     Some(_) => "stopped".to_string(),
                     None => format!(
                         "{} / {}, {}",
-                        optf(s.skew_mean_ns, 1),
-                        s.skew_max_ns.map_or("–".to_string(), |v| v.to_string()),
+                        optf(s.skew.mean_ns, 1),
+                        s.skew.max_ns.map_or("–".to_string(), |v| v.to_string()),
                         s.lock_ms
                             .map_or("no lock".to_string(), |v| format!("{v:.1} ms"))
                     ),
@@ -398,7 +398,7 @@ fn panels(rep: &SensitivityReport) -> Vec<SensitivityPanel> {
                 .map(|(k, name)| {
                     let pts = cells
                         .iter()
-                        .map(|c| c.schemes.get(k).and_then(|s| s.skew_mean_ns))
+                        .map(|c| c.schemes.get(k).and_then(|s| s.skew.mean_ns))
                         .collect();
                     (name.clone(), pts)
                 })
@@ -482,10 +482,10 @@ mod tests {
             static_drift_frames: None,
             dist_frames: 0,
             given: Default::default(),
-            skew_mean_ns: mean,
-            skew_p99_ns: None,
-            skew_max_ns: None,
-            skew_signed_mean_ns: None,
+            skew: crate::emu::yardstick::SkewSummary {
+                mean_ns: mean,
+                ..Default::default()
+            },
             skew_pairs: 0,
             sync0_slaves: 0,
             window_start_ns: None,

@@ -333,6 +333,32 @@ impl SkewStats {
         }
         Some(max)
     }
+
+    /// The numbers a report gives of these pairs.
+    pub fn summary(&self) -> SkewSummary {
+        SkewSummary {
+            mean_ns: self.mean_abs(),
+            p99_ns: self.percentile(99.0),
+            max_ns: self.max_abs(),
+            signed_mean_ns: self.signed_mean(),
+        }
+    }
+}
+
+/// SYNC0 skew over (slave, pulse) pairs as every report gives it (`ecdc emulate`, `simulate`,
+/// `bench`): mean |·|, p99 |·| (nearest rank), max |·| and the signed mean, ns. Reports
+/// flatten it, so its fields keep their `skew_` names in JSON.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct SkewSummary {
+    #[serde(rename = "skew_mean_ns")]
+    pub mean_ns: Option<f64>,
+    #[serde(rename = "skew_p99_ns")]
+    pub p99_ns: Option<u64>,
+    #[serde(rename = "skew_max_ns")]
+    pub max_ns: Option<u64>,
+    /// Signed mean (a constant bias shows here).
+    #[serde(rename = "skew_signed_mean_ns")]
+    pub signed_mean_ns: Option<f64>,
 }
 
 /// Lock instant, streaming: the first sample after the last sample that was not locked.
@@ -425,10 +451,8 @@ pub struct SyncReport {
     pub slaves_firing: usize,
     /// (slave, pulse) skew pairs in the window.
     pub pairs: u64,
-    pub skew_mean_ns: Option<f64>,
-    pub skew_p99_ns: Option<u64>,
-    pub skew_max_ns: Option<u64>,
-    pub skew_signed_mean_ns: Option<f64>,
+    #[serde(flatten)]
+    pub skew: SkewSummary,
     /// Lock instant minus the first SYNC0 edge, ms.
     pub lock_ms: Option<f64>,
     /// Emulator index of the slave skews and clock errors are taken against.
@@ -722,10 +746,7 @@ impl Yardstick {
         SyncReport {
             slaves_firing: firing,
             pairs: skew.count(),
-            skew_mean_ns: skew.mean_abs(),
-            skew_p99_ns: skew.percentile(99.0),
-            skew_max_ns: skew.max_abs(),
-            skew_signed_mean_ns: skew.signed_mean(),
+            skew: skew.summary(),
             lock_ms: self
                 .lock
                 .lock()

@@ -119,22 +119,22 @@ impl Report {
             (
                 "skew_mean",
                 ratio(
-                    e.and_then(|x| x.skew_mean_ns),
-                    s.and_then(|x| x.skew_mean_ns),
+                    e.and_then(|x| x.skew.mean_ns),
+                    s.and_then(|x| x.skew.mean_ns),
                 ),
             ),
             (
                 "skew_p99",
                 ratio(
-                    f(e.and_then(|x| x.skew_p99_ns)),
-                    f(s.and_then(|x| x.skew_p99_ns)),
+                    f(e.and_then(|x| x.skew.p99_ns)),
+                    f(s.and_then(|x| x.skew.p99_ns)),
                 ),
             ),
             (
                 "skew_max",
                 ratio(
-                    f(e.and_then(|x| x.skew_max_ns)),
-                    f(s.and_then(|x| x.skew_max_ns)),
+                    f(e.and_then(|x| x.skew.max_ns)),
+                    f(s.and_then(|x| x.skew.max_ns)),
                 ),
             ),
             (
@@ -155,14 +155,14 @@ impl Report {
             targets.push(Target {
                 name: "ecdc skew mean".into(),
                 target: "<= 10 ns".into(),
-                measured: fmt(e.skew_mean_ns),
-                met: e.skew_mean_ns.is_some_and(|v| v <= 10.0),
+                measured: fmt(e.skew.mean_ns),
+                met: e.skew.mean_ns.is_some_and(|v| v <= 10.0),
             });
             targets.push(Target {
                 name: "ecdc skew max".into(),
                 target: "<= 40 ns".into(),
-                measured: fmt(f(e.skew_max_ns)),
-                met: e.skew_max_ns.is_some_and(|v| v <= 40),
+                measured: fmt(f(e.skew.max_ns)),
+                met: e.skew.max_ns.is_some_and(|v| v <= 40),
             });
             targets.push(Target {
                 name: "ecdc lock frames".into(),
@@ -192,7 +192,7 @@ impl Report {
                     ),
                     met: r.is_some_and(|r| r <= 0.5),
                 });
-                let ok = match (e.skew_mean_ns, s.skew_mean_ns, e.skew_max_ns, s.skew_max_ns) {
+                let ok = match (e.skew.mean_ns, s.skew.mean_ns, e.skew.max_ns, s.skew.max_ns) {
                     (Some(a), Some(b), Some(c), Some(d)) => a <= b && c <= d,
                     _ => false,
                 };

@@ -214,10 +214,10 @@ pub fn render(r: &Report) -> String {
         ],
         |s| {
             vec![
-                optf(s.skew_mean_ns, 1),
-                opt(s.skew_p99_ns),
-                opt(s.skew_max_ns),
-                optf(s.skew_signed_mean_ns, 1),
+                optf(s.skew.mean_ns, 1),
+                opt(s.skew.p99_ns),
+                opt(s.skew.max_ns),
+                optf(s.skew.signed_mean_ns, 1),
                 s.skew_samples.to_string(),
             ]
         },

@@ -20,7 +20,7 @@
 use super::run::Record;
 use crate::emu::yardstick::{LockTracker, Moments, PulseMatcher, SkewStats};
 
-pub use crate::emu::yardstick::{percentile, LOCK_NS};
+pub use crate::emu::yardstick::{percentile, SkewSummary, LOCK_NS};
 
 /// One row of the per-slave table (seed 000 Table 2 layout, one row per slave here).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -64,11 +64,8 @@ pub struct Summary {
     pub window_start_ns: Option<u64>,
     pub window_end_ns: u64,
     pub skew_samples: usize,
-    pub skew_mean_ns: Option<f64>,
-    pub skew_p99_ns: Option<u64>,
-    pub skew_max_ns: Option<u64>,
-    /// Signed mean of the skew (a constant bias shows here).
-    pub skew_signed_mean_ns: Option<f64>,
+    #[serde(flatten)]
+    pub skew: SkewSummary,
     pub slaves: Vec<SlaveRow>,
     /// Per slave, the t_DIFF the scheme used against the emulator's truth (schemes that
     /// determine it themselves; set by the caller, `None` otherwise).
@@ -194,10 +191,7 @@ pub fn summarize(r: &Record) -> Summary {
         window_start_ns: win_start,
         window_end_ns: r.end,
         skew_samples: usize::try_from(all.count()).unwrap_or(usize::MAX),
-        skew_mean_ns: all.mean_abs(),
-        skew_p99_ns: all.percentile(99.0),
-        skew_max_ns: all.max_abs(),
-        skew_signed_mean_ns: all.signed_mean(),
+        skew: all.summary(),
         slaves,
         t_diff_ns: None,
     }
