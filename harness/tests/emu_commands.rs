@@ -18,25 +18,13 @@ fn net3() -> (Network, u64) {
 #[test]
 fn aprd_auto_increment() {
     let (mut net, t) = net3();
-    let (r, _) = one(
-        &mut net,
-        t,
-        Command::Aprd,
-        Address::position(1, 0x0010),
-        &[0; 2],
-    );
+    let (r, _) = aprd_at(&mut net, t, 1, 0x0010, 2);
     assert_eq!(r.wkc, 1);
     assert_eq!(u16_of(&r.data), 0x1001);
     // Sent 0xFFFF, passed 3 slaves.
     assert_eq!(r.adp, 0xFFFFu16.wrapping_add(3));
     // Position beyond the chain: nobody answers.
-    let (r, _) = one(
-        &mut net,
-        t + 100_000,
-        Command::Aprd,
-        Address::position(5, 0x0010),
-        &[0; 2],
-    );
+    let (r, _) = aprd_at(&mut net, t + 100_000, 5, 0x0010, 2);
     assert_eq!(r.wkc, 0);
     assert_eq!(r.data, vec![0, 0]);
 }
@@ -46,13 +34,7 @@ fn aprd_auto_increment() {
 #[test]
 fn apwr_aprw() {
     let (mut net, t) = net3();
-    let (r, _) = one(
-        &mut net,
-        t,
-        Command::Apwr,
-        Address::position(2, 0x1000),
-        &[0xAB],
-    );
+    let (r, _) = apwr_at(&mut net, t, 2, 0x1000, &[0xAB]);
     assert_eq!(r.wkc, 1);
     assert_eq!(net.peek(2, 0x1000, 1).unwrap(), vec![0xAB]);
     assert_eq!(net.peek(1, 0x1000, 1).unwrap(), vec![0x00]);

@@ -80,13 +80,7 @@ fn power_cycle_resets_slave() {
     // Station address reset to 0: the old address no longer answers.
     let (r, a) = fprd_at(&mut net, on_at + 2_000_000, 0x1001, 0x0010, 2);
     assert_eq!(r.wkc, 0);
-    let (r, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Aprd,
-        Address::position(1, 0x0910),
-        &[0; 0x30],
-    );
+    let (r, _) = aprd_at(&mut net, a + 1000, 1, 0x0910, 0x30);
     assert_eq!(r.wkc, 1);
     let local = u64_of(&r.data);
     assert!(

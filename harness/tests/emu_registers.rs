@@ -153,13 +153,7 @@ fn receive_time_latch_rules() {
         "0x0918 = port 0 stamp"
     );
     // APWR to 0x0900 does not latch.
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Apwr,
-        Address::position(1, 0x0900),
-        &[0; 4],
-    );
+    let (_, a) = apwr_at(&mut net, a + 1000, 1, 0x0900, &[0; 4]);
     let (y, a) = fprd_at(&mut net, a + 1000, 0x1001, 0x0900, 8);
     assert_eq!(y.data, x.data[..8].to_vec());
     // Break slave 1's port 1: the next latch updates port 0 only; port 1 keeps its value.

@@ -80,6 +80,24 @@ pub fn fprd_at(net: &mut Network, t: u64, st: u16, ado: u16, len: usize) -> (Rep
     )
 }
 
+/// APWR of `d` to register `ado` of the slave at position `pos` at `t`; returns (reply,
+/// arrival).
+pub fn apwr_at(net: &mut Network, t: u64, pos: u16, ado: u16, d: &[u8]) -> (Reply, u64) {
+    one(net, t, Command::Apwr, Address::position(pos, ado), d)
+}
+
+/// APRD of `len` bytes from register `ado` of the slave at position `pos` at `t`; returns
+/// (reply, arrival).
+pub fn aprd_at(net: &mut Network, t: u64, pos: u16, ado: u16, len: usize) -> (Reply, u64) {
+    one(
+        net,
+        t,
+        Command::Aprd,
+        Address::position(pos, ado),
+        &vec![0; len],
+    )
+}
+
 pub fn u16_of(d: &[u8]) -> u16 {
     u16::from_le_bytes([d[0], d[1]])
 }
@@ -102,13 +120,7 @@ pub fn addressed(sc: &Scenario) -> (Network, u64) {
 pub fn address_all(net: &mut Network, mut t: u64) -> u64 {
     for i in 0..net.slave_count() {
         let a = (0x1000 + i as u16).to_le_bytes();
-        let (r, arr) = one(
-            net,
-            t,
-            Command::Apwr,
-            Address::position(i as u16, 0x0010),
-            &a,
-        );
+        let (r, arr) = apwr_at(net, t, i as u16, 0x0010, &a);
         assert_eq!(r.wkc, 1);
         t = arr + 1_000;
     }
