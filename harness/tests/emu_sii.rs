@@ -7,7 +7,6 @@
 
 mod emu_support;
 
-use ecdc_core::wire::{Address, Command};
 use ecdc_harness::emu::{sii, Device, Network, Scenario, SiiTiming, SlaveSpec};
 use emu_support::*;
 
@@ -82,23 +81,8 @@ fn read_image(net: &mut Network, t: &mut u64, st: u16, words: u32) -> Vec<u16> {
     out
 }
 
-/// The CRC-8 the test trusts: bit by bit, written here.
-fn crc8_here(b: &[u8]) -> u8 {
-    let mut c = 0xFFu8;
-    for x in b {
-        c ^= x;
-        for _ in 0..8 {
-            c = if c & 0x80 != 0 {
-                (c << 1) ^ 0x07
-            } else {
-                c << 1
-            };
-        }
-    }
-    c
-}
-
-/// Table-driven CRC-8 (the table built from the polynomial): a second formulation.
+/// The CRC-8 the test trusts: table-driven (the table built from the polynomial), a
+/// formulation independent of the emulator's bit loop.
 fn crc8_table(b: &[u8]) -> u8 {
     let table: Vec<u8> = (0..=255u8)
         .map(|i| {
@@ -117,13 +101,12 @@ fn crc8_table(b: &[u8]) -> u8 {
 /// REQ-ESC-024: CRC-8, polynomial 0x07, initial 0xFF, no reflection, no final XOR
 /// (ETG.2010; Beckhoff Section I, "ESC Configuration Area"). The public CRC catalogue has no
 /// entry with exactly these parameters (CRC-8/ROHC reflects), so the check value over
-/// "123456789", 0xFB, is the one computed by the bit loop and the table formulation here
-/// (and by a separate Python loop when this test was written).
+/// "123456789", 0xFB, is the one computed by the emulator's bit loop and the table formulation
+/// here (and by a separate Python loop when this test was written).
 // verifies: REQ-ESC-024
 #[test]
 fn crc8_check_value() {
     assert_eq!(sii::crc8(b"123456789"), 0xFB);
-    assert_eq!(crc8_here(b"123456789"), 0xFB);
     assert_eq!(crc8_table(b"123456789"), 0xFB);
     let area = [
         0x05u8, 0x0C, 0x00, 0x00, 0x64, 0, 0, 0, 0x23, 0x01, 0, 0, 0, 0,
@@ -189,7 +172,7 @@ fn image_read_through_the_interface_in_4_and_8_byte_mode() {
     let bytes: Vec<u8> = w[..7].iter().flat_map(|x| x.to_le_bytes()).collect();
     assert_eq!(
         w[7] & 0xFF,
-        u16::from(crc8_here(&bytes)),
+        u16::from(crc8_table(&bytes)),
         "word 7 = CRC-8 of words 0..6"
     );
     assert_eq!(w[2], 100, "SYNC pulse length");
@@ -493,7 +476,7 @@ fn reload_and_power_cycle_effects() {
     let b: Vec<u8> = area.iter().flat_map(|w| w.to_le_bytes()).collect();
     write(&mut net, &mut t, 2, 250);
     write(&mut net, &mut t, 4, 0x0777);
-    write(&mut net, &mut t, 7, u16::from(crc8_here(&b)));
+    write(&mut net, &mut t, 7, u16::from(crc8_table(&b)));
     let (_, c) = command(&mut net, &mut t, 0x1000, 0x0400, 0, 10_000);
     assert_eq!(c & 0x1800, 0, "reload: checksum right");
     assert_eq!(u16_of(&fprd(&mut net, &mut t, 0x1000, 0x0982, 2).data), 250);
@@ -511,7 +494,7 @@ fn reload_and_power_cycle_effects() {
     assert_eq!(dl & 1, 1, "PDI operational keeps its value");
     assert_eq!(u16_of(&fprd(&mut net, &mut t, 0x1000, 0x0982, 2).data), 250);
     // Fix the CRC, power-cycle: the alias comes from the EEPROM now.
-    write(&mut net, &mut t, 7, u16::from(crc8_here(&b)));
+    write(&mut net, &mut t, 7, u16::from(crc8_table(&b)));
     net.schedule_fault(
         t + 1_000,
         ecdc_harness::emu::Fault::PowerCycle {
@@ -589,22 +572,10 @@ fn scenario_fields_and_validation() {
 fn other_access_shapes() {
     let mut net = Network::new(&io8_scenario(SiiTiming::default())).unwrap();
     let mut t = 0;
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Apwr,
-        Address::position(0, 0x0502),
-        &[0x80, 0x01, 0x0A, 0x00],
-    );
+    let (r, a) = apwr_at(&mut net, t, 0, 0x0502, &[0x80, 0x01, 0x0A, 0x00]);
     assert_eq!(r.wkc, 1);
     t = a + 200_000;
-    let (r, _) = one(
-        &mut net,
-        t,
-        Command::Aprd,
-        Address::position(0, 0x0502),
-        &[0; 10],
-    );
+    let (r, _) = aprd_at(&mut net, t, 0, 0x0502, 10);
     let c = u16_of(&r.data);
     assert_eq!(c & (BUSY | 0x6000 | 0x0700), 0, "{c:#06x}");
     assert_eq!(c & 0x0080, 0, "bit 7 is read-only (a 2 KiB EEPROM)");
