@@ -354,15 +354,22 @@ impl RefMachine {
 mod tests {
     use super::*;
 
-    #[test]
-    fn faithful_bringup_order() {
+    /// A started model of `k` slaves, `writable` of them with a writable offset: one retry, a
+    /// hold-over after two lost cycles.
+    fn started(latch_rounds: u8, k: u16, writable: u16) -> RefMachine {
         let cfg = ModelConfig {
-            latch_rounds: 2,
+            latch_rounds,
             retries: 1,
             max_lost_cycles: 2,
         };
-        let mut m = RefMachine::new(cfg, 3, 1);
+        let mut m = RefMachine::new(cfg, k, writable);
         m.apply(Input::Start);
+        m
+    }
+
+    #[test]
+    fn faithful_bringup_order() {
+        let mut m = started(2, 3, 1);
         let mut seen = vec![m.state];
         let mut events = Vec::new();
         for _ in 0..30 {
@@ -405,13 +412,7 @@ mod tests {
     // verifies: REQ-DC-127
     #[test]
     fn silence_in_cyclic_holds_over() {
-        let cfg = ModelConfig {
-            latch_rounds: 1,
-            retries: 1,
-            max_lost_cycles: 2,
-        };
-        let mut m = RefMachine::new(cfg, 2, 2);
-        m.apply(Input::Start);
+        let mut m = started(1, 2, 2);
         for _ in 0..100 {
             if m.locked() {
                 break;
@@ -430,13 +431,7 @@ mod tests {
 
     #[test]
     fn losses_retry_then_restart() {
-        let cfg = ModelConfig {
-            latch_rounds: 1,
-            retries: 1,
-            max_lost_cycles: 2,
-        };
-        let mut m = RefMachine::new(cfg, 1, 1);
-        m.apply(Input::Start);
+        let mut m = started(1, 1, 1);
         assert!(m.apply(Input::Lost).is_empty());
         assert_eq!(m.state, State::CountSlaves);
         assert_eq!(
