@@ -330,14 +330,9 @@ pub fn p3_tree_generated(seed: u64, count: usize, shape: u8, non_dc: u64) {
     use ecdc_spec::network::{generate, GenParams, Shape, SplitMix};
     let shape = [Shape::Line, Shape::Fork, Shape::Cross, Shape::Any][usize::from(shape % 4)];
     let p = GenParams {
-        count: count.clamp(1, 64),
-        shape,
         t_f: (0, 800),
         t_diff: (0, 400),
-        cable: (0, 5_000),
-        non_dc_percent: non_dc.min(30),
-        bits32_percent: 30,
-        rate_ppb: (0, 0),
+        ..GenParams::new(count.clamp(1, 64), shape, non_dc.min(30), 30)
     };
     p3_tree(&generate(&mut SplitMix::new(seed), &p));
 }

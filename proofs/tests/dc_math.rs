@@ -6,7 +6,6 @@
 use ecdc_core::dc::port::PortSet;
 use ecdc_core::dc::topology::{Latches, SlaveSample};
 use ecdc_proofs::dc_math::{self, Line};
-use ecdc_spec::network::{generate, GenParams, Shape, SplitMix};
 use proptest::prelude::*;
 
 fn cfg(cases: u32) -> ProptestConfig {
@@ -110,18 +109,7 @@ proptest! {
     // verifies: P3
     #[test]
     fn p3_tree(seed in any::<u64>(), count in 1usize..=64, shape in 0u8..4, non_dc in 0u64..=30) {
-        let shape = [Shape::Line, Shape::Fork, Shape::Cross, Shape::Any][usize::from(shape)];
-        let p = GenParams {
-            count,
-            shape,
-            t_f: (0, 800),
-            t_diff: (0, 400),
-            cable: (0, 5_000),
-            non_dc_percent: non_dc,
-            bits32_percent: 30,
-            rate_ppb: (0, 0),
-        };
-        dc_math::p3_tree(&generate(&mut SplitMix::new(seed), &p));
+        dc_math::p3_tree_generated(seed, count, shape, non_dc);
     }
 }
 

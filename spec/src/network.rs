@@ -371,6 +371,23 @@ pub struct GenParams {
     pub rate_ppb: (i64, i64),
 }
 
+impl GenParams {
+    /// `count` ESCs of `shape` with the delays of common hardware (t_F 100..800 ns, t_Diff
+    /// −80..400 ns, cables up to 5 µs) and ideal clocks; change fields for other ranges.
+    pub fn new(count: usize, shape: Shape, non_dc_percent: u64, bits32_percent: u64) -> Self {
+        GenParams {
+            count,
+            shape,
+            t_f: (100, 800),
+            t_diff: (-80, 400),
+            cable: (0, 5_000),
+            non_dc_percent,
+            bits32_percent,
+            rate_ppb: (0, 0),
+        }
+    }
+}
+
 /// Generates a random network with `count` ESCs (indices in auto-increment order). Half of the
 /// clocks get a phase whose low 32 bits are just below 2^32, so port times wrap inside the latch.
 pub fn generate(rng: &mut SplitMix, params: &GenParams) -> Network {

@@ -26,19 +26,6 @@ use proptest::prelude::*;
 
 const CAP: usize = 64;
 
-fn params(count: usize, shape: Shape, non_dc: u64, bits32: u64) -> GenParams {
-    GenParams {
-        count,
-        shape,
-        t_f: (100, 800),
-        t_diff: (-80, 400),
-        cable: (0, 5_000),
-        non_dc_percent: non_dc,
-        bits32_percent: bits32,
-        rate_ppb: (0, 0),
-    }
-}
-
 fn shape_of(k: u8) -> Shape {
     match k % 4 {
         0 => Shape::Line,
@@ -197,7 +184,8 @@ proptest! {
         bits32 in prop_oneof![Just(0u64), Just(100u64), 0u64..=100],
         master in any::<u64>(),
     ) {
-        let net = generate(&mut SplitMix::new(seed), &params(count, shape_of(shape), non_dc, bits32));
+        let p = GenParams::new(count, shape_of(shape), non_dc, bits32);
+        let net = generate(&mut SplitMix::new(seed), &p);
         check(&net, 1, true, master)?;
     }
 
@@ -205,7 +193,8 @@ proptest! {
     // verifies: REQ-DC-015
     #[test]
     fn unknown_t_diff_bounded(seed in any::<u64>(), count in 1usize..=64, shape in any::<u8>()) {
-        let net = generate(&mut SplitMix::new(seed), &params(count, shape_of(shape), 15, 30));
+        let p = GenParams::new(count, shape_of(shape), 15, 30);
+        let net = generate(&mut SplitMix::new(seed), &p);
         check(&net, 1, false, 0x0123_4567_89AB_CDEF)?;
     }
 
@@ -214,7 +203,7 @@ proptest! {
     // verifies: REQ-DC-020
     #[test]
     fn lines_equal_seed000_eq23(seed in any::<u64>(), count in 1usize..=64, d in -80i128..=400) {
-        let p = GenParams { t_diff: (d, d), ..params(count, Shape::Line, 0, 30) };
+        let p = GenParams { t_diff: (d, d), ..GenParams::new(count, Shape::Line, 0, 30) };
         let net = generate(&mut SplitMix::new(seed), &p);
         check(&net, 1, true, 7)?;
         let latch = net.latch().unwrap();
@@ -254,7 +243,7 @@ fn quantised_stamps_within_bound() {
     let mut rng = SplitMix::new(0xD1CE);
     for k in 0..600u32 {
         let count = usize::try_from(rng.range(1, 64)).unwrap();
-        let p = params(count, shape_of(u8::try_from(k % 4).unwrap()), 20, 30);
+        let p = GenParams::new(count, shape_of(u8::try_from(k % 4).unwrap()), 20, 30);
         let net = generate(&mut rng, &p);
         let w = check(&net, 10, true, rng.next_u64()).expect("within bound");
         worst.delay = worst.delay.max(w.delay);
@@ -282,7 +271,7 @@ fn averaging_reduces_quantisation_error() {
     let mut rng = SplitMix::new(0xA7E5);
     let (mut err1, mut err16, mut n) = (0i128, 0i128, 0i128);
     for k in 0..40u8 {
-        let mut net = generate(&mut rng, &params(24, shape_of(k), 10, 30));
+        let mut net = generate(&mut rng, &GenParams::new(24, shape_of(k), 10, 30));
         let reference = first_dc(&net);
         let latch = net.latch().unwrap();
         let samples = core_samples(&net, &latch, 10, true);
@@ -394,7 +383,7 @@ fn rate_error_during_latch_measured() {
         let count = usize::try_from(rng.range(1, 64)).unwrap();
         let p = GenParams {
             rate_ppb: (-100_000, 100_000),
-            ..params(count, shape_of(u8::try_from(k % 4).unwrap()), 15, 30)
+            ..GenParams::new(count, shape_of(u8::try_from(k % 4).unwrap()), 15, 30)
         };
         let net = generate(&mut rng, &p);
         let latch = net.latch().unwrap();

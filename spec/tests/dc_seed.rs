@@ -85,14 +85,10 @@ fn seed000_eq23_last_case_erratum() {
         let n = usize::try_from(rng.range(2, 40)).unwrap();
         let dd = rng.range(1, 300);
         let p = GenParams {
-            count: n,
-            shape: Shape::Line,
             t_f: (100, 600),
             t_diff: (dd, dd),
             cable: (0, 3000),
-            non_dc_percent: 0,
-            bits32_percent: 50,
-            rate_ppb: (0, 0),
+            ..GenParams::new(n, Shape::Line, 0, 50)
         };
         let net = generate(&mut rng, &p);
         let latch = net.latch().unwrap();
@@ -246,14 +242,10 @@ fn register_contract_after_offsets() {
     let mut rng = SplitMix::new(910);
     for _ in 0..100 {
         let p = GenParams {
-            count: 12,
-            shape: Shape::Any,
             t_f: (100, 600),
             t_diff: (-50, 200),
             cable: (0, 3000),
-            non_dc_percent: 20,
-            bits32_percent: 40,
-            rate_ppb: (0, 0),
+            ..GenParams::new(12, Shape::Any, 20, 40)
         };
         let net = generate(&mut rng, &p);
         let latch = net.latch().unwrap();
