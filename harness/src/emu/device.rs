@@ -57,20 +57,29 @@ impl Device {
     }
 }
 
-/// Process RAM addresses of the SyncManagers of built images (ecdc choice: mailboxes at
-/// the start of process RAM, process data after them, as Beckhoff terminals lay them out).
-pub const MBX_OUT_START: u16 = 0x1000;
-pub const MBX_IN_START: u16 = 0x1080;
-pub const MBX_SIZE: u16 = 128;
-pub const PD_OUT_START: u16 = 0x1100;
-pub const PD_IN_START: u16 = 0x1180;
+/// The SyncManagers of built images, one per [`sm_type`], enabled. Process RAM addresses are
+/// an ecdc choice: mailboxes (128 bytes each) at the start of process RAM, process data after
+/// them, as Beckhoff terminals lay them out; a process-data length here is a placeholder for
+/// the device's. Control bytes: datasheet 0x0804, bits 1:0 mode 00 buffered / 10 mailbox,
+/// bits 3:2 direction 00 ECAT reads / 01 ECAT writes, bit 5 PDI interrupt, bit 6 watchdog.
+pub mod built_sm {
+    use super::{sm_type, SmEntry};
 
-/// SyncManager control bytes (datasheet 0x0804: bits 1:0 mode 00 buffered / 10 mailbox,
-/// bits 3:2 direction 00 ECAT reads / 01 ECAT writes, bit 5 PDI interrupt, bit 6 watchdog).
-pub const SM_CTRL_MBX_OUT: u8 = 0x26;
-pub const SM_CTRL_MBX_IN: u8 = 0x22;
-pub const SM_CTRL_PD_OUT: u8 = 0x64;
-pub const SM_CTRL_PD_IN: u8 = 0x20;
+    const fn sm(start: u16, len: u16, control: u8, typ: u8) -> SmEntry {
+        SmEntry {
+            start,
+            len,
+            control,
+            enable: 1,
+            typ,
+        }
+    }
+
+    pub const MBX_OUT: SmEntry = sm(0x1000, 128, 0x26, sm_type::MBX_OUT);
+    pub const MBX_IN: SmEntry = sm(0x1080, 128, 0x22, sm_type::MBX_IN);
+    pub const PD_OUT: SmEntry = sm(0x1100, 0, 0x64, sm_type::PD_OUT);
+    pub const PD_IN: SmEntry = sm(0x1180, 0, 0x20, sm_type::PD_IN);
+}
 
 /// SyncManager types of the SII SyncManager category (ETG.2010).
 pub mod sm_type {
@@ -140,40 +149,18 @@ impl BuildSpec {
     pub fn sync_managers(&self) -> Vec<SmEntry> {
         let mut v = Vec::new();
         if self.mailbox {
-            v.push(SmEntry {
-                start: MBX_OUT_START,
-                len: MBX_SIZE,
-                control: SM_CTRL_MBX_OUT,
-                enable: 1,
-                typ: sm_type::MBX_OUT,
-            });
-            v.push(SmEntry {
-                start: MBX_IN_START,
-                len: MBX_SIZE,
-                control: SM_CTRL_MBX_IN,
-                enable: 1,
-                typ: sm_type::MBX_IN,
-            });
+            v.extend([built_sm::MBX_OUT, built_sm::MBX_IN]);
         }
         let (o, i) = self.device.process_bytes();
-        if o > 0 {
-            v.push(SmEntry {
-                start: PD_OUT_START,
-                len: o,
-                control: SM_CTRL_PD_OUT,
-                enable: 1,
-                typ: sm_type::PD_OUT,
-            });
-        }
-        if i > 0 {
-            v.push(SmEntry {
-                start: PD_IN_START,
-                len: i,
-                control: SM_CTRL_PD_IN,
-                enable: 1,
-                typ: sm_type::PD_IN,
-            });
-        }
+        let pd_out = SmEntry {
+            len: o,
+            ..built_sm::PD_OUT
+        };
+        let pd_in = SmEntry {
+            len: i,
+            ..built_sm::PD_IN
+        };
+        v.extend([pd_out, pd_in].into_iter().filter(|sm| sm.len > 0));
         v
     }
 
@@ -195,10 +182,10 @@ impl BuildSpec {
             w[9 + 2 * k] = (v >> 16) as u16;
         }
         if self.mailbox {
-            w[0x18] = MBX_OUT_START;
-            w[0x19] = MBX_SIZE;
-            w[0x1A] = MBX_IN_START;
-            w[0x1B] = MBX_SIZE;
+            w[0x18] = built_sm::MBX_OUT.start;
+            w[0x19] = built_sm::MBX_OUT.len;
+            w[0x1A] = built_sm::MBX_IN.start;
+            w[0x1B] = built_sm::MBX_IN.len;
             w[0x1C] = 0; // no mailbox protocol is served
         }
         w[0x3E] = (MIN_CAPACITY_BYTES * 8 / 1024 - 1) as u16; // size in Kbit − 1
