@@ -159,14 +159,8 @@ fn receive_time_latch_rules() {
     // Break slave 1's port 1: the next latch updates port 0 only; port 1 keeps its value.
     net.schedule_fault(a + 100, Fault::LinkBreak { slave: 1, port: 1 })
         .unwrap();
-    let (_, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Bwr,
-        Address::broadcast(0x0900),
-        &[0; 4],
-    );
-    let (z, _) = fprd_at(&mut net, a + 1000, 0x1001, 0x0900, 8);
+    let t = bwr(&mut net, a + 1000, 0x0900, &[0; 4]);
+    let (z, _) = fprd_at(&mut net, t, 0x1001, 0x0900, 8);
     assert_ne!(u32_of(&z.data), p0);
     assert_eq!(u32_of(&z.data[4..]), p1);
 }

@@ -300,14 +300,7 @@ fn skew_after_drift_compensation() {
         let (_, a) = fpwr_at(&mut net, a + 1000, 0x1000 + i, 0x0928, &delay.to_le_bytes());
         t = a + 1000;
     }
-    let (_, a) = one(
-        &mut net,
-        t,
-        Command::Bwr,
-        Address::broadcast(0x0930),
-        &[0x00, 0x10],
-    );
-    t = a + 1000;
+    t = bwr(&mut net, t, 0x0930, &[0x00, 0x10]);
     let frmw = |net: &mut Network, t: u64| {
         one(
             net,

@@ -64,38 +64,31 @@ pub fn one(net: &mut Network, t: u64, c: Command, a: Address, d: &[u8]) -> (Repl
     (r.into_iter().next().unwrap(), ret.arrival)
 }
 
-/// FPWR of `d` to register `ado` of station `st` at `t`; returns (reply, arrival).
-pub fn fpwr_at(net: &mut Network, t: u64, st: u16, ado: u16, d: &[u8]) -> (Reply, u64) {
-    one(net, t, Command::Fpwr, Address::configured(st, ado), d)
+/// Sends one read datagram of `len` bytes (zeros) at `t`; returns (reply, arrival).
+pub fn read(net: &mut Network, t: u64, c: Command, a: Address, len: usize) -> (Reply, u64) {
+    one(net, t, c, a, &vec![0; len])
 }
 
 /// FPRD of `len` bytes from register `ado` of station `st` at `t`; returns (reply, arrival).
 pub fn fprd_at(net: &mut Network, t: u64, st: u16, ado: u16, len: usize) -> (Reply, u64) {
-    one(
-        net,
-        t,
-        Command::Fprd,
-        Address::configured(st, ado),
-        &vec![0; len],
-    )
+    read(net, t, Command::Fprd, Address::configured(st, ado), len)
+}
+
+/// APRD of `len` bytes from register `ado` of the slave at position `pos` at `t`; returns
+/// (reply, arrival).
+pub fn aprd_at(net: &mut Network, t: u64, pos: u16, ado: u16, len: usize) -> (Reply, u64) {
+    read(net, t, Command::Aprd, Address::position(pos, ado), len)
+}
+
+/// FPWR of `d` to register `ado` of station `st` at `t`; returns (reply, arrival).
+pub fn fpwr_at(net: &mut Network, t: u64, st: u16, ado: u16, d: &[u8]) -> (Reply, u64) {
+    one(net, t, Command::Fpwr, Address::configured(st, ado), d)
 }
 
 /// APWR of `d` to register `ado` of the slave at position `pos` at `t`; returns (reply,
 /// arrival).
 pub fn apwr_at(net: &mut Network, t: u64, pos: u16, ado: u16, d: &[u8]) -> (Reply, u64) {
     one(net, t, Command::Apwr, Address::position(pos, ado), d)
-}
-
-/// APRD of `len` bytes from register `ado` of the slave at position `pos` at `t`; returns
-/// (reply, arrival).
-pub fn aprd_at(net: &mut Network, t: u64, pos: u16, ado: u16, len: usize) -> (Reply, u64) {
-    one(
-        net,
-        t,
-        Command::Aprd,
-        Address::position(pos, ado),
-        &vec![0; len],
-    )
 }
 
 pub fn u16_of(d: &[u8]) -> u16 {
