@@ -105,30 +105,21 @@ proptest! {
     }
 }
 
-/// REQ-WIRE-004/013: exhaustive over all 2^16 datagram length/flags words.
-// verifies: REQ-WIRE-004
+/// Exhaustive over all 2^16 values of each 16-bit word the codec decodes: the datagram
+/// length/flags word (REQ-WIRE-004/013), the EtherCAT header (REQ-WIRE-005, 012..015) and DL
+/// status (REQ-WIRE-072).
+// verifies: REQ-WIRE-004, REQ-WIRE-005, REQ-WIRE-072
 #[test]
-fn exhaustive_len_flags_words() {
-    for w in 0..=u16::MAX {
-        wire::len_flags_word(w);
-    }
-}
-
-/// REQ-WIRE-005, 012..015: exhaustive over all 2^16 EtherCAT header words.
-// verifies: REQ-WIRE-005
-#[test]
-fn exhaustive_ecat_header_words() {
-    for w in 0..=u16::MAX {
-        wire::ecat_header_word(w);
-    }
-}
-
-/// REQ-WIRE-072: exhaustive over all 2^16 DL status words.
-// verifies: REQ-WIRE-072
-#[test]
-fn exhaustive_dl_status_words() {
-    for w in 0..=u16::MAX {
-        wire::dl_status_word(w);
+fn exhaustive_16_bit_words() {
+    let words: [fn(u16); 3] = [
+        wire::len_flags_word,
+        wire::ecat_header_word,
+        wire::dl_status_word,
+    ];
+    for check in words {
+        for w in 0..=u16::MAX {
+            check(w);
+        }
     }
 }
 
