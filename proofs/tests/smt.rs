@@ -10,6 +10,26 @@ use ecdc_core::servo::pi as k_pi;
 use ecdc_proofs::smt::{self, props, Sym, Verdict};
 use z3::ast::{Ast, BV};
 
+/// The value of a constant term (every input a literal), once simplified.
+fn value<const N: u32>(s: Sym<N>) -> u64 {
+    s.bv().simplify().as_u64().expect("constant")
+}
+
+/// The truth of a constant condition, once simplified.
+fn truth(b: ecdc_proofs::smt::SymBool) -> bool {
+    b.b().simplify().as_bool().expect("constant")
+}
+
+/// A PI update on constant terms as values: (y, integrator, saturated, v).
+fn pi_values(s: &k_pi::PiUpdate<Sym<64>>) -> (u64, u64, bool, u64) {
+    (
+        value(s.y),
+        value(s.integrator),
+        truth(s.saturated),
+        value(s.v),
+    )
+}
+
 fn check(name: &str, goal: props::Goal) {
     match smt::prove(&goal.0, &goal.1) {
         Verdict::Proved(t) => println!("proved {name} in {:.3} s", t.as_secs_f64()),
@@ -76,57 +96,50 @@ fn extend_near_all_k() {
         );
     }
 }
-/// P2, REQ-TIME-008 at 32 and 64 bits with the divider abstracted (only m < p and "u − m is a
-/// multiple of p" assumed of `urem`; everything else is the kernel's code).
-// verifies: P2, REQ-TIME-008
-#[test]
-fn p2_fold_32_64() {
-    check("fold (urem abstracted) @32", props::fold::<32>());
-    check("fold (urem abstracted) @64", props::fold::<64>());
+
+/// One test per entry: the property `props::$prop` proved at 32 and at 64 bits.
+macro_rules! proved_at_32_and_64 {
+    ($($(#[$doc:meta])* $test:ident: $name:literal, $prop:ident;)*) => {$(
+        $(#[$doc])*
+        #[test]
+        fn $test() {
+            check(concat!($name, " @32"), props::$prop::<32>());
+            check(concat!($name, " @64"), props::$prop::<64>());
+        }
+    )*};
 }
+
+proved_at_32_and_64! {
+    /// P2, REQ-TIME-008 at 32 and 64 bits with the divider abstracted (only m < p and "u − m is
+    /// a multiple of p" assumed of `urem`; everything else is the kernel's code).
+    // verifies: P2, REQ-TIME-008
+    p2_fold_32_64: "fold (urem abstracted)", fold;
+    /// REQ-TIME-009.
+    // verifies: REQ-TIME-009
+    clamp_32_64: "clamp", clamp;
+    /// REQ-TIME-009, the magnitude form.
+    // verifies: REQ-TIME-009
+    clamp_magnitude_32_64: "clamp_magnitude", clamp_magnitude;
+    /// REQ-TIME-010.
+    // verifies: REQ-TIME-010
+    saturating_32_64: "saturating add/sub", saturating;
+    /// REQ-DC-014 overflow checks of the delay step: signed overflow flags at 32 and 64 bits.
+    // verifies: REQ-DC-014
+    overflowing_32_64: "overflowing add/sub", overflowing;
+    /// REQ-TIME-011.
+    // verifies: REQ-TIME-011
+    half_32_64: "half_toward_zero", half;
+    /// REQ-TIME-012 (0x092C encoding; bit 31 set ⇔ Δt < 0, REQ-CONV-006).
+    // verifies: REQ-CONV-006, REQ-TIME-012
+    sign_magnitude_32_64: "sign-magnitude", sign_magnitude;
+}
+
 /// P2, REQ-TIME-008 with the divider bit-blasted at 8 bits: cross-checks the abstraction
 /// above on a width where z3 can also reason about the real divider (12 bits: > 60 s).
 // verifies: P2, REQ-TIME-008
 #[test]
 fn p2_fold_bitblasted_8() {
     check("fold (bit-blasted) @8", props::fold_bitblasted::<8>());
-}
-/// REQ-TIME-009.
-// verifies: REQ-TIME-009
-#[test]
-fn clamp_32_64() {
-    check("clamp @32", props::clamp::<32>());
-    check("clamp @64", props::clamp::<64>());
-    check("clamp_magnitude @32", props::clamp_magnitude::<32>());
-    check("clamp_magnitude @64", props::clamp_magnitude::<64>());
-}
-/// REQ-TIME-010.
-// verifies: REQ-TIME-010
-#[test]
-fn saturating_32_64() {
-    check("saturating add/sub @32", props::saturating::<32>());
-    check("saturating add/sub @64", props::saturating::<64>());
-}
-/// REQ-DC-014 overflow checks of the delay step: signed overflow flags at 32 and 64 bits.
-// verifies: REQ-DC-014
-#[test]
-fn overflowing_32_64() {
-    check("overflowing add/sub @32", props::overflowing::<32>());
-    check("overflowing add/sub @64", props::overflowing::<64>());
-}
-/// REQ-TIME-011.
-// verifies: REQ-TIME-011
-#[test]
-fn half_32_64() {
-    check("half_toward_zero @32", props::half::<32>());
-    check("half_toward_zero @64", props::half::<64>());
-}
-/// REQ-TIME-012 (0x092C encoding; bit 31 set ⇔ Δt < 0, REQ-CONV-006).
-// verifies: REQ-CONV-006, REQ-TIME-012
-#[test]
-fn sign_magnitude_32_64() {
-    check("sign-magnitude @32", props::sign_magnitude::<32>());
-    check("sign-magnitude @64", props::sign_magnitude::<64>());
 }
 
 /// A wrong claim must be refuted, or the harness could be proving nothing.
@@ -155,12 +168,6 @@ fn wrapper_matches_machine_words() {
     }
     fn c64(v: u64) -> Sym<64> {
         Sym::val(v)
-    }
-    fn get<const N: u32>(s: Sym<N>) -> u64 {
-        s.bv().simplify().as_u64().expect("constant")
-    }
-    fn getb(b: ecdc_proofs::smt::SymBool) -> bool {
-        b.b().simplify().as_bool().expect("constant")
     }
     let mut vals32: Vec<u32> = vec![
         0,
@@ -195,44 +202,44 @@ fn wrapper_matches_machine_words() {
     for &a in &vals32 {
         for &b in &vals32 {
             let (x, y) = (c32(a), c32(b));
-            assert_eq!(get(x.wrapping_add(y)), u64::from(a.wrapping_add(b)));
-            assert_eq!(get(x.wrapping_sub(y)), u64::from(a.wrapping_sub(b)));
-            assert_eq!(get(x.wrapping_mul(y)), u64::from(a.wrapping_mul(b)));
-            assert_eq!(get(x.bit_and(y)), u64::from(a & b));
-            assert_eq!(get(x.bit_or(y)), u64::from(a | b));
+            assert_eq!(value(x.wrapping_add(y)), u64::from(a.wrapping_add(b)));
+            assert_eq!(value(x.wrapping_sub(y)), u64::from(a.wrapping_sub(b)));
+            assert_eq!(value(x.wrapping_mul(y)), u64::from(a.wrapping_mul(b)));
+            assert_eq!(value(x.bit_and(y)), u64::from(a & b));
+            assert_eq!(value(x.bit_or(y)), u64::from(a | b));
             if b != 0 {
-                assert_eq!(get(x.urem(y)), u64::from(Word::urem(a, b)));
+                assert_eq!(value(x.urem(y)), u64::from(Word::urem(a, b)));
             }
-            assert_eq!(getb(Word::eq(x, y)), a == b);
-            assert_eq!(getb(x.ult(y)), a < b);
-            assert_eq!(getb(x.slt(y)), Word::slt(a, b));
-            assert_eq!(get(Sym::select(x.ult(y), x, y)), u64::from(a.min(b)));
+            assert_eq!(truth(Word::eq(x, y)), a == b);
+            assert_eq!(truth(x.ult(y)), a < b);
+            assert_eq!(truth(x.slt(y)), Word::slt(a, b));
+            assert_eq!(value(Sym::select(x.ult(y), x, y)), u64::from(a.min(b)));
         }
         for n in [0, 1, 5, 31] {
-            assert_eq!(get(c32(a).shl(n)), u64::from(Word::shl(a, n)));
-            assert_eq!(get(c32(a).shr(n)), u64::from(Word::shr(a, n)));
+            assert_eq!(value(c32(a).shl(n)), u64::from(Word::shl(a, n)));
+            assert_eq!(value(c32(a).shr(n)), u64::from(Word::shr(a, n)));
         }
     }
     for &a in &vals64 {
         for &b in &vals64 {
             let (x, y) = (c64(a), c64(b));
-            assert_eq!(get(x.wrapping_add(y)), a.wrapping_add(b));
-            assert_eq!(get(x.wrapping_sub(y)), a.wrapping_sub(b));
-            assert_eq!(get(x.wrapping_mul(y)), a.wrapping_mul(b));
-            assert_eq!(get(x.bit_and(y)), a & b);
-            assert_eq!(get(x.bit_or(y)), a | b);
+            assert_eq!(value(x.wrapping_add(y)), a.wrapping_add(b));
+            assert_eq!(value(x.wrapping_sub(y)), a.wrapping_sub(b));
+            assert_eq!(value(x.wrapping_mul(y)), a.wrapping_mul(b));
+            assert_eq!(value(x.bit_and(y)), a & b);
+            assert_eq!(value(x.bit_or(y)), a | b);
             if b != 0 {
-                assert_eq!(get(x.urem(y)), a % b);
+                assert_eq!(value(x.urem(y)), a % b);
             }
-            assert_eq!(getb(x.ult(y)), a < b);
-            assert_eq!(getb(x.slt(y)), (a as i64) < (b as i64));
+            assert_eq!(truth(x.ult(y)), a < b);
+            assert_eq!(truth(x.slt(y)), (a as i64) < (b as i64));
         }
         for n in [0, 1, 33, 63] {
-            assert_eq!(get(c64(a).shl(n)), a << n);
-            assert_eq!(get(c64(a).shr(n)), a >> n);
+            assert_eq!(value(c64(a).shl(n)), a << n);
+            assert_eq!(value(c64(a).shr(n)), a >> n);
         }
     }
-    assert_eq!(get(Sym::<32>::lit(200)), 200);
+    assert_eq!(value(Sym::<32>::lit(200)), 200);
     let _unused: Option<BV> = None;
 }
 
@@ -242,13 +249,7 @@ fn wrapper_matches_machine_words() {
 #[test]
 fn kernels_agree_on_constants() {
     fn v32(s: Sym<32>) -> u32 {
-        s.bv().simplify().as_u64().expect("constant") as u32
-    }
-    fn v64(s: Sym<64>) -> u64 {
-        s.bv().simplify().as_u64().expect("constant")
-    }
-    fn b(s: ecdc_proofs::smt::SymBool) -> bool {
-        s.b().simplify().as_bool().expect("constant")
+        value(s) as u32
     }
     let mut xs: Vec<u64> = vec![
         0,
@@ -279,7 +280,7 @@ fn kernels_agree_on_constants() {
                 v32(k::wrapping_diff(x, y)),
                 k::wrapping_diff(a32, c32) as u32
             );
-            assert_eq!(b(k::is_after(x, y)), k::is_after(a32, c32));
+            assert_eq!(truth(k::is_after(x, y)), k::is_after(a32, c32));
             assert_eq!(
                 v32(k::half_toward_zero::<Sym<32>>(x)),
                 k::half_toward_zero::<u32>(a32 as i32) as u32
@@ -308,19 +309,19 @@ fn kernels_agree_on_constants() {
                 );
             }
             let (x, y) = (Sym::<64>::val(a), Sym::<64>::val(c));
-            assert_eq!(v64(k::wrapping_diff(x, y)), k::wrapping_diff(a, c) as u64);
+            assert_eq!(value(k::wrapping_diff(x, y)), k::wrapping_diff(a, c) as u64);
             assert_eq!(
-                v64(k::saturating_sub::<Sym<64>>(x, y)),
+                value(k::saturating_sub::<Sym<64>>(x, y)),
                 k::saturating_sub::<u64>(a as i64, c as i64) as u64
             );
-            assert_eq!(v64(k::extend_near(x, y, 32)), k::extend_near(a, c, 32));
+            assert_eq!(value(k::extend_near(x, y, 32)), k::extend_near(a, c, 32));
             assert_eq!(
-                v64(k::clamp::<Sym<64>>(x, y, Sym::val(1000))),
+                value(k::clamp::<Sym<64>>(x, y, Sym::val(1000))),
                 k::clamp::<u64>(a as i64, c as i64, 1000) as u64
             );
             if c != 0 {
                 assert_eq!(
-                    v64(k::fold::<Sym<64>>(x, y)),
+                    value(k::fold::<Sym<64>>(x, y)),
                     k::fold::<u64>(a as i64, c) as u64
                 );
             }
@@ -340,7 +341,7 @@ fn kernels_agree_on_constants() {
                     Sym::val(im),
                 );
                 assert_eq!(
-                    (v64(s.y), v64(s.integrator), b(s.saturated), v64(s.v)),
+                    pi_values(&s),
                     (m.y, m.integrator, m.saturated, m.v),
                     "pi_update i {a:#x} p {c:#x} it {it:#x} y_max {ym} i_max {im}"
                 );
@@ -355,7 +356,7 @@ fn kernels_agree_on_constants() {
             let c = Sym::<64>::val;
             let s = k_pi::pi_step_word(c(kp), c(ki), c(i), c(th), c(ym), c(im));
             assert_eq!(
-                (v64(s.y), v64(s.integrator), b(s.saturated), v64(s.v)),
+                pi_values(&s),
                 (m.y, m.integrator, m.saturated, m.v),
                 "pi_step_word kp {kp:#x} ki {ki:#x} i {i:#x} theta {th:#x}"
             );
@@ -366,9 +367,9 @@ fn kernels_agree_on_constants() {
         for &c in &xs {
             let (x, y) = (Sym::<64>::val(a), Sym::<64>::val(c));
             let ((s, so), (ms, mso)) = (k::overflowing_add(x, y), k::overflowing_add(a, c));
-            assert_eq!((v64(s), b(so)), (ms, mso));
+            assert_eq!((value(s), truth(so)), (ms, mso));
             let ((d, dof), (md, mdo)) = (k::overflowing_sub(x, y), k::overflowing_sub(a, c));
-            assert_eq!((v64(d), b(dof)), (md, mdo));
+            assert_eq!((value(d), truth(dof)), (md, mdo));
             let args = [
                 a,
                 c,
@@ -384,17 +385,17 @@ fn kernels_agree_on_constants() {
             let z = args.map(Sym::<64>::val);
             let s = k_delay::twice_delay_step(z[0], z[1], z[2], z[3], z[4], z[5], z[6]);
             assert_eq!(
-                (v64(s.abs2), v64(s.hop2)),
+                (value(s.abs2), value(s.hop2)),
                 (m.abs2, m.hop2),
                 "twice_delay_step {args:?}"
             );
             assert_eq!(
                 [
-                    b(s.measured_overflow),
-                    b(s.inconsistent),
-                    b(s.hop_overflow),
-                    b(s.negative_hop),
-                    b(s.sum_overflow)
+                    truth(s.measured_overflow),
+                    truth(s.inconsistent),
+                    truth(s.hop_overflow),
+                    truth(s.negative_hop),
+                    truth(s.sum_overflow)
                 ],
                 [
                     m.measured_overflow,
@@ -417,7 +418,7 @@ fn kernels_agree_on_constants() {
             ecdc_proofs::smt::SymBool::of(z3::ast::Bool::from_bool(smt::ctx(), act[j]))
         });
         let (fs, is) = k::earliest(&ts, &acts);
-        assert_eq!(b(fs), f);
+        assert_eq!(truth(fs), f);
         if f {
             assert_eq!(v32(is), i);
         }
