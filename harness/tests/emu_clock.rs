@@ -78,12 +78,12 @@ fn compensate_from_truth(net: &mut Network, t: u64) -> u64 {
 /// Sends one FRMW 0x0910 (reference = station 0x1000) per `period` from `t`, `count` times.
 fn drift_frames(net: &mut Network, mut t: u64, period: u64, count: usize) -> u64 {
     for _ in 0..count {
-        let (x, _) = one(
+        let (x, _) = read(
             net,
             t,
             Command::Frmw,
             Address::configured(0x1000, 0x0910),
-            &[0; 8],
+            8,
         );
         assert_eq!(x.wkc as usize, net.slave_count());
         t += period;
@@ -137,12 +137,12 @@ fn frmw_converges() {
     let mut d_sum = vec![0i64; n];
     let mut diff_max = vec![0i64; n];
     for _ in 0..500 {
-        let (_, a) = one(
+        let (_, a) = read(
             &mut net,
             t,
             Command::Frmw,
             Address::configured(0x1000, 0x0910),
-            &[0; 8],
+            8,
         );
         net.advance_to(a).unwrap();
         for i in 1..n {

@@ -183,12 +183,12 @@ fn logical_commands() {
     assert_eq!(r.wkc, 3);
     assert_eq!(r.data, vec![1, 2, 3, 4]);
     assert_eq!(net.peek(0, 0x1100, 4).unwrap(), vec![9, 9, 9, 9]);
-    let (r, a) = one(
+    let (r, a) = read(
         &mut net,
         a + 1000,
         Command::Lrd,
         Address::Logical(0x0FFFE),
-        &[0; 4],
+        4,
     );
     assert_eq!((r.wkc, r.data.clone()), (1, vec![0, 0, 1, 2]));
     let (r, a) = one(
@@ -200,12 +200,12 @@ fn logical_commands() {
     );
     assert_eq!(r.wkc, 1);
     assert_eq!(net.peek(0, 0x1100, 4).unwrap(), vec![9, 9, 5, 5]);
-    let (r, _) = one(
+    let (r, _) = read(
         &mut net,
         a + 1000,
         Command::Lrd,
         Address::Logical(0x20000),
-        &[0; 4],
+        4,
     );
     assert_eq!(r.wkc, 0);
 }
@@ -216,13 +216,7 @@ fn logical_commands() {
 #[test]
 fn read_multiple_write() {
     let (mut net, t) = net3();
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Armw,
-        Address::position(1, 0x0910),
-        &[0; 8],
-    );
+    let (r, a) = read(&mut net, t, Command::Armw, Address::position(1, 0x0910), 8);
     assert_eq!(r.wkc, 3);
     assert_eq!(r.adp, 0xFFFFu16.wrapping_add(3));
     let sys1 = u64_of(&r.data);
@@ -233,12 +227,12 @@ fn read_multiple_write() {
     assert_ne!(u32_of(&net.peek(0, 0x092C, 4).unwrap()), 0);
     assert_ne!(u32_of(&net.peek(2, 0x092C, 4).unwrap()), 0);
     assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 0);
-    let (r, _) = one(
+    let (r, _) = read(
         &mut net,
         a + 1000,
         Command::Frmw,
         Address::configured(0x1001, 0x0910),
-        &[0; 8],
+        8,
     );
     assert_eq!((r.wkc, r.adp), (3, 0x1001));
     assert!(u64_of(&r.data) > sys1);
@@ -262,12 +256,12 @@ fn frmw_counts_dc_slaves_only() {
         });
     }
     let (mut net, t) = addressed(&sc);
-    let (r, a) = one(
+    let (r, a) = read(
         &mut net,
         t,
         Command::Frmw,
         Address::configured(0x1000, 0x0910),
-        &[0; 8],
+        8,
     );
     assert_eq!(r.wkc, 2);
     // IgH's "has system time" probe: FPRD 0x0910 answers only with system time.

@@ -302,12 +302,12 @@ fn skew_after_drift_compensation() {
     }
     t = bwr(&mut net, t, 0x0930, &[0x00, 0x10]);
     let frmw = |net: &mut Network, t: u64| {
-        one(
+        read(
             net,
             t,
             Command::Frmw,
             Address::configured(0x1000, 0x0910),
-            &[0; 8],
+            8,
         )
         .1
     };
