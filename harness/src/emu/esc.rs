@@ -696,10 +696,8 @@ impl Esc {
             }
         }
         let mut any = false;
-        for (i, b) in data.iter_mut().enumerate() {
-            let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
-                break;
-            };
+        // Byte by byte up to the end of the address space; bytes beyond it are not touched.
+        for (a, b) in (ado..=u16::MAX).zip(data.iter_mut()) {
             if !self.accessible(a) || !gate.access(a).0 {
                 continue;
             }
@@ -742,10 +740,7 @@ impl Esc {
         // AL states 4 (SAFEOP) and 8 (OP); the state before this frame's bytes land.
         let running = matches!(self.al_state(), 4 | 8);
         let mut offset_written = false;
-        for (i, b) in data.iter().enumerate() {
-            let Some(a) = u16::try_from(i).ok().and_then(|i| ado.checked_add(i)) else {
-                break;
-            };
+        for (a, b) in (ado..=u16::MAX).zip(data) {
             if !self.accessible(a) || !gate.access(a).1 {
                 continue;
             }
