@@ -472,3 +472,87 @@ fn configure_in_place_is_new() {
     assert_eq!(std::format!("{m:?}"), std::format!("{fresh:?}"));
     assert_eq!(m.slave_t_diff(2), cfg.t_diff_ns);
 }
+
+/// REQ-DC-103/131 in the offset step's items: a slave without a system time gets no offset or
+/// delay write even when its AL state would allow one, and only a slave whose AL status was read
+/// and says it may be running has its offset read.
+#[test]
+fn offset_step_items_follow_system_time_and_al_status() {
+    use crate::dc::machine::Item;
+    use crate::dc::phase::{AdjustStep, Phase};
+    let mut m = machine();
+    m.sh.line.count = 3;
+    m.sh.line.sys_count = 2;
+    for (i, (dc, al)) in [
+        (crate::dc::DcKind::Bits64, Some(0x01u16)),
+        (crate::dc::DcKind::None, Some(0x01)),
+        (crate::dc::DcKind::Bits64, None),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let s = &mut m.sh.line.slaves[i];
+        s.station = 0x1001 + i as u16;
+        s.dc = dc;
+        s.al_status = al;
+    }
+    let sent = |m: &Machine<4>, items: core::ops::Range<u16>| -> std::vec::Vec<(u16, u16)> {
+        items
+            .filter_map(|i| match m.adjust_item(i) {
+                Item::Send(op) => Some((op.station(), op.register())),
+                _ => None,
+            })
+            .collect()
+    };
+    m.phase = Phase::Adjust(AdjustStep::WriteOffsets);
+    let writes = sent(&m, 0..6);
+    assert!(writes.iter().all(|&(st, _)| st != 0x1002), "{writes:x?}");
+    assert!(writes.contains(&(0x1001, 0x0920)) && writes.contains(&(0x1001, 0x0928)));
+    // Second half of the AL-status step: offsets of slaves that may be running.
+    m.phase = Phase::Adjust(AdjustStep::ReadAlStatus);
+    assert_eq!(sent(&m, 3..6), []);
+    m.sh.line.slaves[0].al_status = Some(0x08); // OP
+    m.sh.line.slaves[1].al_status = Some(0x08);
+    assert_eq!(sent(&m, 3..6), [(0x1001, 0x0920)]);
+}
+
+/// The reference time read before the SYNC programming sets the start time all SYNC units
+/// share; nothing else does.
+#[test]
+fn reference_time_reply_sets_the_sync_start() {
+    use crate::dc::phase::{ActivationStep, Phase};
+    use crate::dc::request::{Pending, Reply, Tag};
+    let c = Config {
+        sync: Some(crate::dc::SyncConfig::default()),
+        ..Config::default()
+    };
+    let mut m = Machine::<4>::new(c).unwrap();
+    m.sh.line.count = 1;
+    m.sh.line.sys_count = 1;
+    m.sh.line.reference = 0;
+    m.sh.line.slaves[0].station = 0x1001;
+    m.sh.line.slaves[0].dc = crate::dc::DcKind::Bits64;
+    m.phase = Phase::Activation(ActivationStep::ReadReferenceTime);
+    let sent = Pending {
+        command: Command::Fprd,
+        index: 1,
+        station: 0x1001,
+        register: 0x0910,
+        len: 8,
+        tag: Tag::Item(0),
+    };
+    let data = T0.to_le_bytes();
+    assert_eq!(m.sh.line.sync_start, 0);
+    let r = Reply {
+        item: 0,
+        sent,
+        wkc: 1,
+        data: &data,
+    };
+    m.activation_reply(T0, r).unwrap();
+    let start = m.sh.line.sync_start;
+    assert!(start > T0, "{start}");
+    let sync = c.sync.unwrap();
+    let expected = m.sh.compute_sync_start(T0, T0, &m.sh.line.slaves[0], &sync);
+    assert_eq!(Some(start), expected);
+}
