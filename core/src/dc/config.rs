@@ -682,3 +682,122 @@ impl Default for TdiffConfig {
         TdiffConfig::DEFAULT
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `validate` refuses each bad field on its own, and accepts each bound itself.
+    #[test]
+    fn validate_checks_each_field_alone() {
+        let ok = Config::DEFAULT;
+        assert_eq!(ok.validate(16), Ok(()));
+        let zeroed: [fn(&mut Config); 9] = [
+            |c| c.response_timeout_ns = 0,
+            |c| c.latch_rounds = 0,
+            |c| c.drift.burst_frames = 0,
+            |c| c.drift.consecutive = 0,
+            |c| c.monitor.cycle_ns = 0,
+            |c| c.monitor.lock_cycles = 0,
+            |c| c.monitor.unlock_cycles = 0,
+            |c| c.monitor.max_lost_cycles = 0,
+            |c| c.monitor.max_wkc_errors = 0,
+        ];
+        for (i, zero) in zeroed.iter().enumerate() {
+            let mut c = ok;
+            zero(&mut c);
+            assert_eq!(c.validate(16), Err(ConfigError::Zero), "field {i}");
+        }
+        // Indices: twice the in-flight table, exactly, is enough.
+        let twice = u8::try_from(crate::dc::request::MAX_INFLIGHT * 2).unwrap();
+        let c = Config {
+            index_count: twice,
+            ..ok
+        };
+        assert_eq!(c.validate(16), Ok(()));
+        let c = Config {
+            index_count: twice - 1,
+            ..ok
+        };
+        assert_eq!(c.validate(16), Err(ConfigError::TooFewIndices));
+        // Stations: the last slave may take 0xFFFF.
+        let c = Config {
+            station_base: 0xFFF0,
+            ..ok
+        };
+        assert_eq!(
+            (c.validate(16), c.validate(17)),
+            (Ok(()), Err(ConfigError::StationRange))
+        );
+        let c = Config {
+            station_base: 0,
+            ..ok
+        };
+        assert_eq!(c.validate(1), Err(ConfigError::StationRange));
+        // Hysteresis: lock at the unlock threshold is allowed, above it not.
+        let mut c = ok;
+        c.monitor.lock_ns = c.monitor.unlock_ns;
+        assert_eq!(c.validate(16), Ok(()));
+        c.monitor.lock_ns = c.monitor.unlock_ns + 1;
+        assert_eq!(c.validate(16), Err(ConfigError::Hysteresis));
+        // 0x0930 range ends.
+        for (v, want) in [
+            (0x0080u16, Ok(())),
+            (0x3FFF, Ok(())),
+            (0x007F, Err(ConfigError::SpeedCounterStart)),
+            (0x4000, Err(ConfigError::SpeedCounterStart)),
+        ] {
+            assert_eq!(
+                Config {
+                    speed_counter_start: v,
+                    ..ok
+                }
+                .validate(16),
+                want,
+                "{v:#06x}"
+            );
+        }
+        // t_Diff rounds matter only when t_Diff is measured.
+        for mode in [TdiffMode::Off, TdiffMode::PerSlave] {
+            for (rounds, base) in [(0u8, 1u8), (1, 0)] {
+                let mut c = ok;
+                c.tdiff.mode = mode;
+                c.tdiff.rounds = rounds;
+                c.tdiff.base_rounds = base;
+                let want = if mode == TdiffMode::Off {
+                    Ok(())
+                } else {
+                    Err(ConfigError::Zero)
+                };
+                assert_eq!(c.validate(16), want, "{mode:?} {rounds} {base}");
+            }
+        }
+        // SYNC: the shift must stay inside the SYNC0 cycle.
+        let sync = SyncConfig::default();
+        let c = Config {
+            sync: Some(SyncConfig {
+                shift_ns: sync.sync0_cycle_ns - 1,
+                ..sync
+            }),
+            ..ok
+        };
+        assert_eq!(c.validate(16), Ok(()));
+        let c = Config {
+            sync: Some(SyncConfig {
+                shift_ns: sync.sync0_cycle_ns,
+                ..sync
+            }),
+            ..ok
+        };
+        assert_eq!(c.validate(16), Err(ConfigError::SyncCycle));
+        let c = Config {
+            sync: Some(SyncConfig {
+                sync0_cycle_ns: 0,
+                shift_ns: 0,
+                ..sync
+            }),
+            ..ok
+        };
+        assert_eq!(c.validate(16), Err(ConfigError::SyncCycle));
+    }
+}
