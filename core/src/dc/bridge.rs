@@ -574,4 +574,126 @@ mod tests {
         assert!(start > M + ahead && start < M + ahead + (1 << 31));
         assert_eq!(m.sh.compute_sync_start(M, M, &r, &sync), None);
     }
+
+    /// Sets a valid latch round on `pair(open(0) | open(1) | ..)`: slave 1 `x / 2` ns behind.
+    fn latch_round(m: &mut Machine<4>, k: u32, x: u32) {
+        let t0 = 10_000 + 100_000 * k;
+        m.sh.line.slaves[0].times_after = [t0, t0 + x, 1, 1];
+        m.sh.line.slaves[0].epu_time = u64::from(t0);
+        m.sh.line.slaves[1].times_after = [50_000 + 100_000 * k, 1, 1, 1];
+        m.sh.line.slaves[1].epu_time = u64::from(m.sh.line.slaves[1].times_after[0]);
+    }
+
+    /// REQ-DC-019: round 0 starts the sum afresh, even over a stale one; a later round adds to
+    /// the sum, or starts it again when a failed sum was dropped.
+    // verifies: REQ-DC-019
+    #[test]
+    fn latch_rounds_start_and_add() {
+        let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
+        latch_round(&mut m, 0, 1_200);
+        m.sh.latch.round = 0;
+        m.sh.add_latch_round().unwrap();
+        assert_eq!(m.sh.latch.sum.rounds(), 1);
+        latch_round(&mut m, 1, 1_202);
+        m.sh.latch.round = 1;
+        m.sh.add_latch_round().unwrap();
+        assert_eq!(m.sh.latch.sum.rounds(), 2);
+        assert_eq!(m.sh.latch.sum.exact(1), Some((1_200 + 1_202, 4)));
+        // Round 0 of a new measurement over the stale sum: a new sum.
+        m.sh.latch.round = 0;
+        m.sh.add_latch_round().unwrap();
+        assert_eq!(m.sh.latch.sum.exact(1), Some((1_202, 2)));
+        // A later round after the sum was dropped: a new sum too.
+        m.sh.latch.sum.clear();
+        m.sh.latch.round = 3;
+        m.sh.add_latch_round().unwrap();
+        assert_eq!(m.sh.latch.sum.exact(1), Some((1_202, 2)));
+    }
+
+    /// A measurement fault names the station of the slave at fault (topology and delay
+    /// errors), or 0 when the error concerns no slave.
+    #[test]
+    fn measurement_faults_name_the_station() {
+        let m = pair(open(0) | open(1) | closed(2) | closed(3));
+        let t = m.sh.topology_error(TopologyError::NoOpenPort { slave: 1 });
+        assert_eq!(t, Error::Measurement { station: 0x1002 });
+        let t = m.sh.topology_error(TopologyError::Capacity);
+        assert_eq!(t, Error::Measurement { station: 0 });
+        let d = m.sh.delay_error(DelayError::NegativeHop { slave: 1 });
+        assert_eq!(d, Error::Measurement { station: 0x1002 });
+        let d = m.sh.delay_error(DelayError::Mismatch);
+        assert_eq!(d, Error::Measurement { station: 0 });
+        // A round whose hop to slave 1 comes out negative (t_Diff larger than the round trip):
+        // slave 1's station in the error.
+        let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
+        latch_round(&mut m, 0, 1_200);
+        m.sh.line.slaves[0].t_diff_ns = -10_000;
+        let e = m.sh.add_latch_round();
+        assert_eq!(e, Err(Error::Measurement { station: 0x1002 }), "{e:?}");
+    }
+
+    /// REQ-DC-112 with port 0 closed: 0x0918 must lie between the entry stamp and the last
+    /// port's, each end widened by the tolerance, and nowhere else.
+    // verifies: REQ-DC-112
+    #[test]
+    fn epu_inside_the_loop_when_port_0_is_closed() {
+        let node = Node {
+            entry: Port::P3,
+            ports: PortSet::EMPTY.with(Port::P3).with(Port::P1),
+            parent: None,
+            children: [None; 4],
+        };
+        let (entry, last) = (10_000u32, 12_000u32);
+        let tol = EPU_PORT_TOLERANCE_NS;
+        let at = |epu: u32| {
+            epu_plausible(
+                &Latches::from_raw([0, last, 0, entry], u64::from(epu)),
+                &node,
+            )
+        };
+        assert!(at(entry) && at(last) && at(11_000));
+        assert!(at(entry - tol) && at(last + tol));
+        assert!(!at(entry - tol - 1) && !at(last + tol + 1));
+    }
+
+    /// REQ-DC-105 boundaries: SYNC1 equal to SYNC0 keeps the SYNC0 grid (only a longer SYNC1
+    /// makes the "true cycle"); a reference exactly 1 s from the master's time is still
+    /// believed, 1 ns more is not.
+    // verifies: REQ-DC-105
+    #[test]
+    fn sync_start_boundaries() {
+        let m = Machine::<4>::new(Config::default()).unwrap();
+        let r = SlaveInfo {
+            dc: DcKind::Bits64,
+            ..SlaveInfo::default()
+        };
+        let now = M + 300_000;
+        let same = SyncConfig {
+            sync0_cycle_ns: 1_000_000,
+            sync1_cycle_ns: 1_000_000,
+            start_delay_ns: 0,
+            shift_ns: 0,
+            ..SyncConfig::default()
+        };
+        let start = m.sh.compute_sync_start(now, now, &r, &same).unwrap();
+        assert_eq!(
+            start,
+            (now / 1_000_000 + 1) * 1_000_000,
+            "next 1 ms, not 2 ms, grid point"
+        );
+        assert_ne!(start % 2_000_000, 0);
+        let written = SlaveInfo {
+            offset_written: true,
+            ..r
+        };
+        let one_s = now + 1_000_000_000;
+        assert!(m
+            .sh
+            .compute_sync_start(now, one_s, &written, &same)
+            .is_some());
+        assert!(m
+            .sh
+            .compute_sync_start(now, one_s + 1, &written, &same)
+            .is_none());
+    }
 }
