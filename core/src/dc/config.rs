@@ -800,4 +800,16 @@ mod tests {
         };
         assert_eq!(c.validate(16), Err(ConfigError::SyncCycle));
     }
+
+    /// The t_Diff defaults are the documented ecdc choices (`TdiffConfig`'s field docs).
+    #[test]
+    fn tdiff_defaults_as_documented() {
+        let d = TdiffConfig::DEFAULT;
+        assert_eq!(d, TdiffConfig::default());
+        assert_eq!(
+            (d.mode, d.rounds, d.base_rounds),
+            (TdiffMode::PerSlave, 48, 128)
+        );
+        assert_eq!((d.min_ns, d.max_ns), (-10, 500));
+    }
 }

@@ -556,3 +556,26 @@ fn reference_time_reply_sets_the_sync_start() {
     let expected = m.sh.compute_sync_start(T0, T0, &m.sh.line.slaves[0], &sync);
     assert_eq!(Some(start), expected);
 }
+
+/// The invariant the model checker asserts is not vacuous: each broken timer rule is named.
+#[test]
+fn invariant_violations_are_reported() {
+    use crate::dc::timer::Timer;
+    let mut m = machine();
+    assert_eq!(m.invariant_violation(), None);
+    m.sh.timers.set(Timer::Cycle, SystemTime(T0));
+    assert_eq!(
+        m.invariant_violation(),
+        Some("cycle timer armed outside Cyclic, or not in it")
+    );
+    let mut m = machine();
+    m.sh.timers.set(Timer::Restart, SystemTime(T0));
+    assert!(m
+        .invariant_violation()
+        .is_some_and(|v| v.starts_with("restart timer")));
+    let mut m = machine();
+    m.sh.timers.set(Timer::Reply, SystemTime(T0));
+    assert!(m
+        .invariant_violation()
+        .is_some_and(|v| v.starts_with("a reply awaited")));
+}
