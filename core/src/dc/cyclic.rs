@@ -748,4 +748,66 @@ mod tests {
         }
         block
     }
+
+    /// The cycle goes out when its timer is due and not before (a caller's own frame aside).
+    #[test]
+    fn cycle_waits_for_its_timer() {
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        m.sh.timers.set(Timer::Cycle, SystemTime(T + 1_000));
+        let mut buf = std::vec![0u8; 1514];
+        assert_eq!(m.poll_transmit(SystemTime(T), &mut buf), None);
+        assert!(m.poll_transmit(SystemTime(T + 1_000), &mut buf).is_some());
+    }
+
+    /// A cycle that does not fit as one block still goes out, as far as it fits.
+    #[test]
+    fn cycle_too_big_for_one_block_goes_out_in_part() {
+        let mut m = cyclic_machine(40, 29, 0, DriftCommand::Frmw, 0x80);
+        let mut buf = std::vec![0u8; 200];
+        let len = m
+            .poll_transmit(SystemTime(T), &mut buf)
+            .expect("a partial cycle");
+        assert!(len <= 200 && m.is_awaiting_reply());
+        assert!(m
+            .sh
+            .inflight
+            .fresh_len()
+            .is_some_and(|n| (3..32).contains(&n)));
+    }
+
+    /// A master that did not send for more than `max_lost_cycles` periods enters hold-over
+    /// (cause Stall); exactly that long, or less, is no stall.
+    #[test]
+    fn stalled_master_enters_holdover() {
+        let m0 = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let period = m0.sh.cfg.monitor.cycle_ns;
+        let stall = period * u64::from(m0.sh.cfg.monitor.max_lost_cycles);
+        for (gap, stalled) in [(stall - period, false), (stall, false), (stall + 1, true)] {
+            let mut m = m0.clone();
+            let c = m.phase.cyclic_mut().unwrap();
+            c.cycles = 1;
+            c.sent_at = T;
+            let mut buf = std::vec![0u8; 1514];
+            let _ = m.poll_transmit(SystemTime(T + gap), &mut buf);
+            let cause = m.phase.cyclic_mut().unwrap().holdover.map(|h| h.cause);
+            let want = stalled.then_some(HoldoverCause::Stall);
+            assert_eq!(cause, want, "gap {gap}");
+        }
+    }
+
+    /// A fault the cyclic code records ends cyclic operation with that error once it returns.
+    #[test]
+    fn recorded_fault_ends_cyclic_operation() {
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        assert_eq!(
+            m.in_cyclic(T, |cx| cx.fail(Error::SlaveLost { station: 0x1001 })),
+            Some(())
+        );
+        assert_ne!(m.state(), State::Cyclic);
+        let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
+        assert!(
+            evs.contains(&Event::Error(Error::SlaveLost { station: 0x1001 })),
+            "{evs:?}"
+        );
+    }
 }
