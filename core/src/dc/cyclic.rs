@@ -810,4 +810,29 @@ mod tests {
             "{evs:?}"
         );
     }
+
+    /// A frame with no room for the cycle is an error only when the cycle would have had the
+    /// frame to itself; a caller's frame that is already full just goes without it.
+    #[test]
+    fn no_room_for_the_cycle() {
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let mut tiny = std::vec![0u8; 40];
+        assert_eq!(m.poll_transmit(SystemTime(T), &mut tiny), None);
+        let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
+        assert!(
+            evs.contains(&Event::Error(Error::BufferTooSmall)),
+            "{evs:?}"
+        );
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let mut buf = std::vec![0u8; 60];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        b.push(Command::Lrw, 7, Address::logical(0x1000), &[0; 16])
+            .unwrap();
+        assert!(!m.poll_transmit_into(SystemTime(T), &mut b));
+        let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
+        assert!(
+            !evs.contains(&Event::Error(Error::BufferTooSmall)),
+            "{evs:?}"
+        );
+    }
 }
