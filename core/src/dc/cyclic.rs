@@ -835,4 +835,44 @@ mod tests {
             "{evs:?}"
         );
     }
+
+    /// The round robin starts at its cursor, wrapped into the slave count.
+    #[test]
+    fn round_robin_start_wraps_into_the_count() {
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        for (rr, start) in [(0u16, 0u16), (4, 4), (5, 0), (7, 2)] {
+            m.phase.cyclic_mut().unwrap().rr = rr;
+            assert_eq!(m.in_cyclic(T, |cx| cx.rr_start()), Some(start), "rr {rr}");
+        }
+    }
+
+    /// The FRMW reply gives the reference time only with every system-time slave counted, a
+    /// 4-byte one widened around the master's time; a short 0x092C read that nobody answered
+    /// names its station as lost, one that was answered does not.
+    #[test]
+    fn frmw_and_short_diff_replies() {
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let all = m.sh.line.sys_count;
+        let v = T + 12_345;
+        m.in_cyclic(T, |cx| cx.on_frmw_reply(T, 8, all, &v.to_le_bytes()));
+        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, Some(v));
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        m.in_cyclic(T, |cx| cx.on_frmw_reply(T, 8, all - 1, &v.to_le_bytes()));
+        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, None);
+        let low = (v as u32).to_le_bytes();
+        m.in_cyclic(T, |cx| cx.on_frmw_reply(T, 4, all, &low));
+        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, Some(v));
+        let diff = |station| Pending {
+            command: Command::Fprd,
+            index: 9,
+            station,
+            register: 0x092C,
+            len: 4,
+            tag: Tag::CycDiff(2),
+        };
+        m.in_cyclic(T, |cx| cx.on_cyclic_reply(T, diff(0x1203), 1, &[0, 0]));
+        assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, None);
+        m.in_cyclic(T, |cx| cx.on_cyclic_reply(T, diff(0x1203), 0, &[0, 0]));
+        assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, Some(0x1203));
+    }
 }
