@@ -875,4 +875,95 @@ mod tests {
         m.in_cyclic(T, |cx| cx.on_cyclic_reply(T, diff(0x1203), 0, &[0, 0]));
         assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, Some(0x1203));
     }
+
+    /// The end-of-cycle fault rules: a changed slave count (BRD 0x0130) or system-time count
+    /// (BRD 0x092C) or a short FRMW working counter is confirmed over `max_wkc_errors` cycles
+    /// and not before; a lost station fails at once, and with a changed count as a topology
+    /// change. Nothing fails on a good cycle.
+    #[test]
+    fn end_of_cycle_fault_rules() {
+        let base = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let (n, sys) = (base.sh.line.count, base.sh.line.sys_count);
+        let max = u32::from(base.sh.cfg.monitor.max_wkc_errors);
+        let frmw = base.sh.frmw_op(T).command;
+        // (topology WKC, bound WKC, FRMW WKC, lost station) -> cycles to fail, and the error.
+        let cases = [
+            ((n, sys, sys, None), None),
+            (
+                (n + 1, sys, sys, None),
+                Some((
+                    max,
+                    Error::TopologyChanged {
+                        expected: n,
+                        found: n + 1,
+                    },
+                )),
+            ),
+            (
+                (n, sys - 1, sys, None),
+                Some((
+                    max,
+                    Error::TopologyChanged {
+                        expected: n,
+                        found: n - 1,
+                    },
+                )),
+            ),
+            (
+                (n - 1, sys, sys, Some(0x1001)),
+                Some((
+                    1,
+                    Error::TopologyChanged {
+                        expected: n,
+                        found: n - 1,
+                    },
+                )),
+            ),
+            (
+                (n, sys, sys, Some(0x1001)),
+                Some((1, Error::SlaveLost { station: 0x1001 })),
+            ),
+            (
+                (n, sys, sys - 1, None),
+                Some((
+                    max,
+                    Error::Wkc {
+                        command: frmw,
+                        station: 0x1001,
+                        register: 0x0910,
+                        expected: sys,
+                        actual: sys - 1,
+                    },
+                )),
+            ),
+        ];
+        for ((topo, bound, fr, lost), want) in cases {
+            let mut m = base.clone();
+            let mut failed_after = None;
+            for k in 1..=max + 2 {
+                let c = m.phase.cyclic_mut().unwrap();
+                (c.topo_wkc, c.bound_wkc, c.frmw_wkc, c.lost_station) =
+                    (Some(topo), Some(bound), Some(fr), lost);
+                m.in_cyclic(T, |cx| cx.cyclic_complete(T));
+                if m.state() != State::Cyclic {
+                    failed_after = Some(k);
+                    break;
+                }
+            }
+            let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
+            match want {
+                None => assert_eq!(failed_after, None, "{topo} {bound} {fr} {lost:?}: {evs:?}"),
+                Some((k, e)) => {
+                    assert_eq!(failed_after, Some(k), "{topo} {bound} {fr} {lost:?}");
+                    assert!(evs.contains(&Event::Error(e)), "{e:?} not in {evs:?}");
+                }
+            }
+        }
+        // The AL status OR is taken only from a BRD 0x0130 some slave answered.
+        let mut m = base.clone();
+        m.in_cyclic(T, |cx| cx.on_topology_reply(0, &[0x08, 0]));
+        assert_eq!(m.phase.cyclic_mut().unwrap().al_status, None);
+        m.in_cyclic(T, |cx| cx.on_topology_reply(1, &[0x08, 0]));
+        assert_eq!(m.phase.cyclic_mut().unwrap().al_status, Some(0x08));
+    }
 }
