@@ -696,4 +696,22 @@ mod tests {
             .compute_sync_start(now, one_s + 1, &written, &same)
             .is_none());
     }
+
+    /// REQ-DC-131/112: a running domain up to one day from the master's clock is joined, one
+    /// nanosecond more is taken for an unset 0x0920 and ignored.
+    // verifies: REQ-DC-131
+    #[test]
+    fn running_domain_joined_up_to_one_day() {
+        let (entry0, entry1) = (0x7_0000_1234u64, 0x2_9000_0000u64);
+        for (ahead, joined) in [
+            (MAX_DOMAIN_SHIFT_NS, true),
+            (MAX_DOMAIN_SHIFT_NS + 1, false),
+        ] {
+            let off0 = (M + ahead).wrapping_sub(entry0);
+            let mut m = running_reference(DcKind::Bits64, off0, entry0, entry1, 700);
+            m.sh.anchor_on_running_domain().unwrap();
+            let want = if joined { ahead as i64 } else { 0 };
+            assert_eq!(m.sh.line.domain_shift, want, "{ahead}");
+        }
+    }
 }
