@@ -966,4 +966,27 @@ mod tests {
         m.in_cyclic(T, |cx| cx.on_topology_reply(1, &[0x08, 0]));
         assert_eq!(m.phase.cyclic_mut().unwrap().al_status, Some(0x08));
     }
+
+    /// Lock is lost only when the bound stays above `unlock_ns` for `unlock_cycles` cycles;
+    /// a bound exactly at it keeps the lock.
+    #[test]
+    fn unlock_threshold_is_exclusive() {
+        let base = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let mon = base.sh.cfg.monitor;
+        for (bound, lost) in [(mon.unlock_ns, false), (mon.unlock_ns + 1, true)] {
+            let mut m = base.clone();
+            m.phase.cyclic_mut().unwrap().locked = true;
+            for _ in 0..mon.unlock_cycles {
+                m.phase.cyclic_mut().unwrap().bound_ns = Some(bound);
+                m.in_cyclic(T, |cx| cx.update_lock());
+            }
+            assert_eq!(!m.phase.cyclic_mut().unwrap().locked, lost, "bound {bound}");
+            let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
+            assert_eq!(
+                evs.contains(&Event::LockLost { bound_ns: bound }),
+                lost,
+                "{evs:?}"
+            );
+        }
+    }
 }
