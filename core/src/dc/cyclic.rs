@@ -989,4 +989,52 @@ mod tests {
             );
         }
     }
+
+    /// A 0x092C read stores the slave's signed Δt (sign-magnitude on the wire) only when
+    /// answered and for a slave inside the count; unanswered, it names the station as lost.
+    #[test]
+    fn diff_reply_stores_or_loses() {
+        let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let minus_300 = (0x8000_0000u32 | 300).to_le_bytes();
+        let crate::dc::shared::Shared { line, .. } = &mut m.sh;
+        let mut c = CyclicState::default();
+        diff_reply(&mut line.slaves, 5, &mut c, 2, 0x1203, 1, minus_300);
+        assert_eq!(line.slaves[2].last_diff_ns, Some(-300));
+        diff_reply(&mut line.slaves, 5, &mut c, 5, 0x1606, 1, minus_300);
+        assert_eq!(
+            line.slaves[5].last_diff_ns, None,
+            "position 5 is beyond the count"
+        );
+        assert_eq!(c.lost_station, None);
+        diff_reply(&mut line.slaves, 5, &mut c, 3, 0x1304, 0, minus_300);
+        assert_eq!(
+            (c.lost_station, line.slaves[3].last_diff_ns),
+            (Some(0x1304), None)
+        );
+    }
+
+    /// Not locked after `lock_timeout_cycles`: reported once, at that cycle, and not while
+    /// locked.
+    #[test]
+    fn not_locked_reported_once_at_the_timeout() {
+        let base = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
+        let timeout = base.sh.cfg.monitor.lock_timeout_cycles;
+        let bound = base.sh.cfg.monitor.unlock_ns + 1;
+        let run = |locked: bool, cycles: &[u32]| {
+            let mut m = base.clone();
+            let mut reports = 0;
+            for &n in cycles {
+                let c = m.phase.cyclic_mut().unwrap();
+                (c.locked, c.cycles, c.bound_ns) = (locked, n, Some(bound));
+                m.in_cyclic(T, |cx| cx.update_lock());
+                reports += core::iter::from_fn(|| m.poll_event())
+                    .filter(|e| matches!(e, Event::Error(Error::NotLocked { .. })))
+                    .count();
+            }
+            reports
+        };
+        assert_eq!(run(false, &[timeout - 1]), 0);
+        assert_eq!(run(false, &[timeout - 1, timeout, timeout + 1]), 1);
+        assert_eq!(run(true, &[timeout, timeout + 1]), 0);
+    }
 }
