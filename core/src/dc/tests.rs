@@ -579,3 +579,55 @@ fn invariant_violations_are_reported() {
         .invariant_violation()
         .is_some_and(|v| v.starts_with("a reply awaited")));
 }
+
+/// The system-time probe asks only slaves with receive-time latches, and a WKC of 0 (latches,
+/// no system time) makes a slave delay-only; a WKC of 1 leaves its kind as read from 0x0008.
+#[test]
+fn system_time_probe_reads_dc_slaves_only() {
+    use crate::dc::machine::Item;
+    use crate::dc::phase::{DiscoveryStep, Phase};
+    use crate::dc::request::{Pending, Reply, Tag};
+    use crate::dc::DcKind;
+    let mut m = machine();
+    m.sh.line.count = 3;
+    for (i, dc) in [DcKind::Bits64, DcKind::None, DcKind::Bits32]
+        .into_iter()
+        .enumerate()
+    {
+        m.sh.line.slaves[i].station = 0x1001 + i as u16;
+        m.sh.line.slaves[i].dc = dc;
+    }
+    m.phase = Phase::Discovery(DiscoveryStep::ProbeSystemTime);
+    assert_eq!(m.discovery_count(DiscoveryStep::ProbeSystemTime), 3);
+    let probes: std::vec::Vec<(u16, u16, u16)> = (0..3)
+        .filter_map(|i| match m.discovery_item(i) {
+            Item::Send(op) => Some((op.station(), op.register(), op.len)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(probes, [(0x1001, 0x0910, 4), (0x1003, 0x0910, 4)]);
+    let reply = |m: &mut Machine<4>, item: u16, wkc: u16| {
+        let sent = Pending {
+            command: Command::Fprd,
+            index: 1,
+            station: 0x1001 + item,
+            register: 0x0910,
+            len: 4,
+            tag: Tag::Item(item),
+        };
+        let data = [0u8; 4];
+        m.discovery_reply(Reply {
+            item,
+            sent,
+            wkc,
+            data: &data,
+        })
+    };
+    assert_eq!(reply(&mut m, 0, 1), Ok(()));
+    assert_eq!(reply(&mut m, 2, 0), Ok(()));
+    assert_eq!(m.sh.line.slaves[0].dc, DcKind::Bits64);
+    assert_eq!(m.sh.line.slaves[2].dc, DcKind::DelayOnly);
+    // Two slaves answering one station address is a WKC error, not a kind.
+    assert!(reply(&mut m, 0, 2).is_err());
+    assert_eq!(m.sh.line.slaves[0].dc, DcKind::Bits64);
+}
