@@ -425,4 +425,73 @@ mod tests {
         assert!(second.iter().all(|c| *c == Command::Fprd));
         assert_eq!(m.phase.drift_gate().unwrap().frames, 1);
     }
+
+    /// The slaves' answer to `frame`: processed, WKC `wkc` on every datagram.
+    fn answer(m: &mut Machine<4>, now: SystemTime, frame: &[u8], wkc: u16) {
+        let mut reply = frame.to_vec();
+        let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+        eth.mark_processed_by_slave();
+        for d in eth.ecat_frame_mut().unwrap().iter_mut() {
+            d.unwrap().set_wkc(wkc);
+        }
+        m.handle_frame(now, &reply);
+    }
+
+    /// Polls every 10 µs from 1 ms while the machine stays in `state`; when each frame went
+    /// out (every one a lone FRMW, answered at once).
+    fn send_times(m: &mut Machine<4>, state: State) -> std::vec::Vec<u64> {
+        let mut buf = [0u8; 1514];
+        let mut sent = std::vec::Vec::new();
+        let mut t = 1_000_000u64;
+        while m.state() == state && t < 2_000_000 {
+            if let Some(n) = m.poll_transmit(SystemTime(t), &mut buf) {
+                assert_eq!(commands(&buf[..n]), [Command::Frmw]);
+                sent.push(t);
+                answer(m, SystemTime(t), &buf[..n], 2);
+            }
+            t += 10_000;
+        }
+        sent
+    }
+
+    /// A burst is `burst_frames` FRMW frames back to back, its last one held back until
+    /// `check_pause_ns` after the one before (REQ-DC-104); once a check has passed, a burst is
+    /// that one paused frame.
+    // verifies: REQ-DC-104
+    #[test]
+    fn burst_sends_its_frames_then_a_paused_last() {
+        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
+        m.sh.cfg.drift.burst_frames = 3;
+        m.sh.cfg.drift.check_pause_ns = 50_000;
+        m.enter(State::DriftBurst);
+        assert_eq!(m.drift_count(crate::dc::phase::DriftStep::Burst), 3);
+        let times = send_times(&mut m, State::DriftBurst);
+        assert_eq!(times, [1_000_000, 1_010_000, 1_060_000]);
+        assert_eq!(m.state(), State::DriftCheck);
+        // The check itself is not paced.
+        let mut buf = [0u8; 1514];
+        assert!(m.poll_transmit(SystemTime(1_070_000), &mut buf).is_some());
+        // After a passed check the burst is one frame, paused after the last one sent.
+        m.sh.stop_awaiting();
+        m.phase.drift_gate_mut().unwrap().passed = 1;
+        m.enter(State::DriftBurst);
+        m.sh.last_sent = 1_000_000;
+        assert_eq!(m.drift_count(crate::dc::phase::DriftStep::Burst), 1);
+        assert_eq!(send_times(&mut m, State::DriftBurst), [1_050_000]);
+        assert_eq!(m.state(), State::DriftCheck);
+    }
+
+    /// A check frame keeps room for its closing FRMW: in a buffer that holds the BRD, two
+    /// FPRDs and an FRMW (16 + 16 + 16 + 20 bytes of datagrams), a third FPRD would fit but
+    /// leave the FRMW out, so the frame stops before it.
+    #[test]
+    fn check_frame_keeps_room_for_its_frmw() {
+        let mut m = in_check::<64>(40, DriftCheck::Both);
+        let mut buf = [0u8; 14 + 2 + 16 * 3 + 20];
+        let n = m.poll_transmit(SystemTime(1_000_000), &mut buf).unwrap();
+        assert_eq!(
+            commands(&buf[..n]),
+            [Command::Brd, Command::Fprd, Command::Fprd, Command::Frmw]
+        );
+    }
 }
