@@ -194,6 +194,25 @@ impl SystemTime {
         num::wrapping_diff(self.0, earlier.0)
     }
 
+    /// REQ-TIME-015: nanoseconds elapsed from `earlier` to `self`, 0 when `self` is not after
+    /// `earlier` (REQ-TIME-004). How the DC machine measures every interval of master time
+    /// (pacing, stalls, silence), so no interval is read off a plain `u64` subtraction.
+    ///
+    /// # Examples
+    ///
+    /// ```
+    /// use ecdc_core::time::SystemTime;
+    ///
+    /// let sent = SystemTime::from_nanos(u64::MAX - 99);
+    /// let now = sent.wrapping_add(1_000); // across the 2^64 wrap
+    /// assert_eq!(now.saturating_since(sent), 1_000);
+    /// assert_eq!(sent.saturating_since(now), 0);
+    /// ```
+    #[inline]
+    pub fn saturating_since(self, earlier: SystemTime) -> u64 {
+        u64::try_from(self.wrapping_since(earlier)).unwrap_or(0)
+    }
+
     /// REQ-TIME-004: `self` is strictly after `other` on the wrapping 64-bit circle.
     ///
     /// # Examples

@@ -1133,6 +1133,7 @@ pub fn event_to_c(e: &Event) -> ecdc_event {
             K::ECDC_EVENT_DRIFT_CONVERGED
         }
         Event::SyncStarted { start, slaves } => {
+            let start = start.as_nanos();
             let _ = write!(
                 w,
                 "SYNC0 programmed on {slaves} slaves, first pulse at {start} ns"
@@ -1174,6 +1175,7 @@ pub fn event_to_c(e: &Event) -> ecdc_event {
                 HoldoverCause::Stall => (ecdc_holdover_cause::ECDC_HOLDOVER_STALL, "stall"),
                 _ => (ecdc_holdover_cause::ECDC_HOLDOVER_OTHER, "other"),
             };
+            let since = since.as_nanos();
             let _ = write!(w, "hold-over ({name}) since {since} ns");
             out.u.holdover_started = ecdc_ev_holdover_started {
                 since,

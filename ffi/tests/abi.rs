@@ -461,7 +461,7 @@ fn events_map_to_tagged_structs() {
         }
     );
     let e = event_to_c(&Event::SyncStarted {
-        start: 1 << 60,
+        start: ecdc_core::time::SystemTime(1 << 60),
         slaves: 3,
     });
     assert_eq!(

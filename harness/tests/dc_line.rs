@@ -50,6 +50,7 @@ fn sync0_start_on_grid_and_fires() {
     let Event::SyncStarted { start, slaves } = ev else {
         unreachable!()
     };
+    let start = start.as_nanos();
     assert_eq!(slaves, 3);
     assert_eq!(start % 1_000_000, 250_000, "start {start}");
     // Programmed registers (exact widths) in every slave.

@@ -119,6 +119,15 @@ proptest! {
         prop_assert_eq!(parse_calendar(&text), Some(t), "{}", text);
     }
 
+    /// REQ-TIME-015: the elapsed time is the forward distance when it is below 2^63, else 0.
+    // verifies: REQ-TIME-015
+    #[test]
+    fn typed_saturating_since(e in u64s(), d in u64s()) {
+        let t = SystemTime(e).wrapping_add(d);
+        let expect = if d < (1 << 63) { d } else { 0 };
+        prop_assert_eq!(t.saturating_since(SystemTime(e)), expect);
+    }
+
     /// REQ-TIME-007: cycle alignment yields a multiple at or after t (when no 2^64 wrap).
     // verifies: REQ-TIME-007
     #[test]

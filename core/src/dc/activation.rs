@@ -15,6 +15,7 @@ use crate::dc::shared::expect_wkc;
 use crate::dc::slave::SlaveInfo;
 use crate::dc::state::State;
 use crate::dc::work::PerSlave;
+use crate::time::SystemTime;
 use crate::wire::register::reg;
 
 /// The writes of `ProgramSync`, per SYNC slave.
@@ -77,7 +78,7 @@ impl<const N: usize> Machine<N> {
                             s.station,
                             reg::SYNC0_START_TIME,
                             s.dc.time_width(),
-                            self.sh.line.sync_start,
+                            self.sh.line.sync_start.map_or(0, SystemTime::as_nanos),
                         ),
                         SyncWrite::Sync0Cycle => Op::fpwr(
                             s.station,
@@ -109,7 +110,7 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn activation_reply(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
+    pub(crate) fn activation_reply(&mut self, now: SystemTime, r: Reply<'_>) -> Result<(), Error> {
         let (i, p, wkc, data) = r.parts();
         expect_wkc(p, 1, wkc)?;
         match self.phase {
@@ -124,7 +125,7 @@ impl<const N: usize> Machine<N> {
                     .ok_or(bad)?;
                 let sync = self.sh.cfg.sync.ok_or(bad)?;
                 self.sh.line.sync_start =
-                    self.sh.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?;
+                    Some(self.sh.compute_sync_start(now, raw, &r, &sync).ok_or(bad)?);
             }
             Phase::Activation(ActivationStep::ActivateSync) => {
                 if let Some(s) = self.sh.line.slave_mut(i) {
@@ -145,7 +146,8 @@ impl<const N: usize> Machine<N> {
                 let n = self.slaves().iter().filter(|s| s.sync_programmed).count();
                 let slaves = u16::try_from(n).unwrap_or(u16::MAX);
                 self.sh.push_event(Event::SyncStarted {
-                    start: self.sh.line.sync_start,
+                    // Set by the reference-time read that opened this phase.
+                    start: self.sh.line.sync_start.unwrap_or(SystemTime::EPOCH),
                     slaves,
                 });
                 Ok(State::Cyclic)

@@ -151,7 +151,7 @@ impl<const N: usize> Shared<N> {
     /// REQ-DC-112: no offset is derived from an implausible EPU time ([`epu_plausible`]).
     pub(crate) fn compute_offsets(&mut self) -> Result<(), Error> {
         let topo = &self.scratch.topo;
-        let master = SystemTime(self.latch.trigger_time);
+        let master = self.latch.trigger_time;
         let count = usize::from(self.line.count);
         for (i, s) in self.line.slaves.iter_mut().enumerate().take(count) {
             let Some(width) = clock_width(s.dc) else {
@@ -202,7 +202,7 @@ impl<const N: usize> Shared<N> {
                 register: reg::SYSTEM_TIME_OFFSET,
             });
         };
-        let master = SystemTime(self.latch.trigger_time);
+        let master = self.latch.trigger_time;
         let at_latch = a
             .entry_local
             .wrapping_add(read)
@@ -242,14 +242,14 @@ impl<const N: usize> Shared<N> {
     /// (a garbage read).
     pub(crate) fn compute_sync_start(
         &self,
-        now: u64,
+        now: SystemTime,
         raw: u64,
         r: &SlaveInfo,
         sync: &SyncConfig,
-    ) -> Option<u64> {
+    ) -> Option<SystemTime> {
         let width = clock_width(r.dc)?;
         // REQ-DC-131: the domain runs `domain_shift` away from the master's clock.
-        let expected = SystemTime(now).wrapping_add_signed(self.line.domain_shift);
+        let expected = now.wrapping_add_signed(self.line.domain_shift);
         let t_ref = sync::reference_now(raw, width, expected);
         if r.offset_written
             && t_ref.wrapping_since(expected).unsigned_abs() > PLAUSIBLE_REF_DEVIATION_NS
@@ -263,9 +263,7 @@ impl<const N: usize> Shared<N> {
         } else {
             c0
         };
-        sync::start_time(t_ref, sync.start_delay_ns, period, i64::from(sync.shift_ns))
-            .ok()
-            .map(SystemTime::as_nanos)
+        sync::start_time(t_ref, sync.start_delay_ns, period, i64::from(sync.shift_ns)).ok()
     }
 }
 
@@ -320,6 +318,18 @@ mod tests {
 
     /// Master time sampled before the trigger (REQ-DC-002).
     const M: u64 = 800_000_000_000_000_000;
+
+    /// `compute_sync_start` on raw nanoseconds.
+    fn sync_start_at<const N: usize>(
+        m: &Machine<N>,
+        now: u64,
+        raw: u64,
+        r: &SlaveInfo,
+        sync: &SyncConfig,
+    ) -> Option<u64> {
+        m.sh.compute_sync_start(SystemTime(now), raw, r, sync)
+            .map(SystemTime::as_nanos)
+    }
     /// DL status bits: port `n` open = bit 9+2n set (communication) and bit 8+2n clear.
     const fn open(n: u16) -> u16 {
         1 << (9 + 2 * n)
@@ -343,7 +353,7 @@ mod tests {
             s.dl_status = dl;
             s.times_before = [1, 1, 1, 1];
         }
-        m.sh.latch.trigger_time = M;
+        m.sh.latch.trigger_time = SystemTime(M);
         m
     }
 
@@ -455,7 +465,7 @@ mod tests {
                 u64::from(low32(now))
             };
             let ok = SyncConfig::default();
-            let start = m.sh.compute_sync_start(now, raw, &r, &ok).unwrap();
+            let start = sync_start_at(&m, now, raw, &r, &ok).unwrap();
             let lead = start - now;
             assert!(lead >= ok.start_delay_ns && lead < 1 << 31, "{lead}");
             assert_eq!(start % u64::from(ok.sync0_cycle_ns), 0);
@@ -463,7 +473,7 @@ mod tests {
                 start_delay_ns: 3_000_000_000,
                 ..ok
             };
-            assert_eq!(m.sh.compute_sync_start(now, raw, &r, &far), None);
+            assert_eq!(sync_start_at(&m, now, raw, &r, &far), None);
             // SYNC1 "true cycle" of 3 × 0.9 s pushes the first grid point past 2^31 ns.
             let long = SyncConfig {
                 sync0_cycle_ns: 900_000_000,
@@ -476,7 +486,7 @@ mod tests {
             } else {
                 u64::from(low32(now_on_grid + 1))
             };
-            assert_eq!(m.sh.compute_sync_start(now_on_grid, raw, &r, &long), None);
+            assert_eq!(sync_start_at(&m, now_on_grid, raw, &r, &long), None);
         }
     }
 
@@ -544,7 +554,7 @@ mod tests {
             let domain = master - behind;
             let off0 = u64::from(low32(domain.wrapping_sub(entry0)));
             let mut m = running_reference(DcKind::Bits32, off0, entry0, entry1, 300);
-            m.sh.latch.trigger_time = master;
+            m.sh.latch.trigger_time = SystemTime(master);
             m.sh.anchor_on_running_domain().unwrap();
             assert_eq!(m.sh.line.domain_shift, -(behind as i64));
             assert_eq!(
@@ -568,11 +578,11 @@ mod tests {
         };
         let sync = SyncConfig::default();
         let ahead = 1_500_000_000u64;
-        assert_eq!(m.sh.compute_sync_start(M, M + ahead, &r, &sync), None);
+        assert_eq!(sync_start_at(&m, M, M + ahead, &r, &sync), None);
         m.sh.line.domain_shift = ahead as i64;
-        let start = m.sh.compute_sync_start(M, M + ahead, &r, &sync).unwrap();
+        let start = sync_start_at(&m, M, M + ahead, &r, &sync).unwrap();
         assert!(start > M + ahead && start < M + ahead + (1 << 31));
-        assert_eq!(m.sh.compute_sync_start(M, M, &r, &sync), None);
+        assert_eq!(sync_start_at(&m, M, M, &r, &sync), None);
     }
 
     /// Sets a valid latch round on `pair(open(0) | open(1) | ..)`: slave 1 `x / 2` ns behind.
@@ -675,7 +685,7 @@ mod tests {
             shift_ns: 0,
             ..SyncConfig::default()
         };
-        let start = m.sh.compute_sync_start(now, now, &r, &same).unwrap();
+        let start = sync_start_at(&m, now, now, &r, &same).unwrap();
         assert_eq!(
             start,
             (now / 1_000_000 + 1) * 1_000_000,
@@ -689,11 +699,11 @@ mod tests {
         let one_s = now + 1_000_000_000;
         assert!(m
             .sh
-            .compute_sync_start(now, one_s, &written, &same)
+            .compute_sync_start(SystemTime(now), one_s, &written, &same)
             .is_some());
         assert!(m
             .sh
-            .compute_sync_start(now, one_s + 1, &written, &same)
+            .compute_sync_start(SystemTime(now), one_s + 1, &written, &same)
             .is_none());
     }
 

@@ -184,7 +184,7 @@ mod tests {
         let changes: [fn(&mut Machine<4>); 6] = [
             |m| m.sh.step.cursor = 1,
             |m| m.sh.cfg.retries = m.sh.cfg.retries.wrapping_add(1),
-            |m| m.sh.line.sync_start = 1,
+            |m| m.sh.line.sync_start = Some(crate::time::SystemTime(1)),
             |m| m.phase = m.phase.enter(crate::dc::State::Failed),
             |m| m.sh.push_event(crate::dc::Event::Restarting),
             |m| m.sh.line.slaves[1].station = 0x1234,

@@ -48,13 +48,13 @@ pub(crate) struct CyclicState {
     pub(crate) bad_streak: u16,
     pub(crate) not_locked_reported: bool,
     pub(crate) bound_ns: Option<u32>,
-    pub(crate) ref_time: Option<u64>,
+    pub(crate) ref_time: Option<SystemTime>,
     // Results of the cycle in flight.
     pub(crate) frmw_wkc: Option<u16>,
     pub(crate) bound_wkc: Option<u16>,
     pub(crate) topo_wkc: Option<u16>,
     pub(crate) lost_station: Option<u16>,
-    pub(crate) sent_at: u64,
+    pub(crate) sent_at: SystemTime,
     // Delay re-measurement.
     pub(crate) remeasure_requested: bool,
     pub(crate) remeasure: Remeasure,
@@ -64,8 +64,8 @@ pub(crate) struct CyclicState {
     // Hold-over (`dc/holdover.rs`).
     /// The hold-over sub-state, when silent.
     pub(crate) holdover: Option<Holdover>,
-    /// Master time of the last complete cycle's transmission (0: none yet).
-    pub(crate) last_good: u64,
+    /// Master time of the last complete cycle's transmission (`None`: none yet).
+    pub(crate) last_good: Option<SystemTime>,
     /// OR of every AL status (BRD 0x0130 data) of the cycle in flight.
     pub(crate) al_status: Option<u16>,
     /// The same of the last complete cycle.
@@ -90,7 +90,7 @@ impl<const N: usize> Machine<N> {
     #[inline(always)]
     pub(crate) fn in_cyclic<R>(
         &mut self,
-        now: u64,
+        now: SystemTime,
         f: impl FnOnce(&mut CyclicCx<'_, N>) -> R,
     ) -> Option<R> {
         let Machine { phase, sh } = self;
@@ -114,11 +114,11 @@ impl<const N: usize> CyclicCx<'_, N> {
 
     pub(crate) fn fill_cyclic(
         &mut self,
-        now: u64,
+        now: SystemTime,
         b: &mut FrameBuilder<'_>,
         into_caller: bool,
     ) -> bool {
-        if !into_caller && !self.sh.timers.expired(Timer::Cycle, SystemTime(now)) {
+        if !into_caller && !self.sh.timers.expired(Timer::Cycle, now) {
             return false;
         }
         let period = self.sh.cfg.monitor.cycle_ns;
@@ -127,7 +127,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         if self.holdover_enabled()
             && self.c.holdover.is_none()
             && self.c.cycles > 0
-            && now.saturating_sub(self.c.sent_at) > stall
+            && now.saturating_since(self.c.sent_at) > stall
         {
             self.holdover_start(self.silence_since(), HoldoverCause::Stall);
         }
@@ -142,14 +142,18 @@ impl<const N: usize> CyclicCx<'_, N> {
             return false;
         }
         // The next cycle one period after this one's due time, or after now if that passed.
-        let due = self.sh.timers.get(Timer::Cycle).map_or(0, |t| t.0);
-        let next = due.saturating_add(period);
-        let next = if next <= now {
-            now.saturating_add(period)
-        } else {
+        let due = self
+            .sh
+            .timers
+            .get(Timer::Cycle)
+            .unwrap_or(SystemTime::EPOCH);
+        let next = due.wrapping_add(period);
+        let next = if next.is_after(now) {
             next
+        } else {
+            now.wrapping_add(period)
         };
-        self.sh.timers.set(Timer::Cycle, SystemTime(next));
+        self.sh.timers.set(Timer::Cycle, next);
         let before = b.datagram_count();
         self.sh.inflight.clear();
         self.c.frmw_wkc = None;
@@ -165,12 +169,10 @@ impl<const N: usize> CyclicCx<'_, N> {
             }
             return false;
         }
-        self.fill_remeasure(now, b);
+        self.fill_remeasure(b);
         self.c.sent_at = now;
         let timeout = self.sh.cfg.response_timeout_ns.min(period);
-        self.sh
-            .timers
-            .set(Timer::Reply, SystemTime(now.saturating_add(timeout)));
+        self.sh.timers.set(Timer::Reply, now.wrapping_add(timeout));
         self.c.cycles = self.c.cycles.saturating_add(1);
         self.sh.stats.cycles = self.sh.stats.cycles.saturating_add(1);
         self.sh.stats.frames_sent = self.sh.stats.frames_sent.saturating_add(1);
@@ -249,7 +251,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     #[inline]
-    pub(crate) fn on_cyclic_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
+    pub(crate) fn on_cyclic_reply(&mut self, now: SystemTime, p: Pending, wkc: u16, data: &[u8]) {
         match p.tag {
             Tag::Frmw => self.on_frmw_reply(now, p.len, wkc, data),
             Tag::CycBound => self.on_bound_reply(wkc, data),
@@ -274,15 +276,15 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// The cycle's FRMW (or ARMW) reply: the reference's system time (`len` 8, or 4 extended
     /// around `now`), used only with the full working counter.
     #[inline(always)]
-    pub(crate) fn on_frmw_reply(&mut self, now: u64, len: u16, wkc: u16, data: &[u8]) {
+    pub(crate) fn on_frmw_reply(&mut self, now: SystemTime, len: u16, wkc: u16, data: &[u8]) {
         self.c.frmw_wkc = Some(wkc);
         if wkc == self.sh.line.sys_count {
             if let Some(v) = le(data, usize::from(len)) {
                 let t = if len == 8 {
-                    v
+                    SystemTime(v)
                 } else {
                     let low = u32::try_from(v).unwrap_or(0);
-                    SystemTime::extend_low32(low, SystemTime(now)).0
+                    SystemTime::extend_low32(low, now)
                 };
                 self.c.ref_time = Some(t);
             }
@@ -316,14 +318,10 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// Master time the current silence is counted from: the cycle after the last complete
     /// one (the first that did not come back or was not sent), or the first cycle's
     /// transmission before any completed.
-    pub(crate) fn silence_since(&self) -> u64 {
-        if self.c.last_good != 0 {
-            self.c
-                .last_good
-                .saturating_add(self.sh.cfg.monitor.cycle_ns)
-        } else {
-            self.c.sent_at
-        }
+    pub(crate) fn silence_since(&self) -> SystemTime {
+        self.c.last_good.map_or(self.c.sent_at, |t| {
+            t.wrapping_add(self.sh.cfg.monitor.cycle_ns)
+        })
     }
 
     /// A round-robin FPRD 0x092C reply: [`diff_reply`].
@@ -341,13 +339,13 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     /// All of this cycle's datagrams came back: evaluate faults, then lock.
-    pub(crate) fn cyclic_complete(&mut self, now: u64) {
+    pub(crate) fn cyclic_complete(&mut self, now: SystemTime) {
         if let Some(h) = self.c.holdover {
             if self.holdover_expired(now) || !self.resume_check(now, h) {
                 return;
             }
         }
-        self.c.last_good = self.c.sent_at;
+        self.c.last_good = Some(self.c.sent_at);
         self.c.al_ok = self.c.al_status;
         self.c.lost_streak = 0;
         let max_wkc = self.sh.cfg.monitor.max_wkc_errors;
@@ -465,7 +463,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     /// The cycle in flight is lost: coast, or give up after `max_lost_cycles`.
-    pub(crate) fn cyclic_lost(&mut self, now: u64) {
+    pub(crate) fn cyclic_lost(&mut self, now: SystemTime) {
         self.sh.stop_awaiting();
         self.sh.stats.lost_cycles = self.sh.stats.lost_cycles.saturating_add(1);
         self.c.lost_streak = self.c.lost_streak.saturating_add(1);
@@ -646,14 +644,20 @@ mod tests {
                 let n_sent = m.sh.inflight.fresh_len().unwrap();
                 let mut c = m.clone();
                 match c
-                    .in_cyclic(T + 1, |cx| cx.cyclic_block_reply(T + 1, f, n_sent))
+                    .in_cyclic(SystemTime(T + 1), |cx| {
+                        cx.cyclic_block_reply(SystemTime(T + 1), f, n_sent)
+                    })
                     .unwrap()
                 {
                     Some(true) => block_taken += 1,
                     Some(false) => panic!("block path refused its own reply"),
                     None => {
                         assert!(c
-                            .in_cyclic(T + 1, |cx| cx.cyclic_pattern_reply(T + 1, f, n_sent))
+                            .in_cyclic(SystemTime(T + 1), |cx| cx.cyclic_pattern_reply(
+                                SystemTime(T + 1),
+                                f,
+                                n_sent
+                            ))
                             .unwrap());
                         pattern_taken += 1;
                     }
@@ -665,7 +669,9 @@ mod tests {
                 let mut c = m.clone();
                 let eth = EthernetFrame::new_checked(&v[..]).unwrap();
                 if let Some(f) = eth.ecat_frame_unvalidated() {
-                    if c.in_cyclic(T + 1, |cx| cx.cyclic_fast(T + 1, f.into_inner())) == Some(true)
+                    if c.in_cyclic(SystemTime(T + 1), |cx| {
+                        cx.cyclic_fast(SystemTime(T + 1), f.into_inner())
+                    }) == Some(true)
                     {
                         fast_taken += 1;
                     }
@@ -679,7 +685,8 @@ mod tests {
                     let eth = EthernetFrame::new_checked(&reply[..]).unwrap();
                     let f = eth.ecat_frame_unvalidated().unwrap();
                     assert_eq!(
-                        a.in_cyclic(T + 2, |cx| cx.cyclic_fast(T + 2, f.into_inner())),
+                        a.in_cyclic(SystemTime(T + 2), |cx| cx
+                            .cyclic_fast(SystemTime(T + 2), f.into_inner())),
                         Some(false)
                     );
                     assert_eq!(format!("{a:?}"), before);
@@ -708,9 +715,9 @@ mod tests {
             b2.push(Command::Lrw, 7, a, &[1, 2, 3]).unwrap();
         }
         let before = m1.clone();
-        let frmw = m1.sh.frmw_op(T);
+        let frmw = m1.sh.frmw_op(SystemTime(T));
         let block = m1
-            .in_cyclic(T, |cx| cx.push_cycle_block(&mut b1, frmw))
+            .in_cyclic(SystemTime(T), |cx| cx.push_cycle_block(&mut b1, frmw))
             .unwrap();
         if !block {
             assert_eq!(
@@ -720,15 +727,15 @@ mod tests {
             );
             assert_eq!(b1.datagram_count(), usize::from(caller));
             let each = m1
-                .in_cyclic(T, |cx| cx.push_cycle_each(&mut b1, frmw))
+                .in_cyclic(SystemTime(T), |cx| cx.push_cycle_each(&mut b1, frmw))
                 .unwrap();
             let each2 = m2
-                .in_cyclic(T, |cx| cx.push_cycle_each(&mut b2, frmw))
+                .in_cyclic(SystemTime(T), |cx| cx.push_cycle_each(&mut b2, frmw))
                 .unwrap();
             assert_eq!(each, each2);
         } else {
             assert!(m2
-                .in_cyclic(T, |cx| cx.push_cycle_each(&mut b2, frmw))
+                .in_cyclic(SystemTime(T), |cx| cx.push_cycle_each(&mut b2, frmw))
                 .unwrap());
         }
         assert_eq!(b1.datagram_count(), b2.datagram_count());
@@ -786,7 +793,7 @@ mod tests {
             let mut m = m0.clone();
             let c = m.phase.cyclic_mut().unwrap();
             c.cycles = 1;
-            c.sent_at = T;
+            c.sent_at = SystemTime(T);
             let mut buf = std::vec![0u8; 1514];
             let _ = m.poll_transmit(SystemTime(T + gap), &mut buf);
             let cause = m.phase.cyclic_mut().unwrap().holdover.map(|h| h.cause);
@@ -800,7 +807,8 @@ mod tests {
     fn recorded_fault_ends_cyclic_operation() {
         let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
         assert_eq!(
-            m.in_cyclic(T, |cx| cx.fail(Error::SlaveLost { station: 0x1001 })),
+            m.in_cyclic(SystemTime(T), |cx| cx
+                .fail(Error::SlaveLost { station: 0x1001 })),
             Some(())
         );
         assert_ne!(m.state(), State::Cyclic);
@@ -842,7 +850,11 @@ mod tests {
         let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
         for (rr, start) in [(0u16, 0u16), (4, 4), (5, 0), (7, 2)] {
             m.phase.cyclic_mut().unwrap().rr = rr;
-            assert_eq!(m.in_cyclic(T, |cx| cx.rr_start()), Some(start), "rr {rr}");
+            assert_eq!(
+                m.in_cyclic(SystemTime(T), |cx| cx.rr_start()),
+                Some(start),
+                "rr {rr}"
+            );
         }
     }
 
@@ -854,14 +866,20 @@ mod tests {
         let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
         let all = m.sh.line.sys_count;
         let v = T + 12_345;
-        m.in_cyclic(T, |cx| cx.on_frmw_reply(T, 8, all, &v.to_le_bytes()));
-        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, Some(v));
+        m.in_cyclic(SystemTime(T), |cx| {
+            cx.on_frmw_reply(SystemTime(T), 8, all, &v.to_le_bytes())
+        });
+        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, Some(SystemTime(v)));
         let mut m = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
-        m.in_cyclic(T, |cx| cx.on_frmw_reply(T, 8, all - 1, &v.to_le_bytes()));
+        m.in_cyclic(SystemTime(T), |cx| {
+            cx.on_frmw_reply(SystemTime(T), 8, all - 1, &v.to_le_bytes())
+        });
         assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, None);
         let low = (v as u32).to_le_bytes();
-        m.in_cyclic(T, |cx| cx.on_frmw_reply(T, 4, all, &low));
-        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, Some(v));
+        m.in_cyclic(SystemTime(T), |cx| {
+            cx.on_frmw_reply(SystemTime(T), 4, all, &low)
+        });
+        assert_eq!(m.phase.cyclic_mut().unwrap().ref_time, Some(SystemTime(v)));
         let diff = |station| Pending {
             command: Command::Fprd,
             index: 9,
@@ -870,9 +888,13 @@ mod tests {
             len: 4,
             tag: Tag::CycDiff(2),
         };
-        m.in_cyclic(T, |cx| cx.on_cyclic_reply(T, diff(0x1203), 1, &[0, 0]));
+        m.in_cyclic(SystemTime(T), |cx| {
+            cx.on_cyclic_reply(SystemTime(T), diff(0x1203), 1, &[0, 0])
+        });
         assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, None);
-        m.in_cyclic(T, |cx| cx.on_cyclic_reply(T, diff(0x1203), 0, &[0, 0]));
+        m.in_cyclic(SystemTime(T), |cx| {
+            cx.on_cyclic_reply(SystemTime(T), diff(0x1203), 0, &[0, 0])
+        });
         assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, Some(0x1203));
     }
 
@@ -885,7 +907,7 @@ mod tests {
         let base = cyclic_machine(5, 3, 0, DriftCommand::Frmw, 0x80);
         let (n, sys) = (base.sh.line.count, base.sh.line.sys_count);
         let max = u32::from(base.sh.cfg.monitor.max_wkc_errors);
-        let frmw = base.sh.frmw_op(T).command;
+        let frmw = base.sh.frmw_op(SystemTime(T)).command;
         // (topology WKC, bound WKC, FRMW WKC, lost station) -> cycles to fail, and the error.
         let cases = [
             ((n, sys, sys, None), None),
@@ -944,7 +966,7 @@ mod tests {
                 let c = m.phase.cyclic_mut().unwrap();
                 (c.topo_wkc, c.bound_wkc, c.frmw_wkc, c.lost_station) =
                     (Some(topo), Some(bound), Some(fr), lost);
-                m.in_cyclic(T, |cx| cx.cyclic_complete(T));
+                m.in_cyclic(SystemTime(T), |cx| cx.cyclic_complete(SystemTime(T)));
                 if m.state() != State::Cyclic {
                     failed_after = Some(k);
                     break;
@@ -961,9 +983,9 @@ mod tests {
         }
         // The AL status OR is taken only from a BRD 0x0130 some slave answered.
         let mut m = base.clone();
-        m.in_cyclic(T, |cx| cx.on_topology_reply(0, &[0x08, 0]));
+        m.in_cyclic(SystemTime(T), |cx| cx.on_topology_reply(0, &[0x08, 0]));
         assert_eq!(m.phase.cyclic_mut().unwrap().al_status, None);
-        m.in_cyclic(T, |cx| cx.on_topology_reply(1, &[0x08, 0]));
+        m.in_cyclic(SystemTime(T), |cx| cx.on_topology_reply(1, &[0x08, 0]));
         assert_eq!(m.phase.cyclic_mut().unwrap().al_status, Some(0x08));
     }
 
@@ -978,7 +1000,7 @@ mod tests {
             m.phase.cyclic_mut().unwrap().locked = true;
             for _ in 0..mon.unlock_cycles {
                 m.phase.cyclic_mut().unwrap().bound_ns = Some(bound);
-                m.in_cyclic(T, |cx| cx.update_lock());
+                m.in_cyclic(SystemTime(T), |cx| cx.update_lock());
             }
             assert_eq!(!m.phase.cyclic_mut().unwrap().locked, lost, "bound {bound}");
             let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
@@ -1026,7 +1048,7 @@ mod tests {
             for &n in cycles {
                 let c = m.phase.cyclic_mut().unwrap();
                 (c.locked, c.cycles, c.bound_ns) = (locked, n, Some(bound));
-                m.in_cyclic(T, |cx| cx.update_lock());
+                m.in_cyclic(SystemTime(T), |cx| cx.update_lock());
                 reports += core::iter::from_fn(|| m.poll_event())
                     .filter(|e| matches!(e, Event::Error(Error::NotLocked { .. })))
                     .count();

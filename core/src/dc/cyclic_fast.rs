@@ -13,6 +13,7 @@ use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::request::{Op, Payload, Pending, Tag};
 use crate::dc::shared::index_after;
+use crate::time::SystemTime;
 use crate::wire::register::reg;
 use crate::wire::{
     data_and_wkc, dlpdu_header, matches_pattern, put_small, set_more, Command, FrameBuilder,
@@ -211,7 +212,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// allowed): [`Machine::cyclic_block_reply`] when the table holds the cycle's own
     /// datagrams, else the per-datagram pattern walk. True if the frame was handled.
     #[inline]
-    pub(crate) fn cyclic_fast(&mut self, now: u64, ecat: &[u8]) -> bool {
+    pub(crate) fn cyclic_fast(&mut self, now: SystemTime, ecat: &[u8]) -> bool {
         let Some(n) = self.sh.inflight.fresh_len() else {
             return false;
         };
@@ -227,7 +228,12 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// datagram's command, index, address, length, M and C bits), in which case every reply
     /// went to `on_cyclic_reply` in slot order, as `cyclic_pattern_reply` would have done.
     #[inline]
-    pub(crate) fn cyclic_block_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> Option<bool> {
+    pub(crate) fn cyclic_block_reply(
+        &mut self,
+        now: SystemTime,
+        ecat: &[u8],
+        n: usize,
+    ) -> Option<bool> {
         let [Some(p0), Some(p1), Some(p2), fprds @ ..] = self.sh.inflight.entries.get(..n)? else {
             return None;
         };
@@ -308,7 +314,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// path would take slot `i` for datagram `i` (its in-order hint), and `on_cyclic_reply`
     /// changes neither the state nor the table. Routes every reply and returns true; else
     /// returns false having changed nothing.
-    pub(crate) fn cyclic_pattern_reply(&mut self, now: u64, ecat: &[u8], n: usize) -> bool {
+    pub(crate) fn cyclic_pattern_reply(&mut self, now: SystemTime, ecat: &[u8], n: usize) -> bool {
         let inflight = &self.sh.inflight;
         if !matches_pattern(ecat, n, |i| inflight.get(i).map(Pending::pattern)) {
             return false;

@@ -14,6 +14,7 @@ use crate::dc::phase::{DriftStep, Phase};
 use crate::dc::request::{Op, Reply, Tag};
 use crate::dc::shared::expect_wkc;
 use crate::dc::state::State;
+use crate::time::SystemTime;
 use crate::wire::register::{reg, typed, SystemTimeDifference};
 use crate::wire::{FrameBuilder, DATAGRAM_OVERHEAD};
 
@@ -63,22 +64,20 @@ impl<const N: usize> Machine<N> {
 
     /// Earliest master time the next item of the current step may go out: the last FRMW of a
     /// burst waits `check_pause_ns` after the previous frame (REQ-DC-104).
-    pub(crate) fn pace_until(&self) -> u64 {
+    pub(crate) fn pace_until(&self) -> Option<SystemTime> {
         let last_of_burst = self.burst_len().saturating_sub(1);
-        if matches!(self.phase, Phase::Drift(DriftStep::Burst, _))
-            && self.sh.step.cursor == last_of_burst
-        {
-            self.sh
-                .last_sent
-                .saturating_add(self.sh.cfg.drift.check_pause_ns)
-        } else {
-            0
-        }
+        (matches!(self.phase, Phase::Drift(DriftStep::Burst, _))
+            && self.sh.step.cursor == last_of_burst)
+            .then(|| {
+                self.sh
+                    .last_sent
+                    .wrapping_add(self.sh.cfg.drift.check_pause_ns)
+            })
     }
 
     /// In `DriftCheck`, whether check datagram `op` still leaves room in the frame for the
     /// closing FRMW (always true in other states).
-    pub(crate) fn drift_check_room(&self, now: u64, b: &FrameBuilder<'_>, op: Op) -> bool {
+    pub(crate) fn drift_check_room(&self, now: SystemTime, b: &FrameBuilder<'_>, op: Op) -> bool {
         !matches!(self.phase, Phase::Drift(DriftStep::Check, _))
             || b.fits(
                 usize::from(op.len)
@@ -93,7 +92,7 @@ impl<const N: usize> Machine<N> {
     /// in the same frame still shows the Δt accumulated since the previous sample, not the
     /// fresh one; a check of one frame (short networks) has none and reads exactly the Δt of
     /// the check pause.
-    pub(crate) fn drift_check_epilogue(&mut self, now: u64, b: &mut FrameBuilder<'_>) {
+    pub(crate) fn drift_check_epilogue(&mut self, now: SystemTime, b: &mut FrameBuilder<'_>) {
         if matches!(self.phase, Phase::Drift(DriftStep::Check, _))
             && self.sh.push_op(b, self.sh.frmw_op(now), Tag::Frmw)
         {
@@ -103,7 +102,7 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn drift_item(&self, now: u64, i: u16) -> Item {
+    pub(crate) fn drift_item(&self, now: SystemTime, i: u16) -> Item {
         match self.phase {
             Phase::Drift(DriftStep::Burst, _) => Item::Send(self.sh.frmw_op(now)),
             Phase::Drift(DriftStep::Check, _) => {
@@ -475,7 +474,7 @@ mod tests {
         m.sh.stop_awaiting();
         m.phase.drift_gate_mut().unwrap().passed = 1;
         m.enter(State::DriftBurst);
-        m.sh.last_sent = 1_000_000;
+        m.sh.last_sent = SystemTime(1_000_000);
         assert_eq!(m.drift_count(crate::dc::phase::DriftStep::Burst), 1);
         assert_eq!(send_times(&mut m, State::DriftBurst), [1_050_000]);
         assert_eq!(m.state(), State::DriftCheck);

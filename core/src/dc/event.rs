@@ -3,6 +3,7 @@
 
 use crate::dc::error::Error;
 use crate::dc::holdover::{HoldoverCause, ResumeCheck};
+use crate::time::SystemTime;
 
 /// Something the caller may want to know or act on. Events are queued in order; when the queue
 /// is full the oldest event is dropped and counted in `Stats::events_dropped`.
@@ -73,7 +74,7 @@ pub enum Event {
     /// SYNC units programmed; the first SYNC0 pulse is at `start`.
     SyncStarted {
         /// System time of the first SYNC0 pulse (64-bit; 32-bit slaves got its low half).
-        start: u64,
+        start: SystemTime,
         /// Slaves programmed.
         slaves: u16,
     },
@@ -105,7 +106,7 @@ pub enum Event {
     HoldoverStarted {
         /// Master time of the first missed cycle: one period after the last complete cycle's
         /// transmission.
-        since: u64,
+        since: SystemTime,
         /// What was seen.
         cause: HoldoverCause,
     },

@@ -29,6 +29,7 @@ use crate::dc::cyclic::{CyclicCx, Remeasure};
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::Machine;
+use crate::time::SystemTime;
 
 /// Why a hold-over began.
 ///
@@ -51,7 +52,7 @@ use crate::dc::machine::Machine;
 ///     }
 /// }
 /// let ev = Event::HoldoverStarted {
-///     since: 5_000_000,
+///     since: ecdc_core::time::SystemTime::from_nanos(5_000_000),
 ///     cause: HoldoverCause::Stall,
 /// };
 /// assert_eq!(log(&ev), Some("master stalled"));
@@ -153,7 +154,7 @@ pub enum ResumeFailure {
 pub(crate) struct Holdover {
     /// Master time the silence is counted from: one period after the last complete cycle's
     /// transmission (or, before any, the first cycle's transmission).
-    pub(crate) since: u64,
+    pub(crate) since: SystemTime,
     pub(crate) cause: HoldoverCause,
     /// OR of the AL status of every slave in the last complete cycle (`None`: never read).
     pub(crate) al_before: Option<u16>,
@@ -170,7 +171,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     /// Enters hold-over (idempotent): reports it and suspends what needs every cycle.
-    pub(crate) fn holdover_start(&mut self, since: u64, cause: HoldoverCause) {
+    pub(crate) fn holdover_start(&mut self, since: SystemTime, cause: HoldoverCause) {
         if self.c.holdover.is_some() {
             return;
         }
@@ -195,11 +196,11 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// Returns whether it did. The silence is counted from the first cycle that was missed,
     /// and the first cycle after a silence can leave up to one period after it ended: one
     /// period more is allowed, so that a silence of exactly `holdover_ns` is held over.
-    pub(crate) fn holdover_expired(&mut self, now: u64) -> bool {
+    pub(crate) fn holdover_expired(&mut self, now: SystemTime) -> bool {
         let Some(h) = self.c.holdover else {
             return false;
         };
-        let silent_ns = now.saturating_sub(h.since);
+        let silent_ns = now.saturating_since(h.since);
         let limit = self
             .sh
             .cfg
@@ -214,7 +215,7 @@ impl<const N: usize> CyclicCx<'_, N> {
 
     /// The first complete cycle after a hold-over: the resume check. Returns true when it
     /// passed (monitoring continues with this cycle), false after a fault.
-    pub(crate) fn resume_check(&mut self, now: u64, h: Holdover) -> bool {
+    pub(crate) fn resume_check(&mut self, now: SystemTime, h: Holdover) -> bool {
         let result = self.resume_result(h);
         match result {
             Ok(check) => {
@@ -223,7 +224,7 @@ impl<const N: usize> CyclicCx<'_, N> {
                 self.c.wkc_streak = 0;
                 self.sh.stats.holdovers = self.sh.stats.holdovers.saturating_add(1);
                 self.sh.push_event(Event::HoldoverEnded {
-                    after_ns: now.saturating_sub(h.since),
+                    after_ns: now.saturating_since(h.since),
                     check,
                 });
                 true

@@ -8,6 +8,7 @@
 //! go only with [`crate::dc::Machine::configure`].
 
 use crate::dc::slave::SlaveInfo;
+use crate::time::SystemTime;
 
 /// The slave table and the facts of the line every phase reads.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -26,8 +27,8 @@ pub(crate) struct Line<const N: usize> {
     /// Running DC domain's time minus the master's clock at the latch, ns (REQ-DC-131); 0 when
     /// no slave was found running.
     pub(crate) domain_shift: i64,
-    /// System time of the first SYNC0 pulse programmed (0: none yet).
-    pub(crate) sync_start: u64,
+    /// System time of the first SYNC0 pulse programmed (`None`: none yet).
+    pub(crate) sync_start: Option<SystemTime>,
 }
 
 impl<const N: usize> Line<N> {
@@ -40,7 +41,7 @@ impl<const N: usize> Line<N> {
             sys_count: 0,
             t_diff: [None; N],
             domain_shift: 0,
-            sync_start: 0,
+            sync_start: None,
         }
     }
 
@@ -83,7 +84,7 @@ impl<const N: usize> Line<N> {
         self.count = 0;
         self.sys_count = 0;
         self.reference = 0;
-        self.sync_start = 0;
+        self.sync_start = None;
         self.domain_shift = 0;
     }
 }
@@ -138,11 +139,11 @@ mod tests {
         l.reference = 1;
         l.sys_count = 1;
         l.domain_shift = 7;
-        l.sync_start = 9;
+        l.sync_start = Some(SystemTime(9));
         l.t_diff[0] = Some(80);
         l.forget_found();
         assert_eq!((l.count, l.reference, l.sys_count), (0, 0, 0));
-        assert_eq!((l.domain_shift, l.sync_start), (0, 0));
+        assert_eq!((l.domain_shift, l.sync_start), (0, None));
         assert_eq!(l.t_diff[0], Some(80));
         l.clear();
         assert_eq!(l, Line::new());

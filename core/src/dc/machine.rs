@@ -257,7 +257,7 @@ impl<const N: usize> Machine<N> {
         *step = StepProgress::START;
         *events = EventQueue::new();
         *stats = Stats::ZERO;
-        *last_sent = 0;
+        *last_sent = SystemTime::EPOCH;
         *restarts = Restarts::NONE;
         latch.clear();
         scratch.monitor.clear();
@@ -280,7 +280,7 @@ impl<const N: usize> Machine<N> {
                 step: StepProgress::START,
                 events: EventQueue::new(),
                 stats: Stats::ZERO,
-                last_sent: 0,
+                last_sent: SystemTime::EPOCH,
                 restarts: Restarts::NONE,
                 latch: LatchRounds::new(),
                 tdiff: Tdiff::new(),
@@ -547,7 +547,7 @@ impl<const N: usize> Machine<N> {
     /// # Ok::<(), ecdc_core::dc::ConfigError>(())
     /// ```
     pub fn reference_time(&self) -> Option<SystemTime> {
-        self.phase.cyclic().and_then(|c| c.ref_time).map(SystemTime)
+        self.phase.cyclic().and_then(|c| c.ref_time)
     }
     /// System time of the first SYNC0 pulse programmed in the last bring-up.
     ///
@@ -562,7 +562,7 @@ impl<const N: usize> Machine<N> {
     /// # Ok::<(), ecdc_core::dc::ConfigError>(())
     /// ```
     pub fn sync_start(&self) -> Option<SystemTime> {
-        (self.sh.line.sync_start != 0).then_some(SystemTime(self.sh.line.sync_start))
+        self.sh.line.sync_start
     }
     /// Whether a transmitted frame's datagrams are still awaited (until all came back, the
     /// deadline passed, or `reset`/`start`). Only replies to that frame can be used.
@@ -635,9 +635,10 @@ impl<const N: usize> Machine<N> {
     #[must_use]
     pub fn poll_timeout(&self) -> Option<SystemTime> {
         let next = self.sh.timers.next();
-        let gate = self.pace_until();
-        if self.state().is_request_step() && !self.is_awaiting_reply() && gate > self.sh.last_sent {
-            let gate = SystemTime(gate);
+        let gate = self.pace_until().filter(|g| g.is_after(self.sh.last_sent));
+        if let Some(gate) =
+            gate.filter(|_| self.state().is_request_step() && !self.is_awaiting_reply())
+        {
             return Some(next.map_or(gate, |t| earliest(t, gate)));
         }
         next
@@ -683,7 +684,7 @@ impl<const N: usize> Machine<N> {
                 return None;
             }
         };
-        if !self.fill(now.0, &mut b, false) {
+        if !self.fill(now, &mut b, false) {
             return None;
         }
         match b.finish() {
@@ -721,7 +722,7 @@ impl<const N: usize> Machine<N> {
     /// ```
     pub fn poll_transmit_into(&mut self, now: SystemTime, builder: &mut FrameBuilder<'_>) -> bool {
         self.handle_timeout(now);
-        self.fill(now.0, builder, true)
+        self.fill(now, builder, true)
     }
 
     // ----- input ----------------------------------------------------------------------------
@@ -747,9 +748,7 @@ impl<const N: usize> Machine<N> {
     /// # Ok::<(), ecdc_core::dc::ConfigError>(())
     /// ```
     pub fn handle_timeout(&mut self, now: SystemTime) {
-        let at = now;
-        let now = now.0;
-        if self.sh.timers.expired(Timer::Reply, at) {
+        if self.sh.timers.expired(Timer::Reply, now) {
             self.sh.stats.timeouts = self.sh.stats.timeouts.saturating_add(1);
             if self.phase.is_cyclic() {
                 self.in_cyclic(now, |cx| cx.cyclic_lost(now));
@@ -761,7 +760,7 @@ impl<const N: usize> Machine<N> {
                 self.retry_or_fail(now, e);
             }
         }
-        if self.sh.timers.expired(Timer::Restart, at) {
+        if self.sh.timers.expired(Timer::Restart, now) {
             self.sh.restarts.frames_at_start = self.sh.stats.frames_sent;
             self.enter(State::CountSlaves);
         }
@@ -793,7 +792,6 @@ impl<const N: usize> Machine<N> {
     /// [`Machine::handle_frame`]; `fast` = false skips the cyclic fast path (tests compare).
     #[inline]
     pub(crate) fn handle_frame_with(&mut self, now: SystemTime, bytes: &[u8], fast: bool) {
-        let now = now.0;
         self.sh.stats.frames_received = self.sh.stats.frames_received.saturating_add(1);
         let Ok(eth) = EthernetFrame::new_checked(bytes) else {
             return self.count_foreign_frame();
@@ -842,7 +840,7 @@ impl<const N: usize> Machine<N> {
     /// After a frame with at least one matched reply: completes the step or cycle when no
     /// reply is outstanding.
     #[inline]
-    fn replies_done(&mut self, now: u64) {
+    fn replies_done(&mut self, now: SystemTime) {
         if self.is_awaiting_reply() && self.sh.inflight.is_empty() {
             self.sh.timers.stop(Timer::Reply);
             if self.phase.is_cyclic() {
@@ -886,12 +884,12 @@ impl<const N: usize> Machine<N> {
     }
 
     /// Reports a fault and stops or schedules a re-initialisation (REQ-DC-111).
-    pub(crate) fn fault(&mut self, now: u64, e: Error) {
+    pub(crate) fn fault(&mut self, now: SystemTime, e: Error) {
         self.sh.push_event(Event::Error(e));
         self.sh.stop_awaiting();
         if self.sh.cfg.auto_restart {
             self.sh.stats.restarts = self.sh.stats.restarts.saturating_add(1);
-            let wake = SystemTime(now.saturating_add(self.restart_delay()));
+            let wake = now.wrapping_add(self.restart_delay());
             self.sh.restarts.streak = self.sh.restarts.streak.saturating_add(1);
             self.enter(State::RestartWait);
             if self.state() == State::RestartWait {
@@ -914,7 +912,7 @@ impl<const N: usize> Machine<N> {
             .min(self.sh.cfg.restart_backoff_max_ns.max(base))
     }
 
-    fn retry_or_fail(&mut self, now: u64, e: Error) {
+    fn retry_or_fail(&mut self, now: SystemTime, e: Error) {
         if self.sh.step.tries < self.sh.cfg.retries && e.is_retryable() {
             self.sh.stats.retries = self.sh.stats.retries.saturating_add(1);
             let tries = self.sh.step.tries.saturating_add(1);
@@ -933,7 +931,7 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    fn fill(&mut self, now: u64, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
+    fn fill(&mut self, now: SystemTime, b: &mut FrameBuilder<'_>, into_caller: bool) -> bool {
         if self.phase.is_cyclic() {
             return self
                 .in_cyclic(now, |cx| cx.fill_cyclic(now, b, into_caller))
@@ -965,7 +963,7 @@ impl<const N: usize> Machine<N> {
         if !self.state().is_request_step() {
             return false;
         }
-        if now < self.pace_until() {
+        if self.pace_until().is_some_and(|gate| gate.is_after(now)) {
             return false;
         }
         let before = b.datagram_count();
@@ -1000,14 +998,14 @@ impl<const N: usize> Machine<N> {
             return false;
         }
         self.sh.last_sent = now;
-        let due = now.saturating_add(self.sh.cfg.response_timeout_ns);
-        self.sh.timers.set(Timer::Reply, SystemTime(due));
+        let due = now.wrapping_add(self.sh.cfg.response_timeout_ns);
+        self.sh.timers.set(Timer::Reply, due);
         self.sh.stats.frames_sent = self.sh.stats.frames_sent.saturating_add(1);
         true
     }
 
     #[inline]
-    fn on_reply(&mut self, now: u64, p: Pending, wkc: u16, data: &[u8]) {
+    fn on_reply(&mut self, now: SystemTime, p: Pending, wkc: u16, data: &[u8]) {
         // The cyclic path first (neither guard below holds in `Cyclic`).
         if self.phase.is_cyclic() {
             self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
@@ -1039,7 +1037,7 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    fn step_complete(&mut self, now: u64) {
+    fn step_complete(&mut self, now: SystemTime) {
         if let Some(e) = self.sh.step.error.take() {
             return self.retry_or_fail(now, e);
         }

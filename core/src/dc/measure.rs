@@ -15,6 +15,7 @@ use crate::dc::request::{Op, Reply};
 use crate::dc::shared::expect_wkc;
 use crate::dc::slave::{LatchRead, SlaveInfo};
 use crate::dc::state::State;
+use crate::time::SystemTime;
 use crate::wire::register::reg;
 
 /// The bring-up's delay measurement rounds.
@@ -25,7 +26,7 @@ pub(crate) struct LatchRounds<const N: usize> {
     /// Exact sum of the rounds so far (REQ-DC-019); cleared (no rounds) when they are done.
     pub(crate) sum: Delays<N>,
     /// Master time sampled just before sending the latch trigger (REQ-DC-102).
-    pub(crate) trigger_time: u64,
+    pub(crate) trigger_time: SystemTime,
 }
 
 impl<const N: usize> LatchRounds<N> {
@@ -34,7 +35,7 @@ impl<const N: usize> LatchRounds<N> {
         LatchRounds {
             round: 0,
             sum: Delays::new(),
-            trigger_time: 0,
+            trigger_time: SystemTime::EPOCH,
         }
     }
 
@@ -42,7 +43,7 @@ impl<const N: usize> LatchRounds<N> {
     pub(crate) fn clear(&mut self) {
         self.round = 0;
         self.sum.clear();
-        self.trigger_time = 0;
+        self.trigger_time = SystemTime::EPOCH;
     }
 }
 

@@ -246,7 +246,7 @@ mod tests {
         m.phase = Phase::Cyclic(CyclicState {
             locked: true,
             bound_ns: Some(5),
-            ref_time: Some(7),
+            ref_time: Some(crate::time::SystemTime(7)),
             ..CyclicState::default()
         });
         assert!(m.is_locked() && !m.in_holdover());

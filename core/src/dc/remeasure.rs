@@ -40,7 +40,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         }
     }
 
-    pub(crate) fn fill_remeasure(&mut self, _now: u64, b: &mut FrameBuilder<'_>) {
+    pub(crate) fn fill_remeasure(&mut self, b: &mut FrameBuilder<'_>) {
         if self.c.remeasure == Remeasure::Idle {
             if !self.c.remeasure_requested {
                 return;

@@ -12,6 +12,7 @@ use crate::dc::request::{Inflight, Op, Pending, Tag, MAX_INFLIGHT};
 use crate::dc::scratch::Scratch;
 use crate::dc::tdiff::Tdiff;
 use crate::dc::timer::{Timer, TimerTable};
+use crate::time::SystemTime;
 use crate::wire::FrameBuilder;
 
 /// The machine's parts that outlive a phase: configuration, the line, the in-flight and timer
@@ -30,7 +31,7 @@ pub(crate) struct Shared<const N: usize> {
     pub(crate) events: EventQueue,
     pub(crate) stats: Stats,
     /// Master time of the last transmission of a request step.
-    pub(crate) last_sent: u64,
+    pub(crate) last_sent: SystemTime,
     /// Re-initialisation bookkeeping.
     pub(crate) restarts: Restarts,
     /// The delay measurement's rounds (`dc/measure.rs`).

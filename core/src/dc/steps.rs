@@ -48,7 +48,7 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn item(&self, now: u64, i: u16) -> Item {
+    pub(crate) fn item(&self, now: SystemTime, i: u16) -> Item {
         if self.phase == Phase::Discovery(DiscoveryStep::CountSlaves) && self.sh.tdiff.recovering {
             return match i {
                 0 => self.tdiff_recover_item(),
@@ -67,7 +67,7 @@ impl<const N: usize> Machine<N> {
     }
 
     /// Hook right before an item goes out (the latch trigger samples master time here).
-    pub(crate) fn before_send(&mut self, now: u64) {
+    pub(crate) fn before_send(&mut self, now: SystemTime) {
         if self.phase == Phase::Measure(MeasureStep::Trigger) {
             // REQ-DC-102: master time sampled *before* the latching BWR leaves.
             self.sh.latch.trigger_time = now;
@@ -78,7 +78,7 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    pub(crate) fn on_item(&mut self, now: u64, r: Reply<'_>) -> Result<(), Error> {
+    pub(crate) fn on_item(&mut self, now: SystemTime, r: Reply<'_>) -> Result<(), Error> {
         if self.phase == Phase::Discovery(DiscoveryStep::CountSlaves) && self.sh.tdiff.recovering {
             return match r.item {
                 0 => {
@@ -111,14 +111,14 @@ impl<const N: usize> Machine<N> {
             State::Cyclic => {
                 self.sh.scratch.monitor.invalidate();
                 // The first cycle is due at once.
-                self.sh.timers.set(Timer::Cycle, SystemTime(0));
+                self.sh.timers.set(Timer::Cycle, SystemTime::EPOCH);
             }
             _ => {}
         }
     }
 
     /// The step's items are all sent and answered: validate the whole step and move on.
-    pub(crate) fn step_done(&mut self, now: u64) {
+    pub(crate) fn step_done(&mut self, now: SystemTime) {
         let next = match self.phase {
             Phase::Discovery(_) => self.discovery_done(),
             Phase::Tdiff(_) => self.tdiff_done(),
@@ -138,19 +138,19 @@ impl<const N: usize> Machine<N> {
 impl<const N: usize> Shared<N> {
     /// The drift-compensation datagram to the reference's 0x0910, of the reference's width:
     /// FRMW by station address or ARMW by position (`Config::drift_command`).
-    pub(crate) fn frmw_op(&self, now: u64) -> Op {
+    pub(crate) fn frmw_op(&self, now: SystemTime) -> Op {
         let (station, width) = self
             .line
             .slave(self.line.reference)
             .map_or((0, 8), |s| (s.station, s.dc.time_width()));
         let reg = crate::wire::register::reg::SYSTEM_TIME;
         match self.cfg.drift_command {
-            DriftCommand::Frmw => Op::frmw(station, reg, width, now),
+            DriftCommand::Frmw => Op::frmw(station, reg, width, now.as_nanos()),
             DriftCommand::Armw => Op {
                 command: crate::wire::Command::Armw,
                 address: crate::wire::Address::position(self.line.reference, reg),
                 len: width,
-                payload: crate::dc::request::Payload::Le(now),
+                payload: crate::dc::request::Payload::Le(now.as_nanos()),
             },
         }
     }

@@ -357,7 +357,7 @@ fn running_offsets_read_after_al_states_and_anchor_the_others() {
     m.sh.line.count = 3;
     m.sh.line.reference = 0;
     m.sh.line.sys_count = 2;
-    m.sh.latch.trigger_time = T0;
+    m.sh.latch.trigger_time = SystemTime(T0);
     for (i, dc) in [DcKind::Bits64, DcKind::None, DcKind::Bits64]
         .into_iter()
         .enumerate()
@@ -542,18 +542,20 @@ fn reference_time_reply_sets_the_sync_start() {
         tag: Tag::Item(0),
     };
     let data = T0.to_le_bytes();
-    assert_eq!(m.sh.line.sync_start, 0);
+    assert_eq!(m.sh.line.sync_start, None);
     let r = Reply {
         item: 0,
         sent,
         wkc: 1,
         data: &data,
     };
-    m.activation_reply(T0, r).unwrap();
-    let start = m.sh.line.sync_start;
-    assert!(start > T0, "{start}");
+    m.activation_reply(SystemTime(T0), r).unwrap();
+    let start = m.sh.line.sync_start.unwrap();
+    assert!(start.is_after(SystemTime(T0)), "{start}");
     let sync = c.sync.unwrap();
-    let expected = m.sh.compute_sync_start(T0, T0, &m.sh.line.slaves[0], &sync);
+    let now = SystemTime(T0);
+    let expected =
+        m.sh.compute_sync_start(now, T0, &m.sh.line.slaves[0], &sync);
     assert_eq!(Some(start), expected);
 }
 
