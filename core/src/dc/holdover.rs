@@ -331,3 +331,162 @@ impl<const N: usize> Machine<N> {
         self.sh.timers.get(crate::dc::timer::Timer::Restart)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! Hold-over's own rules on a machine put straight into `Cyclic`: when it replaces the
+    //! re-initialisation, when it expires, and what the resume check refuses (REQ-DC-127,
+    //! REQ-DC-128). End-to-end hold-over against the emulator: `harness/tests`.
+    use super::*;
+    use crate::dc::slave::DcKind;
+    use crate::dc::{Config, State};
+
+    const T: u64 = 800_000_000_000_000_000;
+
+    /// Two 64-bit DC slaves in `Cyclic`, with `holdover_ns` (0: hold-over off).
+    fn cyclic(holdover_ns: u64) -> Machine<4> {
+        let cfg = Config {
+            holdover_ns,
+            auto_restart: false,
+            ..Config::default()
+        };
+        let mut m = Machine::<4>::new(cfg).unwrap();
+        m.phase = m.phase.enter(State::Cyclic);
+        m.sh.line.count = 2;
+        m.sh.line.sys_count = 2;
+        for (i, s) in m.sh.line.slaves.iter_mut().take(2).enumerate() {
+            s.station = 0x1001 + i as u16;
+            s.dc = DcKind::Bits64;
+        }
+        m
+    }
+
+    fn events(m: &mut Machine<4>) -> std::vec::Vec<Event> {
+        core::iter::from_fn(|| m.poll_event()).collect()
+    }
+
+    /// `max_lost_cycles` lost cycles in a row at 1 ms each, the first sent at `T`.
+    fn lose_cycles(m: &mut Machine<4>) {
+        let lost = m.sh.cfg.monitor.max_lost_cycles;
+        for k in 0..u64::from(lost) {
+            let now = SystemTime(T + k * 1_000_000);
+            m.in_cyclic(now, |cx| {
+                cx.c.sent_at = now;
+                cx.cyclic_lost(now);
+            });
+        }
+    }
+
+    // verifies: REQ-DC-127
+    #[test]
+    fn silence_holds_over_only_when_enabled() {
+        let mut m = cyclic(0);
+        lose_cycles(&mut m);
+        assert_eq!(m.state(), State::Failed);
+        assert_eq!(
+            events(&mut m),
+            [Event::Error(Error::Timeout {
+                state: State::Cyclic
+            })]
+        );
+        let mut m = cyclic(1);
+        lose_cycles(&mut m);
+        assert_eq!(m.state(), State::Cyclic);
+        assert!(m.in_holdover());
+        assert!(matches!(
+            events(&mut m)[..],
+            [Event::HoldoverStarted {
+                cause: HoldoverCause::Silence,
+                ..
+            }]
+        ));
+    }
+
+    /// Hold-over ends in a re-initialisation once the silence is longer than `holdover_ns`
+    /// plus one period; a silence of exactly that is still held over.
+    // verifies: REQ-DC-127
+    #[test]
+    fn holdover_expires_after_its_limit() {
+        let mut m = cyclic(10_000_000);
+        let since = SystemTime(T);
+        m.in_cyclic(since, |cx| cx.holdover_start(since, HoldoverCause::Silence));
+        let limit = 10_000_000 + 1_000_000;
+        let at_limit = since.wrapping_add(limit);
+        assert_eq!(
+            m.in_cyclic(at_limit, |cx| cx.holdover_expired(at_limit)),
+            Some(false)
+        );
+        assert_eq!(m.state(), State::Cyclic);
+        let after = at_limit.wrapping_add(1);
+        assert_eq!(
+            m.in_cyclic(after, |cx| cx.holdover_expired(after)),
+            Some(true)
+        );
+        assert_eq!(m.state(), State::Failed);
+        assert_eq!(
+            events(&mut m).last(),
+            Some(&Event::Error(Error::HoldoverExpired {
+                silent_ns: limit + 1
+            }))
+        );
+    }
+
+    /// The resume check on a complete cycle: every count right, AL status `al`, bound `bound`.
+    fn resume(al: u16, before: Option<u16>, bound: u32) -> Result<ResumeCheck, ResumeFailure> {
+        let mut m = cyclic(1_000_000_000);
+        let c = m.phase.cyclic_mut().unwrap();
+        c.topo_wkc = Some(2);
+        c.frmw_wkc = Some(2);
+        c.bound_wkc = Some(2);
+        c.al_status = Some(al);
+        c.cycle_bound_ns = Some(bound);
+        let h = Holdover {
+            since: SystemTime(T),
+            cause: HoldoverCause::Silence,
+            al_before: before,
+        };
+        m.in_cyclic(SystemTime(T), |cx| cx.resume_result(h))
+            .unwrap()
+    }
+
+    /// A slave back in INIT that was not before the silence was reset (its SYNC and offsets
+    /// are gone); one in INIT already, or in any state without the INIT bit, was not.
+    // verifies: REQ-DC-128
+    #[test]
+    fn resume_check_refuses_a_slave_reset_to_init() {
+        const OP: u16 = 0x08;
+        const INIT: u16 = 0x01;
+        const PREOP: u16 = 0x02;
+        let check = Config::default().holdover_check_ns;
+        assert_eq!(
+            resume(INIT, Some(OP), 10),
+            Err(ResumeFailure::SlaveReset {
+                al_status: INIT,
+                before: OP
+            })
+        );
+        for (al, before) in [
+            (OP, Some(OP)),
+            (INIT, Some(INIT)),
+            (PREOP, Some(OP)),
+            (INIT, None),
+        ] {
+            assert_eq!(
+                resume(al, before, check),
+                Ok(ResumeCheck {
+                    slaves: 2,
+                    al_status: al,
+                    bound_ns: check
+                }),
+                "{al:#x} after {before:?}"
+            );
+        }
+        // The bound may equal `holdover_check_ns`, not exceed it.
+        assert_eq!(
+            resume(OP, Some(OP), check + 1),
+            Err(ResumeFailure::Bound {
+                bound_ns: check + 1
+            })
+        );
+    }
+}
