@@ -430,12 +430,8 @@ mod tests {
     fn rounds_averaged_exactly() {
         let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
         m.sh.cfg.latch_rounds = 4;
-        for (k, x) in [1_209u32, 1_209, 1_208, 1_208].into_iter().enumerate() {
-            let t0 = 10_000 + 100_000 * k as u32;
-            m.sh.line.slaves[0].times_after = [t0, t0 + x, 1, 1];
-            m.sh.line.slaves[0].epu_time = u64::from(t0);
-            m.sh.line.slaves[1].times_after = [50_000 + 100_000 * k as u32, 1, 1, 1];
-            m.sh.line.slaves[1].epu_time = u64::from(m.sh.line.slaves[1].times_after[0]);
+        for (k, x) in (0u32..).zip([1_209, 1_209, 1_208, 1_208]) {
+            latch_round(&mut m, k, x);
             let next = if k < 3 {
                 State::LatchReadBefore
             } else {
