@@ -138,20 +138,6 @@ pub(crate) fn al_truth(al: &[u16; CAP], base: u16, station: u16) -> u16 {
         .unwrap_or(0x0008)
 }
 
-fn writes(cmd: Command) -> bool {
-    matches!(
-        cmd,
-        Command::Apwr
-            | Command::Aprw
-            | Command::Fpwr
-            | Command::Fprw
-            | Command::Bwr
-            | Command::Brw
-            | Command::Lwr
-            | Command::Lrw
-    )
-}
-
 /// Checks one frame produced by the machine (properties 2–4); returns the indices it used.
 pub(crate) fn check_tx(
     frame: &[u8],
@@ -186,7 +172,9 @@ pub(crate) fn check_tx(
             u32::from(ado) < u32::from(reg) + u32::from(w)
                 && u32::from(reg) < u32::from(ado) + u32::from(len)
         };
-        if writes(cmd) && covers(0x0920, 8) {
+        // Every command that may write, the read-modify-writes included: an FRMW or ARMW over
+        // 0x0920 would step every slave but the addressed one.
+        if cmd.is_write() && covers(0x0920, 8) {
             if cmd != Command::Fpwr || ado != 0x0920 || !(len == 4 || len == 8) {
                 return Err(Violation::OffsetWrite {
                     command: cmd.code(),
@@ -224,7 +212,7 @@ pub(crate) fn check_tx(
             }
             out.offset_writes += 1;
         }
-        if writes(cmd) {
+        if cmd.is_write() {
             let bad = match ado {
                 0x0990 => !(len == 4 || len == 8),
                 0x0928 | 0x09A0 | 0x09A4 => len != 4,
