@@ -381,6 +381,94 @@ mod tests {
         assert_eq!(m.phase.drift_gate().unwrap().passed, 0);
     }
 
+    /// The error of a check judged at the frame limit, with these per-slave readings and
+    /// broadcast bound.
+    fn at_frame_limit(check: DriftCheck, readings: &[i64], bound: u32) -> crate::dc::Error {
+        let mut m = in_check::<4>(2, check);
+        let max = m.sh.cfg.drift.max_frames;
+        let gate = m.phase.drift_gate_mut().unwrap();
+        gate.frames = max;
+        gate.bound = Some(bound);
+        for (s, r) in m.sh.line.slaves.iter_mut().zip(readings) {
+            s.last_diff_ns = Some(*r);
+        }
+        m.drift_done().unwrap_err()
+    }
+
+    /// `NotConverged` names the worst slave and its reading; the broadcast bound (station 0)
+    /// only when no slave's own reading is out of range and the bound is strictly larger.
+    // verifies: REQ-DC-104
+    #[test]
+    fn not_converged_names_the_worst_reading() {
+        use crate::dc::Error::NotConverged;
+        let worst = |e| match e {
+            NotConverged {
+                worst_station,
+                worst_diff_ns,
+                ..
+            } => (worst_station, worst_diff_ns),
+            other => panic!("{other:?}"),
+        };
+        // A slave over the spike bound (400) is named, even beside a larger bound.
+        assert_eq!(
+            worst(at_frame_limit(DriftCheck::Both, &[-500, 0], 600)),
+            (0x1000, 500)
+        );
+        // In range: the larger bound is the worst reading ...
+        assert_eq!(
+            worst(at_frame_limit(DriftCheck::Both, &[100, -50], 300)),
+            (0, 300)
+        );
+        // ... an equal one is not.
+        assert_eq!(
+            worst(at_frame_limit(DriftCheck::Both, &[100, -50], 100)),
+            (0x1000, 100)
+        );
+        // Per slave only, all readings 0: still a slave's station, never 0.
+        let (station, ns) = worst(at_frame_limit(DriftCheck::PerSlave, &[0, 0], u32::MAX));
+        assert!(matches!(station, 0x1000 | 0x1001), "{station:#x}");
+        assert_eq!(ns, 0);
+    }
+
+    /// The check reads 0x092C only of slaves with a system time: an ESC with latches but no
+    /// system time has no 0x092C to read.
+    #[test]
+    fn check_reads_only_slaves_with_a_system_time() {
+        let mut m = in_check::<4>(3, DriftCheck::PerSlave);
+        m.sh.line.slaves[1].dc = DcKind::DelayOnly;
+        m.sh.line.sys_count = 2;
+        let mut buf = [0u8; 1514];
+        let n = m.poll_transmit(SystemTime(1_000_000), &mut buf).unwrap();
+        let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
+        let fprds: std::vec::Vec<u16> = eth
+            .ecat_frame()
+            .unwrap()
+            .iter()
+            .map(|d| d.unwrap())
+            .filter(|d| d.command().unwrap() == Command::Fprd)
+            .map(|d| d.adp())
+            .collect();
+        assert_eq!(fprds, [0x1000, 0x1002]);
+    }
+
+    /// A burst FRMW whose working counter is not the number of slaves with a system time is
+    /// not counted as sent: the burst does not move on to the check.
+    // verifies: REQ-DC-104
+    #[test]
+    fn burst_frmw_with_a_wrong_wkc_is_not_accepted() {
+        for (wkc, next) in [(2, State::DriftCheck), (1, State::DriftBurst)] {
+            let mut m = in_check::<4>(2, DriftCheck::PerSlave);
+            m.sh.cfg.drift.burst_frames = 1;
+            m.enter(State::DriftBurst);
+            let mut buf = [0u8; 1514];
+            let now = SystemTime(1_000_000);
+            let n = m.poll_transmit(now, &mut buf).unwrap();
+            assert_eq!(commands(&buf[..n]), [Command::Frmw]);
+            answer(&mut m, now, &buf[..n], wkc);
+            assert_eq!(m.state(), next, "WKC {wkc}");
+        }
+    }
+
     /// Commands of the datagrams in a frame, in order.
     fn commands(frame: &[u8]) -> std::vec::Vec<Command> {
         let eth = EthernetFrame::new_checked(frame).unwrap();
