@@ -396,36 +396,43 @@ mod tests {
     }
 
     /// `NotConverged` names the worst slave and its reading; the broadcast bound (station 0)
-    /// only when no slave's own reading is out of range and the bound is strictly larger.
+    /// only when no slave's own reading is out of range and the bound is strictly larger. A
+    /// bound out of range counts as one slave over the limit when no slave's reading is.
     // verifies: REQ-DC-104
     #[test]
     fn not_converged_names_the_worst_reading() {
         use crate::dc::Error::NotConverged;
         let worst = |e| match e {
             NotConverged {
+                slaves_over,
                 worst_station,
                 worst_diff_ns,
                 ..
-            } => (worst_station, worst_diff_ns),
+            } => (slaves_over, worst_station, worst_diff_ns),
             other => panic!("{other:?}"),
         };
         // A slave over the spike bound (400) is named, even beside a larger bound.
         assert_eq!(
             worst(at_frame_limit(DriftCheck::Both, &[-500, 0], 600)),
-            (0x1000, 500)
+            (1, 0x1000, 500)
         );
         // In range: the larger bound is the worst reading ...
         assert_eq!(
             worst(at_frame_limit(DriftCheck::Both, &[100, -50], 300)),
-            (0, 300)
+            (0, 0, 300)
+        );
+        assert_eq!(
+            worst(at_frame_limit(DriftCheck::Both, &[100, -50], 600)),
+            (1, 0, 600)
         );
         // ... an equal one is not.
         assert_eq!(
             worst(at_frame_limit(DriftCheck::Both, &[100, -50], 100)),
-            (0x1000, 100)
+            (0, 0x1000, 100)
         );
         // Per slave only, all readings 0: still a slave's station, never 0.
-        let (station, ns) = worst(at_frame_limit(DriftCheck::PerSlave, &[0, 0], u32::MAX));
+        let (over, station, ns) = worst(at_frame_limit(DriftCheck::PerSlave, &[0, 0], u32::MAX));
+        assert_eq!(over, 0);
         assert!(matches!(station, 0x1000 | 0x1001), "{station:#x}");
         assert_eq!(ns, 0);
     }
