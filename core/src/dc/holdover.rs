@@ -431,6 +431,24 @@ mod tests {
         );
     }
 
+    /// `restart_at` is the end of the pause while one runs, and `None` otherwise.
+    // verifies: REQ-DC-130
+    #[test]
+    fn restart_at_is_the_end_of_the_pause() {
+        let mut m = cyclic(0);
+        assert_eq!(m.restart_at(), None);
+        m.sh.cfg.auto_restart = true;
+        lose_cycles(&mut m);
+        assert_eq!(m.state(), State::RestartWait);
+        let at = m.restart_at().unwrap();
+        assert!(at.is_after(SystemTime(T)), "{at:?}");
+        assert_eq!(
+            at.saturating_since(SystemTime(T)),
+            m.sh.cfg.restart_delay_ns
+                + (u64::from(m.sh.cfg.monitor.max_lost_cycles) - 1) * 1_000_000
+        );
+    }
+
     /// The resume check on a complete cycle: every count right, AL status `al`, bound `bound`.
     fn resume(al: u16, before: Option<u16>, bound: u32) -> Result<ResumeCheck, ResumeFailure> {
         let mut m = cyclic(1_000_000_000);

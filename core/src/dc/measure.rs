@@ -180,3 +180,73 @@ pub(crate) fn store_latch_reply<const N: usize>(
         None => Ok(()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! The latch round's own checks on a machine put straight into its step.
+    use crate::dc::slave::DcKind;
+    use crate::dc::{Config, Machine, State};
+    use crate::time::SystemTime;
+    use crate::wire::{Command, EthernetFrame};
+
+    /// A line of a 64-bit DC slave, a slave without DC and another 64-bit DC slave.
+    fn line() -> Machine<4> {
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        m.sh.line.count = 3;
+        m.sh.line.sys_count = 2;
+        for (i, (s, dc)) in
+            m.sh.line
+                .slaves
+                .iter_mut()
+                .zip([DcKind::Bits64, DcKind::None, DcKind::Bits64])
+                .enumerate()
+        {
+            s.station = 0x1001 + u16::try_from(i).unwrap();
+            s.dc = dc;
+        }
+        m
+    }
+
+    /// The latch trigger (BWR 0x0900) is counted by every slave it reaches, and at least by
+    /// every slave with latches: a working counter outside that range is not accepted, and
+    /// the round starts over from the reads before the trigger instead of reading latches
+    /// that may not have been taken.
+    // verifies: REQ-DC-101
+    #[test]
+    fn latch_trigger_wkc_between_latching_and_all_slaves() {
+        for (wkc, next) in [
+            (0, State::LatchReadBefore),
+            (1, State::LatchReadBefore),
+            (2, State::LatchReadAfter),
+            (3, State::LatchReadAfter),
+            (4, State::LatchReadBefore),
+        ] {
+            let mut m = line();
+            m.phase = m.phase.enter(State::LatchTrigger);
+            let mut buf = [0u8; 1514];
+            let now = SystemTime(1_000_000);
+            let n = m.poll_transmit(now, &mut buf).unwrap();
+            let mut reply = buf[..n].to_vec();
+            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+            eth.mark_processed_by_slave();
+            for d in eth.ecat_frame_mut().unwrap().iter_mut() {
+                let mut d = d.unwrap();
+                assert_eq!(d.command(), Ok(Command::Bwr));
+                d.set_wkc(wkc);
+            }
+            m.handle_frame(now, &reply);
+            assert_eq!(m.state(), next, "WKC {wkc}");
+        }
+    }
+
+    /// `configure` forgets a measurement in progress: its round count and trigger time.
+    #[test]
+    fn configure_forgets_the_latch_rounds() {
+        let mut m = line();
+        m.sh.latch.round = 2;
+        m.sh.latch.trigger_time = SystemTime(5_000);
+        m.configure(Config::default()).unwrap();
+        assert_eq!(m.sh.latch.round, 0);
+        assert_eq!(m.sh.latch.trigger_time, SystemTime::EPOCH);
+    }
+}
