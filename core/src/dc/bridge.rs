@@ -443,6 +443,29 @@ mod tests {
         assert!(!m.sh.latch.sum.has_rounds(), "the sum is consumed");
     }
 
+    /// REQ-DC-112: a delay of exactly `max_delay_ns` is written; one nanosecond more is out of
+    /// range and names the slave and 0x0928.
+    // verifies: REQ-DC-112
+    #[test]
+    fn delay_up_to_max_delay_is_accepted() {
+        for (max, result) in [
+            (604, Ok(State::ReadAlStatus)),
+            (
+                603,
+                Err(Error::OutOfRange {
+                    station: 0x1002,
+                    register: 0x0928,
+                }),
+            ),
+        ] {
+            let mut m = pair(open(0) | open(1) | closed(2) | closed(3));
+            m.sh.cfg.latch_rounds = 1;
+            m.sh.cfg.max_delay_ns = max;
+            latch_round(&mut m, 0, 1_208);
+            assert_eq!(finish_round(&mut m), result, "max_delay_ns {max}");
+        }
+    }
+
     /// REQ-DC-050, REQ-DC-105: a start that would lie 2^31 ns or more ahead of the reference's
     /// time is refused (the caller turns it into `OutOfRange`), never written.
     // verifies: REQ-DC-050, REQ-DC-105

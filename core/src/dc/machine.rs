@@ -260,7 +260,7 @@ impl<const N: usize> Machine<N> {
         *last_sent = SystemTime::EPOCH;
         *restarts = Restarts::NONE;
         latch.clear();
-        scratch.monitor.clear();
+        scratch.monitor.invalidate();
         tdiff.forget();
         // The working tables' other contents are overwritten before they are read.
         scratch.topo.clear();

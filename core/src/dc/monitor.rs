@@ -40,12 +40,6 @@ impl<const N: usize> MonitorList<N> {
         }
     }
 
-    /// An empty list, as `new` makes it (in place).
-    pub(crate) fn clear(&mut self) {
-        self.len = 0;
-        self.built_for = None;
-    }
-
     /// Forget the list (the slave table may change).
     pub(crate) fn invalidate(&mut self) {
         self.built_for = None;

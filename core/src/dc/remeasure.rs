@@ -28,7 +28,7 @@ impl<const N: usize> CyclicCx<'_, N> {
             Remeasure::Write if s.dc.has_system_time() && s.delay_ns != s.delay_new => Some(
                 Op::fpwr(s.station, reg::SYSTEM_TIME_DELAY, 4, u64::from(s.delay_new)),
             ),
-            _ => None,
+            Remeasure::Write => None,
         }
     }
 
@@ -149,5 +149,57 @@ impl<const N: usize> CyclicCx<'_, N> {
                 })?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The datagrams of each re-measurement step, on a machine put straight into `Cyclic`.
+    use super::*;
+    use crate::dc::slave::DcKind;
+    use crate::dc::{Config, Machine, State};
+    use crate::time::SystemTime;
+
+    /// What `remeasure_op` gives at positions 0..3 of a line of a 64-bit DC slave whose delay
+    /// is unchanged, a slave without DC and a 64-bit DC slave whose delay changed.
+    fn ops(step: Remeasure) -> [Option<Op>; 3] {
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        m.phase = m.phase.enter(State::Cyclic);
+        m.sh.line.count = 3;
+        m.sh.line.sys_count = 2;
+        for (i, (s, dc)) in
+            m.sh.line
+                .slaves
+                .iter_mut()
+                .zip([DcKind::Bits64, DcKind::None, DcKind::Bits64])
+                .enumerate()
+        {
+            s.station = 0x1001 + u16::try_from(i).unwrap();
+            s.dc = dc;
+            s.delay_ns = 100;
+            s.delay_new = if i == 2 { 130 } else { 100 };
+        }
+        m.in_cyclic(SystemTime(1_000_000), |cx| {
+            cx.c.remeasure = step;
+            [0, 1, 2].map(|pos| cx.remeasure_op(pos))
+        })
+        .unwrap()
+    }
+
+    /// REQ-DC-107: the latch reads before and after the trigger go to the slaves with latches,
+    /// the trigger is one BWR 0x0900, and 0x0928 is rewritten only where the delay changed.
+    // verifies: REQ-DC-107
+    #[test]
+    fn each_step_sends_its_datagrams() {
+        assert_eq!(ops(Remeasure::Idle), [None, None, None]);
+        let before = Some(Op::fprd(0x1001, reg::RECEIVE_TIME_PORT0, 16));
+        let before_2 = Some(Op::fprd(0x1003, reg::RECEIVE_TIME_PORT0, 16));
+        assert_eq!(ops(Remeasure::Before), [before, None, before_2]);
+        assert_eq!(ops(Remeasure::Trigger)[0], Some(LATCH_TRIGGER));
+        let after = Some(Op::fprd(0x1001, reg::RECEIVE_TIME_PORT0, 32));
+        let after_2 = Some(Op::fprd(0x1003, reg::RECEIVE_TIME_PORT0, 32));
+        assert_eq!(ops(Remeasure::After), [after, None, after_2]);
+        let write = Some(Op::fpwr(0x1003, reg::SYSTEM_TIME_DELAY, 4, 130));
+        assert_eq!(ops(Remeasure::Write), [None, None, write]);
     }
 }
