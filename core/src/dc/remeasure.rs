@@ -36,7 +36,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         match self.c.remeasure {
             Remeasure::Idle => 0,
             Remeasure::Trigger => 1,
-            _ => self.sh.line.count,
+            Remeasure::Before | Remeasure::After | Remeasure::Write => self.sh.line.count,
         }
     }
 
@@ -157,8 +157,10 @@ mod tests {
     //! The datagrams of each re-measurement step, on a machine put straight into `Cyclic`.
     use super::*;
     use crate::dc::slave::DcKind;
-    use crate::dc::{Config, Machine, State};
+    use crate::dc::timer::Timer;
+    use crate::dc::{Config, Event, Machine, State};
     use crate::time::SystemTime;
+    use crate::wire::{Command, EthernetFrame};
 
     /// What `remeasure_op` gives at positions 0..3 of a line of a 64-bit DC slave whose delay
     /// is unchanged, a slave without DC and a 64-bit DC slave whose delay changed.
@@ -201,5 +203,150 @@ mod tests {
         assert_eq!(ops(Remeasure::After), [after, None, after_2]);
         let write = Some(Op::fpwr(0x1003, reg::SYSTEM_TIME_DELAY, 4, 130));
         assert_eq!(ops(Remeasure::Write), [None, None, write]);
+    }
+
+    /// DL status bits: port `n` open (loop open, communication) or closed.
+    const fn open(n: u16) -> u16 {
+        1 << (9 + 2 * n)
+    }
+    const fn closed(n: u16) -> u16 {
+        1 << (8 + 2 * n)
+    }
+
+    /// Two 64-bit DC slaves in a line, in `Cyclic`: slave 0 (the reference) with ports 0 and
+    /// 1 open, slave 1 a line end; slave 1's delay was `old_delay` ns.
+    fn line_in_cyclic(old_delay: u32) -> Machine<4> {
+        let mut m = Machine::<4>::new(Config::default()).unwrap();
+        m.phase = m.phase.enter(State::Cyclic);
+        m.sh.timers.set(Timer::Cycle, SystemTime(0));
+        m.sh.line.count = 2;
+        m.sh.line.sys_count = 2;
+        let dl = [
+            open(0) | open(1) | closed(2) | closed(3),
+            open(0) | closed(1) | closed(2) | closed(3),
+        ];
+        for (i, (s, dl)) in m.sh.line.slaves.iter_mut().zip(dl).enumerate() {
+            s.station = 0x1001 + u16::try_from(i).unwrap();
+            s.dc = DcKind::Bits64;
+            s.dl_status = dl;
+            s.delay_ns = if i == 1 { old_delay } else { 0 };
+        }
+        m
+    }
+
+    /// Answers a frame as the two slaves would: every datagram's working counter, the latch
+    /// reads from `before`/`after` (port times, then system time and EPU time), and the
+    /// 0x0928 writes recorded in `written`. The trigger frame passes slave 1 1 208 ns after
+    /// slave 0 forwards it, so slave 1's delay is 604 ns.
+    fn answer(
+        frame: &[u8],
+        log: &mut std::vec::Vec<(Command, u16, u16, u16)>,
+    ) -> std::vec::Vec<u8> {
+        let before = [[7u32, 7, 7, 7], [9, 9, 9, 9]];
+        let after = [[10_000u32, 11_208, 7, 7], [10_604, 9, 9, 9]];
+        let mut out = frame.to_vec();
+        let mut eth = EthernetFrame::new_unchecked(&mut out[..]);
+        eth.mark_processed_by_slave();
+        for d in eth.ecat_frame_mut().unwrap().iter_mut() {
+            let mut d = d.unwrap();
+            let (cmd, adp, ado, len) = (d.command().unwrap(), d.adp(), d.ado(), d.data_len());
+            log.push((cmd, adp, ado, len));
+            let slave = usize::from(adp.wrapping_sub(0x1001));
+            let wkc = match (cmd, ado, len) {
+                (Command::Fprd, 0x0900, 16) => {
+                    for (b, t) in d.data_mut().chunks_mut(4).zip(before[slave]) {
+                        b.copy_from_slice(&t.to_le_bytes());
+                    }
+                    1
+                }
+                (Command::Fprd, 0x0900, 32) => {
+                    let data = d.data_mut();
+                    for (b, t) in data.chunks_mut(4).zip(after[slave]) {
+                        b.copy_from_slice(&t.to_le_bytes());
+                    }
+                    let epu = u64::from(after[slave][0]);
+                    data[16..24].copy_from_slice(&epu.to_le_bytes());
+                    data[24..32].copy_from_slice(&epu.to_le_bytes());
+                    1
+                }
+                (Command::Bwr | Command::Brd | Command::Frmw, _, _) => 2,
+                _ => 1,
+            };
+            d.set_wkc(wkc);
+        }
+        out
+    }
+
+    /// REQ-DC-107: a requested re-measurement reads the latches, triggers, reads them again,
+    /// rewrites 0x0928 of the slave whose delay changed (only that one, only 0x0928) and
+    /// reports the largest change; the cycle's own datagrams go on meanwhile.
+    // verifies: REQ-DC-107
+    #[test]
+    fn remeasurement_rewrites_only_the_changed_delay() {
+        let mut m = line_in_cyclic(590);
+        m.request_delay_measurement();
+        let mut log = std::vec::Vec::new();
+        let mut events = std::vec::Vec::new();
+        let mut buf = [0u8; 1514];
+        for k in 0..20u64 {
+            let now = SystemTime(1_000_000_000 + k * 1_000_000);
+            let n = m.poll_transmit(now, &mut buf).unwrap();
+            let reply = answer(&buf[..n], &mut log);
+            m.handle_frame(now.wrapping_add(10_000), &reply);
+            events.extend(core::iter::from_fn(|| m.poll_event()));
+        }
+        assert_eq!(m.state(), State::Cyclic);
+        assert!(
+            events.contains(&Event::DelaysUpdated { max_change_ns: 14 }),
+            "{events:?}"
+        );
+        assert_eq!(
+            (m.sh.line.slaves[0].delay_ns, m.sh.line.slaves[1].delay_ns),
+            (0, 604)
+        );
+        let remeasure: std::vec::Vec<_> = log
+            .iter()
+            .filter(|(c, _, ado, _)| *ado != 0x092C && *ado != 0x0130 && *c != Command::Frmw)
+            .copied()
+            .collect();
+        assert_eq!(
+            remeasure,
+            [
+                (Command::Fprd, 0x1001, 0x0900, 16),
+                (Command::Fprd, 0x1002, 0x0900, 16),
+                (Command::Bwr, 0, 0x0900, 4),
+                (Command::Fprd, 0x1001, 0x0900, 32),
+                (Command::Fprd, 0x1002, 0x0900, 32),
+                (Command::Fpwr, 0x1002, 0x0928, 4),
+            ]
+        );
+    }
+
+    /// At most `PER_CYCLE` (8) re-measurement datagrams ride in one cycle's frame; the rest
+    /// follow in the next cycles.
+    #[test]
+    fn at_most_eight_remeasurement_datagrams_a_cycle() {
+        let mut m = Machine::<16>::new(Config::default()).unwrap();
+        m.phase = m.phase.enter(State::Cyclic);
+        m.sh.timers.set(Timer::Cycle, SystemTime(0));
+        m.sh.line.count = 10;
+        m.sh.line.sys_count = 10;
+        for (i, s) in m.sh.line.slaves.iter_mut().take(10).enumerate() {
+            s.station = 0x1001 + u16::try_from(i).unwrap();
+            s.dc = DcKind::Bits64;
+        }
+        m.request_delay_measurement();
+        let mut buf = [0u8; 1514];
+        let n = m
+            .poll_transmit(SystemTime(1_000_000_000), &mut buf)
+            .unwrap();
+        let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
+        let latch_reads = eth
+            .ecat_frame()
+            .unwrap()
+            .iter()
+            .filter(|d| d.as_ref().unwrap().ado() == 0x0900)
+            .count();
+        assert_eq!(latch_reads, usize::from(PER_CYCLE));
     }
 }
