@@ -234,14 +234,14 @@ mod tests {
         m
     }
 
+    /// Datagrams seen: command, ADP, ADO, length.
+    type Log = std::vec::Vec<(Command, u16, u16, u16)>;
+
     /// Answers a frame as the two slaves would: every datagram's working counter, the latch
-    /// reads from `before`/`after` (port times, then system time and EPU time), and the
-    /// 0x0928 writes recorded in `written`. The trigger frame passes slave 1 1 208 ns after
+    /// reads from `before`/`after` (port times, then system time and EPU time); each
+    /// datagram is recorded in `log`. The trigger frame passes slave 1 1 208 ns after
     /// slave 0 forwards it, so slave 1's delay is 604 ns.
-    fn answer(
-        frame: &[u8],
-        log: &mut std::vec::Vec<(Command, u16, u16, u16)>,
-    ) -> std::vec::Vec<u8> {
+    fn answer(frame: &[u8], log: &mut Log) -> std::vec::Vec<u8> {
         let before = [[7u32, 7, 7, 7], [9, 9, 9, 9]];
         let after = [[10_000u32, 11_208, 7, 7], [10_604, 9, 9, 9]];
         let mut out = frame.to_vec();
@@ -277,24 +277,35 @@ mod tests {
         out
     }
 
-    /// REQ-DC-107: a requested re-measurement reads the latches, triggers, reads them again,
-    /// rewrites 0x0928 of the slave whose delay changed (only that one, only 0x0928) and
-    /// reports the largest change; the cycle's own datagrams go on meanwhile.
-    // verifies: REQ-DC-107
-    #[test]
-    fn remeasurement_rewrites_only_the_changed_delay() {
+    /// Runs a requested re-measurement for 20 cycles with `max_delay_ns`; the datagrams sent
+    /// that are not the cycle's own, and the events.
+    fn remeasure(max_delay_ns: u32) -> (Machine<4>, Log, std::vec::Vec<Event>) {
         let mut m = line_in_cyclic(590);
+        m.sh.cfg.max_delay_ns = max_delay_ns;
         m.request_delay_measurement();
         let mut log = std::vec::Vec::new();
         let mut events = std::vec::Vec::new();
         let mut buf = [0u8; 1514];
         for k in 0..20u64 {
             let now = SystemTime(1_000_000_000 + k * 1_000_000);
-            let n = m.poll_transmit(now, &mut buf).unwrap();
+            let Some(n) = m.poll_transmit(now, &mut buf) else {
+                break;
+            };
             let reply = answer(&buf[..n], &mut log);
             m.handle_frame(now.wrapping_add(10_000), &reply);
             events.extend(core::iter::from_fn(|| m.poll_event()));
         }
+        log.retain(|(c, _, ado, _)| *ado != 0x092C && *ado != 0x0130 && *c != Command::Frmw);
+        (m, log, events)
+    }
+
+    /// REQ-DC-107: a requested re-measurement reads the latches, triggers, reads them again,
+    /// rewrites 0x0928 of the slave whose delay changed (only that one, only 0x0928) and
+    /// reports the largest change; the cycle's own datagrams go on meanwhile.
+    // verifies: REQ-DC-107
+    #[test]
+    fn remeasurement_rewrites_only_the_changed_delay() {
+        let (m, log, events) = remeasure(604);
         assert_eq!(m.state(), State::Cyclic);
         assert!(
             events.contains(&Event::DelaysUpdated { max_change_ns: 14 }),
@@ -304,13 +315,8 @@ mod tests {
             (m.sh.line.slaves[0].delay_ns, m.sh.line.slaves[1].delay_ns),
             (0, 604)
         );
-        let remeasure: std::vec::Vec<_> = log
-            .iter()
-            .filter(|(c, _, ado, _)| *ado != 0x092C && *ado != 0x0130 && *c != Command::Frmw)
-            .copied()
-            .collect();
         assert_eq!(
-            remeasure,
+            log,
             [
                 (Command::Fprd, 0x1001, 0x0900, 16),
                 (Command::Fprd, 0x1002, 0x0900, 16),
@@ -322,8 +328,26 @@ mod tests {
         );
     }
 
+    /// REQ-DC-112: a re-measured delay above `max_delay_ns` is a fault naming the slave and
+    /// 0x0928, and nothing is written.
+    // verifies: REQ-DC-112
+    #[test]
+    fn remeasured_delay_out_of_range_is_a_fault() {
+        let (m, log, events) = remeasure(603);
+        assert_ne!(m.state(), State::Cyclic);
+        assert!(
+            events.contains(&Event::Error(crate::dc::Error::OutOfRange {
+                station: 0x1002,
+                register: 0x0928
+            })),
+            "{events:?}"
+        );
+        assert!(log.iter().all(|(c, ..)| *c != Command::Fpwr), "{log:?}");
+        assert_eq!(m.sh.line.slaves[1].delay_ns, 590);
+    }
+
     /// At most `PER_CYCLE` (8) re-measurement datagrams ride in one cycle's frame; the rest
-    /// follow in the next cycles.
+    /// follow in the next cycle, and only then does the step move on (to the trigger).
     #[test]
     fn at_most_eight_remeasurement_datagrams_a_cycle() {
         let mut m = Machine::<16>::new(Config::default()).unwrap();
@@ -337,16 +361,31 @@ mod tests {
         }
         m.request_delay_measurement();
         let mut buf = [0u8; 1514];
-        let n = m
-            .poll_transmit(SystemTime(1_000_000_000), &mut buf)
-            .unwrap();
-        let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
-        let latch_reads = eth
-            .ecat_frame()
-            .unwrap()
-            .iter()
-            .filter(|d| d.as_ref().unwrap().ado() == 0x0900)
-            .count();
-        assert_eq!(latch_reads, usize::from(PER_CYCLE));
+        let mut cycle = |m: &mut Machine<16>, k: u64| {
+            let now = SystemTime(1_000_000_000 + k * 1_000_000);
+            let n = m.poll_transmit(now, &mut buf).unwrap();
+            let mut reply = buf[..n].to_vec();
+            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+            eth.mark_processed_by_slave();
+            let mut sent = std::vec::Vec::new();
+            for d in eth.ecat_frame_mut().unwrap().iter_mut() {
+                let mut d = d.unwrap();
+                let cmd = d.command().unwrap();
+                if d.ado() == 0x0900 {
+                    sent.push((cmd, d.adp()));
+                }
+                d.set_wkc(if cmd == Command::Fprd { 1 } else { 10 });
+            }
+            m.handle_frame(now.wrapping_add(10_000), &reply);
+            sent
+        };
+        let first = cycle(&mut m, 0);
+        assert_eq!(first.len(), usize::from(PER_CYCLE));
+        assert!(first.iter().all(|(c, _)| *c == Command::Fprd));
+        assert_eq!(
+            cycle(&mut m, 1),
+            [(Command::Fprd, 0x1009), (Command::Fprd, 0x100A)]
+        );
+        assert_eq!(cycle(&mut m, 2), [(Command::Bwr, 0)]);
     }
 }

@@ -253,11 +253,19 @@ impl core::fmt::Display for State {
 mod tests {
     use super::*;
 
-    /// The display name is the state's name.
+    /// The display name is the state's name: the variant's name in lower case with hyphens
+    /// between its words, one name per state.
     #[test]
     fn display_is_the_name() {
-        assert_eq!(std::format!("{}", State::Cyclic), State::Cyclic.name());
-        assert!(!State::Cyclic.name().is_empty());
+        let mut names = std::collections::BTreeSet::new();
+        for state in State::ALL {
+            let name = state.name();
+            assert_eq!(std::format!("{state}"), name);
+            let variant = std::format!("{state:?}").to_lowercase();
+            assert_eq!(name.replace('-', ""), variant, "{state:?}");
+            assert!(names.insert(name), "{name} twice");
+        }
+        assert_eq!(names.len(), State::ALL.len());
     }
 
     /// The bring-up path is a chain of allowed transitions, and nothing jumps over the offset
