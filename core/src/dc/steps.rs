@@ -29,8 +29,9 @@ impl<const N: usize> Machine<N> {
     /// Most items per frame: one FRMW per frame in a burst (each frame is one loop sample).
     pub(crate) fn max_per_frame(&self) -> usize {
         match self.phase {
-            // The restore of an interrupted t_Diff measurement goes alone, before the count.
-            Phase::Discovery(DiscoveryStep::CountSlaves) if self.sh.tdiff.recovering => 1,
+            // The count is one datagram; the restore of an interrupted t_Diff measurement that
+            // may come before it goes alone.
+            Phase::Discovery(DiscoveryStep::CountSlaves) => 1,
             Phase::Drift(DriftStep::Burst, _) => 1,
             // REQ-DC-131: the 0x0920 reads depend on the AL states, so no frame mixes the two:
             // a frame from the AL half ends with its last AL read.

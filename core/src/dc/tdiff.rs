@@ -1088,7 +1088,7 @@ mod tests {
 #[cfg(test)]
 mod recovery_tests {
     use super::DL_CONTROL;
-    use crate::dc::{Config, Machine};
+    use crate::dc::{Config, Machine, State};
     use crate::time::SystemTime;
     use crate::wire::{Command, EthernetFrame};
 
@@ -1110,5 +1110,22 @@ mod recovery_tests {
             (d.command(), d.adp(), d.ado()),
             (Ok(Command::Fpwr), 0x1002, DL_CONTROL)
         );
+        // Its reply ends the recovery whatever its working counter (here 0: the slave is
+        // gone); the count follows in the next frame and counts from its own reply.
+        let mut reply = buf[..n].to_vec();
+        let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+        eth.mark_processed_by_slave();
+        m.handle_frame(SystemTime(1_000), &reply);
+        assert_eq!(m.sh.tdiff.pending, None);
+        let n = m.poll_transmit(SystemTime(2_000), &mut buf).unwrap();
+        let mut reply = buf[..n].to_vec();
+        let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+        eth.mark_processed_by_slave();
+        let mut frame = eth.ecat_frame_mut().unwrap();
+        let mut d = frame.iter_mut().next().unwrap().unwrap();
+        assert_eq!((d.command(), d.ado()), (Ok(Command::Brd), 0x0000));
+        d.set_wkc(3);
+        m.handle_frame(SystemTime(3_000), &reply);
+        assert_eq!((m.state(), m.sh.line.count), (State::AssignAddresses, 3));
     }
 }
