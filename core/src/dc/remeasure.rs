@@ -50,19 +50,25 @@ impl<const N: usize> CyclicCx<'_, N> {
             self.c.rm_cursor = 0;
             self.c.rm_error = None;
         }
-        let len = self.remeasure_len();
-        let mut pos = self.c.rm_cursor;
+        // A range, not a loop condition: the walk ends after `len` positions whatever else
+        // happens. `sent_to`: the first position not sent this cycle.
+        let start = self.c.rm_cursor;
+        let mut sent_to = start.max(self.remeasure_len());
         let mut pushed = 0u16;
-        while pos < len && pushed < PER_CYCLE {
+        for pos in start..sent_to {
+            if pushed == PER_CYCLE {
+                sent_to = pos;
+                break;
+            }
             if let Some(op) = self.remeasure_op(pos) {
                 if !self.sh.push_op(b, op, Tag::CycRemeasure(pos)) {
+                    sent_to = pos;
                     break;
                 }
                 pushed = pushed.saturating_add(1);
             }
-            pos = pos.saturating_add(1);
         }
-        self.c.rm_sent_to = pos;
+        self.c.rm_sent_to = sent_to;
     }
 
     pub(crate) fn remeasure_reply(&mut self, r: Reply<'_>) {
