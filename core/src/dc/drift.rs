@@ -575,6 +575,25 @@ mod tests {
         assert_eq!(m.state(), State::DriftCheck);
     }
 
+    /// While a burst frame's reply is awaited the next deadline is the reply's, even when the
+    /// pause before the burst's last frame would end sooner.
+    #[test]
+    fn awaited_reply_outranks_the_burst_pause() {
+        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
+        m.sh.cfg.drift.burst_frames = 3;
+        m.sh.cfg.drift.check_pause_ns = 50_000;
+        m.enter(State::DriftBurst);
+        let mut buf = [0u8; 1514];
+        for t in [1_000_000u64, 1_010_000] {
+            let n = m.poll_transmit(SystemTime(t), &mut buf).unwrap();
+            let timeout = m.sh.cfg.response_timeout_ns;
+            assert_eq!(m.poll_timeout(), Some(SystemTime(t + timeout)));
+            answer(&mut m, SystemTime(t), &buf[..n], 2);
+        }
+        // Answered: the pause before the last frame is the deadline.
+        assert_eq!(m.poll_timeout(), Some(SystemTime(1_060_000)));
+    }
+
     /// A check frame keeps room for its closing FRMW: in a buffer that holds the BRD, two
     /// FPRDs and an FRMW (16 + 16 + 16 + 20 bytes of datagrams), a third FPRD would fit but
     /// leave the FRMW out, so the frame stops before it.

@@ -633,3 +633,85 @@ fn system_time_probe_reads_dc_slaves_only() {
     assert!(reply(&mut m, 0, 2).is_err());
     assert_eq!(m.sh.line.slaves[0].dc, DcKind::Bits64);
 }
+
+/// A slave's t_Diff override replaces the configured value and returns the one it replaced;
+/// a position beyond the capacity is refused.
+// verifies: REQ-DC-015
+#[test]
+fn t_diff_overrides_fall_back_to_the_config() {
+    let mut m: Machine<4> = Machine::new(Config {
+        t_diff_ns: 20,
+        ..Config::default()
+    })
+    .unwrap();
+    assert_eq!(m.set_slave_t_diff(1, Some(-40)), Ok(None));
+    assert_eq!(m.set_slave_t_diff(1, Some(45)), Ok(Some(-40)));
+    assert_eq!(m.set_slave_t_diff(4, Some(1)), Err(ConfigError::Capacity));
+    assert_eq!(
+        (m.slave_t_diff(0), m.slave_t_diff(1), m.slave_t_diff(4)),
+        (20, 45, 20)
+    );
+    assert_eq!(m.set_slave_t_diff(1, None), Ok(Some(45)));
+    assert_eq!(m.slave_t_diff(1), 20);
+}
+
+/// The reference is known once a slave with a system time is; the SYNC start once chosen.
+#[test]
+fn reference_and_sync_start_getters() {
+    let mut m = machine();
+    assert_eq!((m.reference(), m.sync_start()), (None, None));
+    m.sh.line.count = 4;
+    m.sh.line.sys_count = 3;
+    m.sh.line.reference = 2;
+    m.sh.line.sync_start = Some(SystemTime(T0));
+    assert_eq!(m.reference(), Some(2));
+    assert_eq!(m.sync_start(), Some(SystemTime(T0)));
+}
+
+/// REQ-DC-113: a frame that answers only some of a step's datagrams does not complete the
+/// step; it completes when the rest are answered.
+// verifies: REQ-DC-113
+#[test]
+fn a_partial_reply_does_not_complete_the_step() {
+    let mut m = machine();
+    let mut buf = [0u8; 1514];
+    m.start(SystemTime(T0));
+    let mut t = T0;
+    // Count two slaves and address them.
+    for _ in 0..2 {
+        let n = m.poll_transmit(SystemTime(t), &mut buf).unwrap();
+        let wkc = if m.state() == State::CountSlaves {
+            2
+        } else {
+            1
+        };
+        m.handle_frame(SystemTime(t + 1_000), &reply(&buf[..n], wkc));
+        t += 2_000;
+    }
+    assert_eq!(m.state(), State::ReadInfo);
+    let n = m.poll_transmit(SystemTime(t), &mut buf).unwrap();
+    let sent = buf[..n].to_vec();
+    assert!(datagrams(&sent).len() >= 2);
+    // The first datagram alone, answered.
+    let eth = EthernetFrame::new_checked(&sent[..]).unwrap();
+    let ecat = eth.ecat_frame().unwrap();
+    let first = ecat.iter().next().unwrap().unwrap();
+    let mut part = [0u8; 1514];
+    let mut b = FrameBuilder::new(&mut part).unwrap();
+    let address = Address::configured(first.adp(), first.ado());
+    b.push(
+        first.command().unwrap(),
+        first.index(),
+        address,
+        first.data(),
+    )
+    .unwrap();
+    let len = b.finish().unwrap();
+    m.handle_frame(SystemTime(t + 1_000), &reply(&part[..len], 1));
+    assert_eq!(m.state(), State::ReadInfo);
+    assert!(m.is_awaiting_reply());
+    // The whole frame answers the rest (its first datagram is no longer awaited).
+    m.handle_frame(SystemTime(t + 1_500), &reply(&sent, 1));
+    assert!(!m.is_awaiting_reply());
+    assert_eq!(m.stats().foreign_datagrams, 1);
+}
