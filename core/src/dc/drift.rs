@@ -594,6 +594,50 @@ mod tests {
         assert_eq!(m.poll_timeout(), Some(SystemTime(1_060_000)));
     }
 
+    /// The FRMW closing a check frame is checked like any reply: a working counter other than
+    /// the number of slaves with a system time fails the chunk, which is sent again.
+    #[test]
+    fn closing_frmw_with_a_wrong_wkc_is_retried() {
+        for (frmw_wkc, retries) in [(40, 0), (39, 1)] {
+            let mut m = in_check::<64>(40, DriftCheck::Both);
+            let mut buf = [0u8; 1514];
+            let now = SystemTime::from_nanos(1_000_000);
+            let n = m.poll_transmit(now, &mut buf).unwrap();
+            let mut reply = buf[..n].to_vec();
+            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
+            eth.mark_processed_by_slave();
+            for d in eth.ecat_frame_mut().unwrap().iter_mut() {
+                let mut d = d.unwrap();
+                let wkc = match d.command().unwrap() {
+                    Command::Fprd => 1,
+                    Command::Frmw => frmw_wkc,
+                    _ => 40,
+                };
+                d.set_wkc(wkc);
+            }
+            m.handle_frame(now, &reply);
+            assert_eq!(m.stats().retries, retries, "FRMW WKC {frmw_wkc}");
+        }
+    }
+
+    /// A caller's frame with room for the closing FRMW but not for a read beside it gets
+    /// nothing: no lone FRMW, and no `BufferTooSmall` (the frame was not empty).
+    #[test]
+    fn no_lone_frmw_in_a_full_caller_frame() {
+        let mut m = in_check::<4>(2, DriftCheck::Both);
+        let mut buf = [0u8; 1514];
+        let mut b = crate::wire::FrameBuilder::new(&mut buf).unwrap();
+        // 1 514 − 14 − 2 − 12 − 1 461 = 25 bytes left: an FRMW (20) fits, a BRD (16) and an
+        // FRMW do not.
+        let data = [0u8; 1461];
+        b.push(Command::Lrw, 1, crate::wire::Address::logical(0), &data)
+            .unwrap();
+        assert!(!m.poll_transmit_into(SystemTime(1_000_000), &mut b));
+        assert_eq!(b.datagram_count(), 1);
+        assert!(m.poll_event().is_none());
+        assert!(!m.is_awaiting_reply());
+    }
+
     /// A check frame keeps room for its closing FRMW: in a buffer that holds the BRD, two
     /// FPRDs and an FRMW (16 + 16 + 16 + 20 bytes of datagrams), a third FPRD would fit but
     /// leave the FRMW out, so the frame stops before it.

@@ -949,13 +949,7 @@ impl<const N: usize> Machine<N> {
                     .in_cyclic(now, |cx| cx.fill_cyclic(now, b, into_caller))
                     .unwrap_or(false);
             }
-            let count = self.item_count();
-            while self.sh.step.cursor < count
-                && matches!(self.item(now, self.sh.step.cursor), Item::Skip)
-            {
-                self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
-            }
-            if self.sh.step.cursor < count {
+            if self.skip_to_item(now) {
                 break;
             }
             self.step_done(now);
@@ -1006,7 +1000,8 @@ impl<const N: usize> Machine<N> {
 
     #[inline]
     fn on_reply(&mut self, now: SystemTime, p: Pending, wkc: u16, data: &[u8]) {
-        // The cyclic path first (neither guard below holds in `Cyclic`).
+        // The cyclic path first (neither guard below holds in `Cyclic`; a cyclic reply is
+        // tagged for the cycle, never `Item`).
         if self.phase.is_cyclic() {
             self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
             return;
@@ -1030,9 +1025,6 @@ impl<const N: usize> Machine<N> {
                     self.sh.step.error.get_or_insert(e);
                 }
             }
-            _ if self.phase.is_cyclic() => {
-                self.in_cyclic(now, |cx| cx.on_cyclic_reply(now, p, wkc, data));
-            }
             _ => {}
         }
     }
@@ -1042,15 +1034,20 @@ impl<const N: usize> Machine<N> {
             return self.retry_or_fail(now, e);
         }
         self.sh.step.tries = 0;
+        if !self.skip_to_item(now) {
+            self.step_done(now);
+        }
+    }
+
+    /// Moves the cursor past the items with nothing to send; whether an item is left.
+    fn skip_to_item(&mut self, now: SystemTime) -> bool {
         let count = self.item_count();
         while self.sh.step.cursor < count
             && matches!(self.item(now, self.sh.step.cursor), Item::Skip)
         {
             self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
         }
-        if self.sh.step.cursor >= count {
-            self.step_done(now);
-        }
+        self.sh.step.cursor < count
     }
 
     /// Positions `0..count`, as u16.

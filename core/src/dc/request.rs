@@ -555,6 +555,34 @@ mod tests {
         assert!(t.entries.iter().all(Option::is_none));
     }
 
+    /// A table is cleared until a slot is used, and stays used after its entry is taken,
+    /// until `clear`. `mark_filled` counts slots written directly, only into a cleared table
+    /// and only up to its size.
+    #[test]
+    fn cleared_and_filled() {
+        let mut t = Inflight::new(0x80);
+        assert!(t.is_cleared());
+        let p = pending(0x80, 0x1001);
+        assert!(t.insert(p));
+        assert!(!t.is_cleared());
+        let r = reply(&p);
+        let d = Datagram::new_checked(&r[..]).unwrap();
+        assert_eq!(t.take_match(d.header_bytes().unwrap()), Some(p));
+        assert!(t.is_empty() && !t.is_cleared(), "a slot was used");
+        assert!(!t.mark_filled(1), "not cleared");
+        t.clear();
+        assert!(!t.mark_filled(MAX_INFLIGHT + 1), "more than its size");
+        assert!(t.is_cleared());
+        for (i, e) in t.entries.iter_mut().take(3).enumerate() {
+            *e = Some(pending(0x80 + i as u8, 0x1001 + i as u16));
+        }
+        assert!(t.mark_filled(3));
+        assert_eq!(t.fresh_len(), Some(3));
+        assert!(!t.is_cleared());
+        t.clear();
+        assert!(t.mark_filled(MAX_INFLIGHT));
+    }
+
     /// `le` reads 2, 4 and 8 bytes and any other length up to 8, and refuses a length mismatch.
     #[test]
     fn le_widths() {
