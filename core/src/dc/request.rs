@@ -562,6 +562,7 @@ mod tests {
     fn cleared_and_filled() {
         let mut t = Inflight::new(0x80);
         assert!(t.is_cleared());
+        assert_eq!(t.fresh_len(), None, "nothing filled");
         let p = pending(0x80, 0x1001);
         assert!(t.insert(p));
         assert!(!t.is_cleared());
@@ -579,6 +580,13 @@ mod tests {
         assert!(t.mark_filled(3));
         assert_eq!(t.fresh_len(), Some(3));
         assert!(!t.is_cleared());
+        // Only as filled: not once an entry is taken, nor with the hint moved.
+        let mut taken = t.clone();
+        assert!(taken.take_at(0).is_some());
+        assert_eq!(taken.fresh_len(), None);
+        let mut moved = t.clone();
+        moved.hint = 1;
+        assert_eq!(moved.fresh_len(), None);
         t.clear();
         assert!(t.mark_filled(MAX_INFLIGHT));
     }
