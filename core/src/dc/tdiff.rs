@@ -1074,6 +1074,101 @@ mod tests {
     }
     use super::mean;
 
+    /// The stamp helpers: a wrapping difference of one slave's port times, and whether a
+    /// port's stamp changed between two reads.
+    #[test]
+    fn stamp_difference_and_change() {
+        let t = [0xFFFF_FF00u32, 0x0000_0100, 7, 7];
+        assert_eq!(diff(&t, Port::P1, Port::P0), 0x200);
+        assert_eq!(diff(&t, Port::P0, Port::P1), -0x200);
+        assert_eq!(diff(&t, Port::P2, Port::P3), 0);
+        let prev = [0xFFFF_FF00u32, 0x0000_00FF, 7, 8];
+        assert!(!changed(&t, &prev, Port::P0));
+        assert!(changed(&t, &prev, Port::P1));
+        assert!(changed(&t, &prev, Port::P3));
+    }
+
+    fn measure(parent: u16) -> Plan {
+        Plan::Measure {
+            parent,
+            q: Port::P0,
+            p: Port::P1,
+            entry: Port::P0,
+            last: Port::P0,
+            close: crate::dc::port::PortSet::EMPTY,
+            end: parent + 2,
+        }
+    }
+
+    /// Targets are found in position order from where the search starts; `forget` and
+    /// `clear` drop the plans, and only `clear` keeps what survives a bring-up.
+    #[test]
+    fn plans_targets_and_resets() {
+        let mut t = Tdiff::<6>::new();
+        t.plan[2] = measure(1);
+        t.plan[4] = measure(3);
+        t.plan[5] = Plan::Done { mean: Some(3) };
+        assert_eq!(t.plan_of(2), measure(1));
+        assert_eq!(t.plan_of(9), Plan::Skip);
+        assert_eq!(
+            [0, 2, 3, 5, 6].map(|f| t.next_target(f)),
+            [Some(2), Some(2), Some(4), None, None]
+        );
+        t.pending = Some((0x1003, 0x0F00));
+        t.kept[1] = Some((0x0111, 12));
+        t.kept_count = 6;
+        t.running = true;
+        t.closed = 5;
+        t.rtt[2] = 9;
+        let mut cleared = t.clone();
+        cleared.clear();
+        assert_eq!(cleared.next_target(0), None);
+        assert_eq!(
+            (cleared.running, cleared.closed, cleared.rtt[2]),
+            (false, 0, 0)
+        );
+        assert_eq!(
+            (cleared.kept[1], cleared.kept_count),
+            (Some((0x0111, 12)), 6)
+        );
+        t.forget();
+        assert_eq!(t.next_target(0), None);
+        assert_eq!((t.running, t.closed, t.rtt[2]), (false, 0, 0));
+        assert_eq!((t.kept[1], t.kept_count), (None, 0));
+        assert_eq!(
+            t.pending,
+            Some((0x1003, 0x0F00)),
+            "a closed port is still reopened"
+        );
+    }
+
+    /// A slave's own override wins over a per-type entry; a type without an entry has none.
+    #[test]
+    fn configured_override_then_type() {
+        let mut cfg = TdiffConfig::default();
+        cfg.types[1] = Some(crate::dc::TdiffType {
+            esc_type: 0x0111,
+            t_diff_ns: 25,
+        });
+        let of_type = |esc_type| SlaveInfo {
+            esc_type,
+            ..SlaveInfo::default()
+        };
+        let overrides = [None, Some(-7)];
+        assert_eq!(configured(&overrides, &cfg, 0, &of_type(0x0111)), Some(25));
+        assert_eq!(configured(&overrides, &cfg, 1, &of_type(0x0111)), Some(-7));
+        assert_eq!(configured(&overrides, &cfg, 0, &of_type(0x0222)), None);
+        assert_eq!(configured(&overrides, &cfg, 5, &of_type(0x0222)), None);
+        // The machine's view: its per-slave overrides and its configuration.
+        let mut m = Machine::<4>::new(crate::dc::Config::default()).unwrap();
+        m.set_slave_t_diff(1, Some(-7)).unwrap();
+        let s = of_type(0x0111);
+        assert_eq!(
+            (m.configured_t_diff(0, &s), m.configured_t_diff(1, &s)),
+            (None, Some(-7))
+        );
+    }
+
     #[test]
     fn mean_rounds_to_nearest() {
         assert_eq!(mean(80 * 16, 16), Some(80));
