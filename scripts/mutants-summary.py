@@ -1,10 +1,14 @@
 #!/usr/bin/env python3
 """Summarise cargo-mutants runs (benches/results/mutants.md, issue #17 deliverable 4).
 
-usage: scripts/mutants-summary.py [--tsv] SOURCE... > table
+usage: scripts/mutants-summary.py [--tsv] [--killed KILLED.tsv] SOURCE... > table
 
 Each SOURCE is a cargo-mutants `--output` directory (the one holding mutants.out/) or a TSV
-written by `--tsv` (earlier results). A mutant named in several sources takes its outcome from
+written by `--tsv` (earlier results). KILLED lists mutants a run missed and a test added
+since kills, verified by applying the mutation by hand and running core's tests (columns:
+mutant name as the run printed it, the test); they count as `killed` (caught since), a column
+of its own, and the TSV keeps the run's own outcome. A second column starting `gone:` says
+why the mutant no longer exists (the code was rewritten); such mutants are not counted. A mutant named in several sources takes its outcome from
 the last one, so `mutants.tsv NEW_DIR` updates the committed results with a re-run; a run
 directory also replaces earlier rows of the same file and mutation text at other line numbers
 (a re-run at a later commit, where lines moved).
@@ -61,33 +65,63 @@ def text(name):
 
 
 def score(c):
-    viable = c["caught"] + c["missed"] + c["timeout"]
-    return f"{c['caught']}/{viable} = {100 * c['caught'] / viable:.0f} %" if viable else "-"
+    """(caught + killed since) / viable, as a fraction and a percentage."""
+    caught = c["caught"] + c["killed"]
+    viable = caught + c["missed"] + c["timeout"]
+    return f"{caught}/{viable} = {100 * caught / viable:.0f} %" if viable else "-"
+
+
+def killed(path):
+    """KILLED file: mutant name -> `killed`, or `gone` when the second column starts with
+    `gone:` (the code was rewritten so that the mutant no longer exists; not counted)."""
+    if path is None:
+        return {}
+    out = {}
+    for line in Path(path).read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            name, why = line.split("\t", 1)
+            out[name] = "gone" if why.startswith("gone:") else "killed"
+    return out
 
 
 def main(argv):
     tsv = "--tsv" in argv
-    rows = load([a for a in argv if a != "--tsv"])
+    argv = [a for a in argv if a != "--tsv"]
+    kill_file = None
+    if "--killed" in argv:
+        i = argv.index("--killed")
+        kill_file = argv[i + 1]
+        del argv[i:i + 2]
+    rows = load(argv)
     if tsv:
         print("file\tline\toutcome\tmutant")
         for f, line, k, name in rows:
             print(f"{f}\t{line}\t{k}\t{name}")
         return
+    dead = killed(kill_file)
+    unknown = set(dead) - {name for *_, name in rows}
+    if unknown:
+        sys.exit(f"--killed names mutants no source has: {sorted(unknown)[:3]}")
+    rows = [(f, ln, dead[name] if k in ("missed", "timeout") and name in dead else k, name)
+            for f, ln, k, name in rows]
     per_file, per_area = defaultdict(Counter), defaultdict(Counter)
     for f, _, k, _ in rows:
         per_file[f][k] += 1
         per_area[area(f)][k] += 1
-    head = "| {} | caught | missed | timeout | unviable | caught / viable |\n|---|---|---|---|---|---|"
+    head = ("| {} | caught | killed since | missed | timeout | unviable | caught / viable |\n"
+            "|---|---|---|---|---|---|---|")
+
+    def row(label, c):
+        return (f"| {label} | {c['caught']} | {c['killed']} | {c['missed']} | {c['timeout']} "
+                f"| {c['unviable']} | {score(c)} |")
     print(head.format("file"))
     for f in sorted(per_file):
-        c = per_file[f]
-        print(f"| `{f}` | {c['caught']} | {c['missed']} | {c['timeout']} | {c['unviable']} | {score(c)} |")
+        print(row(f"`{f}`", per_file[f]))
     print()
     print(head.format("area"))
     for a in ("dc/", "wire/", "servo/", "num+time"):
-        c = per_area[a]
-        if sum(c.values()):
-            print(f"| {a} | {c['caught']} | {c['missed']} | {c['timeout']} | {c['unviable']} | {score(c)} |")
+        if sum(per_area[a].values()):
+            print(row(a, per_area[a]))
     print()
     for f, _, k, name in rows:
         if k in ("missed", "timeout"):
