@@ -1039,14 +1039,14 @@ impl<const N: usize> Machine<N> {
         }
     }
 
-    /// Moves the cursor past the items with nothing to send; whether an item is left.
+    /// Moves the cursor past the items with nothing to send; whether an item is left. A range,
+    /// not a loop condition: at most `count` items are looked at whatever `item` says.
     fn skip_to_item(&mut self, now: SystemTime) -> bool {
         let count = self.item_count();
-        while self.sh.step.cursor < count
-            && matches!(self.item(now, self.sh.step.cursor), Item::Skip)
-        {
-            self.sh.step.cursor = self.sh.step.cursor.saturating_add(1);
-        }
+        let start = self.sh.step.cursor;
+        self.sh.step.cursor = (start..count)
+            .find(|&i| !matches!(self.item(now, i), Item::Skip))
+            .unwrap_or(count.max(start));
         self.sh.step.cursor < count
     }
 
