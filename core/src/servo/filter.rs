@@ -161,6 +161,22 @@ impl OffsetFilter {
 mod tests {
     use super::*;
 
+    /// The raw state round-trips (a rebuilt filter continues exactly as the original), and a
+    /// state outside the invariant range is clamped into it.
+    #[test]
+    fn state_round_trip_and_clamp() {
+        let mut f = OffsetFilter::new();
+        for x in [100, -40, 7_000] {
+            f.update(x);
+        }
+        let (u, y) = f.state_q16();
+        let mut g = OffsetFilter::from_state_q16(u, y);
+        assert_eq!(g, f);
+        assert_eq!(g.update(55), f.update(55));
+        let h = OffsetFilter::from_state_q16(i64::MAX, i64::MIN);
+        assert_eq!(h.state_q16(), (M_Q16, -M_Q16));
+    }
+
     #[test]
     fn unity_dc_gain_and_no_overshoot() {
         let mut f = OffsetFilter::new();
