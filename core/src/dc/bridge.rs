@@ -331,12 +331,7 @@ mod tests {
             .map(SystemTime::as_nanos)
     }
     /// DL status bits: port `n` open = bit 9+2n set (communication) and bit 8+2n clear.
-    const fn open(n: u16) -> u16 {
-        1 << (9 + 2 * n)
-    }
-    const fn closed(n: u16) -> u16 {
-        1 << (8 + 2 * n)
-    }
+    use crate::dc::testing::{closed, open};
 
     /// Two 64-bit DC slaves; slave 0 (the reference) with the given DL status, slave 1 a line
     /// end on port 0. `times_before` differ from every value used after the trigger.

@@ -446,14 +446,10 @@ mod tests {
         m.sh.line.sys_count = 2;
         let mut buf = [0u8; 1514];
         let n = m.poll_transmit(SystemTime(1_000_000), &mut buf).unwrap();
-        let eth = EthernetFrame::new_checked(&buf[..n]).unwrap();
-        let fprds: std::vec::Vec<u16> = eth
-            .ecat_frame()
-            .unwrap()
-            .iter()
-            .map(|d| d.unwrap())
-            .filter(|d| d.command().unwrap() == Command::Fprd)
-            .map(|d| d.adp())
+        let fprds: std::vec::Vec<u16> = crate::dc::testing::headers(&buf[..n])
+            .into_iter()
+            .filter(|h| h.0 == Command::Fprd)
+            .map(|h| h.1)
             .collect();
         assert_eq!(fprds, [0x1000, 0x1002]);
     }
@@ -520,15 +516,9 @@ mod tests {
         assert_eq!(m.phase.drift_gate().unwrap().frames, 1);
     }
 
-    /// The slaves' answer to `frame`: processed, WKC `wkc` on every datagram.
+    /// The slaves' answer to `frame`, WKC `wkc` on every datagram, handed to `m`.
     fn answer(m: &mut Machine<4>, now: SystemTime, frame: &[u8], wkc: u16) {
-        let mut reply = frame.to_vec();
-        let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
-        eth.mark_processed_by_slave();
-        for d in eth.ecat_frame_mut().unwrap().iter_mut() {
-            d.unwrap().set_wkc(wkc);
-        }
-        m.handle_frame(now, &reply);
+        m.handle_frame(now, &crate::dc::testing::answer(frame, |_| wkc));
     }
 
     /// Polls every 10 µs from 1 ms while the machine stays in `state`; when each frame went
@@ -548,16 +538,22 @@ mod tests {
         sent
     }
 
+    /// Two slaves in a burst of 3 frames, the last paused until 50 µs after the one before.
+    fn in_burst() -> Machine<4> {
+        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
+        m.sh.cfg.drift.burst_frames = 3;
+        m.sh.cfg.drift.check_pause_ns = 50_000;
+        m.enter(State::DriftBurst);
+        m
+    }
+
     /// A burst is `burst_frames` FRMW frames back to back, its last one held back until
     /// `check_pause_ns` after the one before (REQ-DC-104); once a check has passed, a burst is
     /// that one paused frame.
     // verifies: REQ-DC-104
     #[test]
     fn burst_sends_its_frames_then_a_paused_last() {
-        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
-        m.sh.cfg.drift.burst_frames = 3;
-        m.sh.cfg.drift.check_pause_ns = 50_000;
-        m.enter(State::DriftBurst);
+        let mut m = in_burst();
         assert_eq!(m.drift_count(crate::dc::phase::DriftStep::Burst), 3);
         let times = send_times(&mut m, State::DriftBurst);
         assert_eq!(times, [1_000_000, 1_010_000, 1_060_000]);
@@ -579,10 +575,7 @@ mod tests {
     /// pause before the burst's last frame would end sooner.
     #[test]
     fn awaited_reply_outranks_the_burst_pause() {
-        let mut m = in_check::<4>(2, DriftCheck::PerSlave);
-        m.sh.cfg.drift.burst_frames = 3;
-        m.sh.cfg.drift.check_pause_ns = 50_000;
-        m.enter(State::DriftBurst);
+        let mut m = in_burst();
         let mut buf = [0u8; 1514];
         for t in [1_000_000u64, 1_010_000] {
             let n = m.poll_transmit(SystemTime(t), &mut buf).unwrap();
@@ -603,18 +596,11 @@ mod tests {
             let mut buf = [0u8; 1514];
             let now = SystemTime::from_nanos(1_000_000);
             let n = m.poll_transmit(now, &mut buf).unwrap();
-            let mut reply = buf[..n].to_vec();
-            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
-            eth.mark_processed_by_slave();
-            for d in eth.ecat_frame_mut().unwrap().iter_mut() {
-                let mut d = d.unwrap();
-                let wkc = match d.command().unwrap() {
-                    Command::Fprd => 1,
-                    Command::Frmw => frmw_wkc,
-                    _ => 40,
-                };
-                d.set_wkc(wkc);
-            }
+            let reply = crate::dc::testing::answer(&buf[..n], |cmd| match cmd {
+                Command::Fprd => 1,
+                Command::Frmw => frmw_wkc,
+                _ => 40,
+            });
             m.handle_frame(now, &reply);
             assert_eq!(m.stats().retries, retries, "FRMW WKC {frmw_wkc}");
         }

@@ -185,26 +185,14 @@ pub(crate) fn store_latch_reply<const N: usize>(
 mod tests {
     //! The latch round's own checks on a machine put straight into its step.
     use crate::dc::slave::DcKind;
+    use crate::dc::testing;
     use crate::dc::{Config, Machine, State};
     use crate::time::SystemTime;
-    use crate::wire::{Command, EthernetFrame};
+    use crate::wire::Command;
 
     /// A line of a 64-bit DC slave, a slave without DC and another 64-bit DC slave.
     fn line() -> Machine<4> {
-        let mut m = Machine::<4>::new(Config::default()).unwrap();
-        m.sh.line.count = 3;
-        m.sh.line.sys_count = 2;
-        for (i, (s, dc)) in
-            m.sh.line
-                .slaves
-                .iter_mut()
-                .zip([DcKind::Bits64, DcKind::None, DcKind::Bits64])
-                .enumerate()
-        {
-            s.station = 0x1001 + u16::try_from(i).unwrap();
-            s.dc = dc;
-        }
-        m
+        testing::line(&[DcKind::Bits64, DcKind::None, DcKind::Bits64])
     }
 
     /// The latch trigger (BWR 0x0900) is counted by every slave it reaches, and at least by
@@ -226,14 +214,10 @@ mod tests {
             let mut buf = [0u8; 1514];
             let now = SystemTime(1_000_000);
             let n = m.poll_transmit(now, &mut buf).unwrap();
-            let mut reply = buf[..n].to_vec();
-            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
-            eth.mark_processed_by_slave();
-            for d in eth.ecat_frame_mut().unwrap().iter_mut() {
-                let mut d = d.unwrap();
-                assert_eq!(d.command(), Ok(Command::Bwr));
-                d.set_wkc(wkc);
-            }
+            let reply = testing::answer(&buf[..n], |cmd| {
+                assert_eq!(cmd, Command::Bwr);
+                wkc
+            });
             m.handle_frame(now, &reply);
             assert_eq!(m.state(), next, "WKC {wkc}");
         }

@@ -57,6 +57,8 @@ pub mod stations;
 mod steps;
 pub mod tdiff;
 #[cfg(test)]
+mod testing;
+#[cfg(test)]
 mod tests;
 mod timer;
 mod work;

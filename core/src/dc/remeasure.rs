@@ -163,27 +163,16 @@ mod tests {
     //! The datagrams of each re-measurement step, on a machine put straight into `Cyclic`.
     use super::*;
     use crate::dc::slave::DcKind;
-    use crate::dc::timer::Timer;
-    use crate::dc::{Config, Event, Machine, State};
+    use crate::dc::testing::{self, closed, open};
+    use crate::dc::{Event, Machine, State};
     use crate::time::SystemTime;
     use crate::wire::{Command, EthernetFrame};
 
     /// What `remeasure_op` gives at positions 0..3 of a line of a 64-bit DC slave whose delay
     /// is unchanged, a slave without DC and a 64-bit DC slave whose delay changed.
     fn ops(step: Remeasure) -> [Option<Op>; 3] {
-        let mut m = Machine::<4>::new(Config::default()).unwrap();
-        m.phase = m.phase.enter(State::Cyclic);
-        m.sh.line.count = 3;
-        m.sh.line.sys_count = 2;
-        for (i, (s, dc)) in
-            m.sh.line
-                .slaves
-                .iter_mut()
-                .zip([DcKind::Bits64, DcKind::None, DcKind::Bits64])
-                .enumerate()
-        {
-            s.station = 0x1001 + u16::try_from(i).unwrap();
-            s.dc = dc;
+        let mut m = testing::in_cyclic::<4>(&[DcKind::Bits64, DcKind::None, DcKind::Bits64]);
+        for (i, s) in m.sh.line.slaves.iter_mut().take(3).enumerate() {
             s.delay_ns = 100;
             s.delay_new = if i == 2 { 130 } else { 100 };
         }
@@ -211,29 +200,15 @@ mod tests {
         assert_eq!(ops(Remeasure::Write), [None, None, write]);
     }
 
-    /// DL status bits: port `n` open (loop open, communication) or closed.
-    const fn open(n: u16) -> u16 {
-        1 << (9 + 2 * n)
-    }
-    const fn closed(n: u16) -> u16 {
-        1 << (8 + 2 * n)
-    }
-
     /// Two 64-bit DC slaves in a line, in `Cyclic`: slave 0 (the reference) with ports 0 and
     /// 1 open, slave 1 a line end; slave 1's delay was `old_delay` ns.
     fn line_in_cyclic(old_delay: u32) -> Machine<4> {
-        let mut m = Machine::<4>::new(Config::default()).unwrap();
-        m.phase = m.phase.enter(State::Cyclic);
-        m.sh.timers.set(Timer::Cycle, SystemTime(0));
-        m.sh.line.count = 2;
-        m.sh.line.sys_count = 2;
+        let mut m = testing::in_cyclic::<4>(&[DcKind::Bits64; 2]);
         let dl = [
             open(0) | open(1) | closed(2) | closed(3),
             open(0) | closed(1) | closed(2) | closed(3),
         ];
         for (i, (s, dl)) in m.sh.line.slaves.iter_mut().zip(dl).enumerate() {
-            s.station = 0x1001 + u16::try_from(i).unwrap();
-            s.dc = DcKind::Bits64;
             s.dl_status = dl;
             s.delay_ns = if i == 1 { old_delay } else { 0 };
         }
@@ -356,32 +331,18 @@ mod tests {
     /// follow in the next cycle, and only then does the step move on (to the trigger).
     #[test]
     fn at_most_eight_remeasurement_datagrams_a_cycle() {
-        let mut m = Machine::<16>::new(Config::default()).unwrap();
-        m.phase = m.phase.enter(State::Cyclic);
-        m.sh.timers.set(Timer::Cycle, SystemTime(0));
-        m.sh.line.count = 10;
-        m.sh.line.sys_count = 10;
-        for (i, s) in m.sh.line.slaves.iter_mut().take(10).enumerate() {
-            s.station = 0x1001 + u16::try_from(i).unwrap();
-            s.dc = DcKind::Bits64;
-        }
+        let mut m = testing::in_cyclic::<16>(&[DcKind::Bits64; 10]);
         m.request_delay_measurement();
         let mut buf = [0u8; 1514];
         let mut cycle = |m: &mut Machine<16>, k: u64| {
             let now = SystemTime(1_000_000_000 + k * 1_000_000);
             let n = m.poll_transmit(now, &mut buf).unwrap();
-            let mut reply = buf[..n].to_vec();
-            let mut eth = EthernetFrame::new_unchecked(&mut reply[..]);
-            eth.mark_processed_by_slave();
-            let mut sent = std::vec::Vec::new();
-            for d in eth.ecat_frame_mut().unwrap().iter_mut() {
-                let mut d = d.unwrap();
-                let cmd = d.command().unwrap();
-                if d.ado() == 0x0900 {
-                    sent.push((cmd, d.adp()));
-                }
-                d.set_wkc(if cmd == Command::Fprd { 1 } else { 10 });
-            }
+            let sent: std::vec::Vec<_> = testing::headers(&buf[..n])
+                .into_iter()
+                .filter(|h| h.2 == 0x0900)
+                .map(|h| (h.0, h.1))
+                .collect();
+            let reply = testing::answer(&buf[..n], |cmd| if cmd == Command::Fprd { 1 } else { 10 });
             m.handle_frame(now.wrapping_add(10_000), &reply);
             sent
         };
