@@ -449,7 +449,7 @@ mod tests {
         let fprds: std::vec::Vec<u16> = crate::dc::testing::headers(&buf[..n])
             .into_iter()
             .filter(|h| h.0 == Command::Fprd)
-            .map(|h| h.1)
+            .map(|h| h.2)
             .collect();
         assert_eq!(fprds, [0x1000, 0x1002]);
     }

@@ -339,8 +339,8 @@ mod tests {
             let n = m.poll_transmit(now, &mut buf).unwrap();
             let sent: std::vec::Vec<_> = testing::headers(&buf[..n])
                 .into_iter()
-                .filter(|h| h.2 == 0x0900)
-                .map(|h| (h.0, h.1))
+                .filter(|h| h.3 == 0x0900)
+                .map(|h| (h.0, h.2))
                 .collect();
             let reply = testing::answer(&buf[..n], |cmd| if cmd == Command::Fprd { 1 } else { 10 });
             m.handle_frame(now.wrapping_add(10_000), &reply);

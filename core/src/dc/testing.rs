@@ -53,14 +53,20 @@ pub(crate) fn in_cyclic<const N: usize>(kinds: &[DcKind]) -> Machine<N> {
     m
 }
 
-/// Command, ADP, ADO and data length of every datagram of `frame`, in order.
-pub(crate) fn headers(frame: &[u8]) -> std::vec::Vec<(Command, u16, u16, u16)> {
+/// Command, index, ADP, ADO and data length of every datagram of `frame`, in order.
+pub(crate) fn headers(frame: &[u8]) -> std::vec::Vec<(Command, u8, u16, u16, u16)> {
     let eth = EthernetFrame::new_checked(frame).unwrap();
     let ecat = eth.ecat_frame().unwrap();
     ecat.iter()
         .map(|d| {
             let d = d.unwrap();
-            (d.command().unwrap(), d.adp(), d.ado(), d.data_len())
+            (
+                d.command().unwrap(),
+                d.index(),
+                d.adp(),
+                d.ado(),
+                d.data_len(),
+            )
         })
         .collect()
 }

@@ -25,13 +25,9 @@ fn reply(frame: &[u8], wkc: u16) -> std::vec::Vec<u8> {
 }
 
 fn datagrams(frame: &[u8]) -> std::vec::Vec<(Command, u8, u16, u16)> {
-    let eth = EthernetFrame::new_checked(frame).unwrap();
-    let f = eth.ecat_frame().unwrap();
-    f.iter()
-        .map(|d| {
-            let d = d.unwrap();
-            (d.command().unwrap(), d.index(), d.ado(), d.data_len())
-        })
+    crate::dc::testing::headers(frame)
+        .into_iter()
+        .map(|(cmd, index, _, ado, len)| (cmd, index, ado, len))
         .collect()
 }
 
