@@ -161,6 +161,17 @@ impl OffsetFilter {
 mod tests {
     use super::*;
 
+    /// `reset` forgets every sample: the next one passes through as into a new filter.
+    #[test]
+    fn reset_is_new() {
+        let mut f = OffsetFilter::new();
+        f.update(1_000);
+        f.update(900);
+        f.reset();
+        assert_eq!(f, OffsetFilter::new());
+        assert_eq!(f.update(-40), -40);
+    }
+
     /// The raw state round-trips (a rebuilt filter continues exactly as the original), and a
     /// state outside the invariant range is clamped into it.
     #[test]

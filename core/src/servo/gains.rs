@@ -211,10 +211,7 @@ impl PiGains {
         if ki <= 0 {
             return Err(GainError::KiNotPositive);
         }
-        // kp ≤ 2^33 and ki is compared before it is added, so the sum cannot overflow.
-        if ki > SUM_MAX {
-            return Err(GainError::JuryViolated);
-        }
+        // Saturating: a ki near i64::MAX gives i64::MAX, above the bound like the true sum.
         let two_kp_ki = kp.saturating_mul(2).saturating_add(ki);
         if two_kp_ki > SUM_MAX {
             return Err(GainError::JuryViolated);
@@ -254,6 +251,25 @@ impl PiGains {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pole's raw Q32 value is its fraction of one: 0.25 is 2^30.
+    #[test]
+    fn pole_q32_is_its_fraction() {
+        assert_eq!(Pole::from_micro(250_000).unwrap().q32(), 1 << 30);
+        assert_eq!(Pole::from_micro(500_000).unwrap().q32(), 1 << 31);
+    }
+
+    /// A huge Ki is refused as a Jury violation, the saturated sum included.
+    #[test]
+    fn huge_ki_violates_jury() {
+        for ki in [4 * ONE, i64::MAX / 2, i64::MAX] {
+            assert_eq!(
+                PiGains::from_q32(ONE, ki),
+                Err(GainError::JuryViolated),
+                "{ki}"
+            );
+        }
+    }
 
     fn f(q: i64) -> f64 {
         q as f64 / ONE as f64
