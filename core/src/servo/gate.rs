@@ -438,6 +438,17 @@ const WINDOW_CLAMP: i64 = 1 << 40;
 mod tests {
     use super::*;
 
+    /// Empty until the first sample, and its length counts the samples.
+    #[test]
+    fn empty_and_len() {
+        let mut g = Gate::new();
+        assert!(g.is_empty());
+        assert_eq!(g.len(), 0);
+        g.push(3);
+        assert!(!g.is_empty());
+        assert_eq!(g.len(), 1);
+    }
+
     #[test]
     fn rejects_outlier_confirms_real_change() {
         let cfg = GateConfig::with_floor(50);
