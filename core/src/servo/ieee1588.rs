@@ -285,6 +285,26 @@ impl RateEstimator {
 mod tests {
     use super::*;
 
+    /// A zero path delay (both legs 0 ns, e.g. timestamps taken at one point) is a delay, not
+    /// a negative one; one nanosecond below is refused.
+    #[test]
+    fn zero_delay_is_valid() {
+        let e = Exchange {
+            t1: 5,
+            t2: 5,
+            t3: 9,
+            t4: 9,
+        };
+        assert_eq!(mean_path_delay(&e), Ok(0));
+        let e = Exchange {
+            t1: 5,
+            t2: 5,
+            t3: 9,
+            t4: 8,
+        };
+        assert_eq!(mean_path_delay(&e), Err(PtpError::NegativeDelay));
+    }
+
     #[test]
     fn offset_delay_textbook() {
         // Slave 500 ns ahead, 1000 ns one-way delay.
