@@ -285,6 +285,28 @@ impl RateEstimator {
 mod tests {
     use super::*;
 
+    /// A rate of exactly `RATE_PPB_MAX` is accepted, one ppb more is out of range.
+    #[test]
+    fn rate_limit_is_inclusive() {
+        let ds = 1_000_000_000u64;
+        let at = ds + RATE_PPB_MAX as u64;
+        assert_eq!(rate_ratio_ppb(0, at, 0, ds), Ok(RATE_PPB_MAX));
+        assert_eq!(
+            rate_ratio_ppb(0, at + 1, 0, ds),
+            Err(PtpError::RateOutOfRange)
+        );
+    }
+
+    /// `reset` drops the anchor: the next pair starts a new interval and gives no ratio.
+    #[test]
+    fn rate_estimator_reset_drops_the_anchor() {
+        let mut est = RateEstimator::new(1);
+        assert_eq!(est.push(0, 0), None);
+        est.reset();
+        assert_eq!(est.push(5_000_000, 9_000_000), None);
+        assert!(est.push(10_000_000, 14_000_000).is_some());
+    }
+
     /// A zero path delay (both legs 0 ns, e.g. timestamps taken at one point) is a delay, not
     /// a negative one; one nanosecond below is refused.
     #[test]

@@ -604,6 +604,13 @@ mod tests {
     use super::*;
     use std::{vec, vec::Vec};
 
+    /// A new servo is not locked.
+    #[test]
+    fn new_servo_is_unlocked() {
+        let servo = MasterServo::new(MasterConfig::for_period(1_000_000).unwrap()).unwrap();
+        assert!(!servo.is_locked());
+    }
+
     /// Closed loop against a timer drifting `ppm`, no noise: locks and stays inside ±2 ns.
     fn run(ppm: i64, initial: i64) -> (MasterServo, i64) {
         let p = 1_000_000i64;
