@@ -311,20 +311,14 @@ mod tests {
     /// a negative one; one nanosecond below is refused.
     #[test]
     fn zero_delay_is_valid() {
-        let e = Exchange {
+        let legs = |t4| Exchange {
             t1: 5,
             t2: 5,
             t3: 9,
-            t4: 9,
+            t4,
         };
-        assert_eq!(mean_path_delay(&e), Ok(0));
-        let e = Exchange {
-            t1: 5,
-            t2: 5,
-            t3: 9,
-            t4: 8,
-        };
-        assert_eq!(mean_path_delay(&e), Err(PtpError::NegativeDelay));
+        assert_eq!(mean_path_delay(&legs(9)), Ok(0));
+        assert_eq!(mean_path_delay(&legs(8)), Err(PtpError::NegativeDelay));
     }
 
     #[test]
