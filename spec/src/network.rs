@@ -242,6 +242,44 @@ impl Network {
         }
     }
 
+    /// The network a frame sees while some ports are forced closed (DL control 0x0101 loop
+    /// bits): a closed port loops back inside the ESC as an unconnected one does (the
+    /// datasheet's loop-back rule), so everything behind it is cut off. `closed(i, port)`:
+    /// port `port` of ESC `i` is forced closed (an entry port cannot be: it is the way in).
+    /// Returns the reduced network, its ESCs in the original order, and the new index of every
+    /// old ESC that is kept.
+    pub fn with_closed_ports(
+        &self,
+        closed: impl Fn(usize, u8) -> bool,
+    ) -> (Network, Vec<Option<usize>>) {
+        let n = self.escs.len();
+        let cut_off = |mut i: usize| {
+            let mut steps = 0;
+            while let Some((p, port)) = self.escs[i].parent {
+                if closed(p, port) || steps > n {
+                    return true;
+                }
+                i = p;
+                steps += 1;
+            }
+            false
+        };
+        let mut map = vec![None; n];
+        let mut escs: Vec<Esc> = Vec::new();
+        for (i, slot) in map.iter_mut().enumerate() {
+            if !cut_off(i) {
+                *slot = Some(escs.len());
+                escs.push(self.escs[i].clone());
+            }
+        }
+        for e in &mut escs {
+            e.parent = e
+                .parent
+                .map(|(p, port)| (map[p].expect("the parent of a kept ESC is kept"), port));
+        }
+        (Network { escs }, map)
+    }
+
     /// Local clock value of ESC `i` at true time `t` (full width, unquantised).
     pub fn local_time(&self, i: usize, t: i128) -> i128 {
         let esc = &self.escs[i];

@@ -13,34 +13,10 @@ use ecdc_core::dc::topology::Topology;
 use ecdc_spec::esc_dc::{hop_is_processing, next_port};
 use ecdc_spec::network::{core_samples, generate, Dc, Esc, GenParams, Network, Shape, SplitMix};
 
-/// The network with `b`'s downstream ports closed: a closed port loops back inside the ESC as an
-/// unconnected one does (the datasheet's loop-back rule), so `b`'s subtree is simply gone.
-/// Returns the new network and the new index of every old ESC that is kept.
+/// The network with `b`'s downstream ports closed: `b`'s subtree is simply gone. Returns the
+/// new network and the new index of every old ESC that is kept.
 fn close_downstream(net: &Network, b: usize) -> (Network, Vec<Option<usize>>) {
-    let n = net.escs.len();
-    let below = |mut i: usize| {
-        while let Some((p, _)) = net.escs[i].parent {
-            if p == b {
-                return true;
-            }
-            i = p;
-        }
-        false
-    };
-    let mut map = vec![None; n];
-    let mut escs: Vec<Esc> = Vec::new();
-    for (i, slot) in map.iter_mut().enumerate() {
-        if !below(i) {
-            *slot = Some(escs.len());
-            escs.push(net.escs[i].clone());
-        }
-    }
-    for e in &mut escs {
-        e.parent = e
-            .parent
-            .map(|(p, port)| (map[p].expect("parent kept"), port));
-    }
-    (Network { escs }, map)
+    net.with_closed_ports(|i, port| i == b && port != net.escs[b].entry)
 }
 
 /// Open ports of `i` in processing order starting after its entry port.
