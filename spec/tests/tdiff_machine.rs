@@ -300,16 +300,18 @@ fn line(delays: &[(i128, i128, i128)]) -> Network {
     net
 }
 
-/// Six slaves with their own t_P and t_F.
+/// (t_P, t_F, cable) of six slaves with their own t_P and t_F.
+const LINE6: [(i128, i128, i128); 6] = [
+    (420, 300, 200),
+    (390, 310, 35),
+    (505, 280, 60),
+    (300, 300, 15),
+    (610, 330, 500),
+    (470, 290, 40),
+];
+
 fn line6() -> Network {
-    line(&[
-        (420, 300, 200),
-        (390, 310, 35),
-        (505, 280, 60),
-        (300, 300, 15),
-        (610, 330, 500),
-        (470, 290, 40),
-    ])
+    line(&LINE6)
 }
 
 fn truth(net: &Network, i: usize) -> i32 {
@@ -461,15 +463,7 @@ fn clock_rates_are_corrected() {
 /// measurable one), every other slave of that type takes its value.
 #[test]
 fn per_esc_type_measures_one_of_each() {
-    let net = line(&[
-        (420, 300, 200),
-        (390, 310, 35),
-        (505, 280, 60),
-        (300, 290, 15),
-        (610, 330, 500),
-        (470, 290, 40),
-        (400, 300, 40),
-    ]);
+    let net = line(&[&LINE6[..], &[(400, 300, 40)]].concat());
     let (a, b) = (0xA000, 0xB000);
     let mut ring = Ring::new(net.clone(), vec![a, a, b, a, b, b, a]);
     let mut cfg = quick();
