@@ -603,6 +603,80 @@ mod tests {
         assert_eq!(FrameBuilder::new(&mut small).err(), Some(Error::BufferFull));
     }
 
+    /// Each constructor's minimum buffer is accepted and one byte less refused: 60 bytes for
+    /// an Ethernet frame (new and resume), the 2-byte header for a UDP payload.
+    #[test]
+    fn minimum_buffers() {
+        let mut buf = [0u8; 60];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        b.push(Command::Brd, 1, Address::broadcast(0), &[0, 0])
+            .unwrap();
+        assert_eq!(b.finish(), Ok(60));
+        let mut again = buf;
+        let b = FrameBuilder::resume(&mut again).unwrap();
+        assert_eq!(b.datagram_count(), 1);
+        assert_eq!(
+            FrameBuilder::resume(&mut buf[..59]).err(),
+            Some(Error::BufferFull)
+        );
+        let mut udp = [0u8; 2];
+        assert!(FrameBuilder::new_udp_payload(&mut udp).is_ok());
+        assert_eq!(
+            FrameBuilder::new_udp_payload(&mut udp[..1]).err(),
+            Some(Error::BufferFull)
+        );
+    }
+
+    /// The MAC setters write the Ethernet header and leave a UDP payload alone; lengths and
+    /// emptiness of the frame and of each slot follow the pushes.
+    #[test]
+    fn addresses_and_lengths() {
+        let mut buf = [0u8; 100];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        assert!(b.is_empty());
+        assert_eq!(b.len(), 16);
+        b.set_destination([0x02, 1, 2, 3, 4, 5]);
+        b.set_source([0x00, 9, 8, 7, 6, 5]);
+        let full = b
+            .push_zeroed(Command::Fprd, 0, Address::configured(1, 0x0900), 8)
+            .unwrap();
+        let empty = b.push(Command::Nop, 1, Address::Raw(0), &[]).unwrap();
+        assert_eq!((full.len(), full.is_empty()), (8, false));
+        assert_eq!((empty.len(), empty.is_empty()), (0, true));
+        assert!(!b.is_empty());
+        assert_eq!(b.len(), 16 + 20 + 12);
+        b.finish().unwrap();
+        assert_eq!(buf[..12], [0x02, 1, 2, 3, 4, 5, 0x00, 9, 8, 7, 6, 5]);
+
+        let mut udp = [0x5au8; 20];
+        let mut b = FrameBuilder::new_udp_payload(&mut udp).unwrap();
+        b.set_destination([0; 6]);
+        b.set_source([0; 6]);
+        assert_eq!(b.len(), 2);
+        assert_eq!(udp[2..], [0x5a; 18]);
+    }
+
+    /// The block fast path takes a block exactly as large as the room left (the buffer or the
+    /// 1498 EtherCAT bytes, whichever is less) and refuses one byte more, a last datagram
+    /// outside the block and an empty block, changing nothing then.
+    #[test]
+    fn append_block_limits() {
+        let mut buf = [0u8; 60];
+        let mut b = FrameBuilder::new(&mut buf).unwrap();
+        let room = 60 - 16;
+        assert_eq!(b.append_block(room + 1, 1, 0), None);
+        assert_eq!(b.append_block(room, 1, room), None);
+        assert_eq!(b.append_block(room, 0, 0), None);
+        assert_eq!((b.len(), b.datagram_count()), (16, 0));
+        assert_eq!(b.append_block(room, 2, 10).map(|blk| blk.len()), Some(room));
+        assert_eq!((b.len(), b.datagram_count()), (60, 2));
+
+        let mut big = [0u8; 2000];
+        let mut b = FrameBuilder::new(&mut big).unwrap();
+        assert_eq!(b.append_block(1499, 1, 0), None, "over 1498 EtherCAT bytes");
+        assert_eq!(b.append_block(1498, 1, 0).map(|blk| blk.len()), Some(1498));
+    }
+
     #[test]
     fn rejects_bad_input() {
         let mut buf = [0u8; 1600];
