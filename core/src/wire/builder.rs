@@ -677,6 +677,69 @@ mod tests {
         assert_eq!(b.append_block(1498, 1, 0).map(|blk| blk.len()), Some(1498));
     }
 
+    /// `put_small` writes the bytes `push` writes for the same datagram (every data length up
+    /// to 8, with and without the M bit a following push would set) into a slice of exactly
+    /// that size, and refuses a slice one byte short or more than 8 data bytes, leaving the
+    /// slice as it was.
+    #[test]
+    fn put_small_equals_push() {
+        let value = 0x0807_0605_0403_0201u64;
+        let address = Address::configured(0x1001, 0x0910);
+        for len in 0..=8u16 {
+            for more in [false, true] {
+                let mut frame = [0u8; 100];
+                let mut b = FrameBuilder::new(&mut frame).unwrap();
+                let data = &value.to_le_bytes()[..usize::from(len)];
+                let s = b.push(Command::Frmw, 7, address, data).unwrap();
+                let mut d = b.datagram_mut(s).unwrap();
+                if more {
+                    d.set_len_flags(d.len_flags() | dfield::MORE);
+                }
+                let want = &frame[16..16 + 12 + usize::from(len)];
+                let mut out = [0xeeu8; 22];
+                let total = 12 + usize::from(len);
+                let mut dst = &mut out[..total];
+                assert!(put_small(
+                    &mut dst,
+                    Command::Frmw,
+                    7,
+                    address,
+                    len,
+                    more,
+                    value
+                ));
+                assert!(dst.is_empty());
+                assert_eq!(&out[..total], want, "len {len} more {more}");
+
+                let mut short = [0xeeu8; 22];
+                let mut dst = &mut short[..total - 1];
+                assert!(!put_small(
+                    &mut dst,
+                    Command::Frmw,
+                    7,
+                    address,
+                    len,
+                    more,
+                    value
+                ));
+                assert_eq!(dst.len(), total - 1);
+                assert_eq!(short, [0xee; 22]);
+            }
+        }
+        let mut out = [0u8; 40];
+        let mut dst = &mut out[..];
+        assert!(!put_small(
+            &mut dst,
+            Command::Frmw,
+            7,
+            address,
+            9,
+            false,
+            value
+        ));
+        assert_eq!(dst.len(), 40);
+    }
+
     #[test]
     fn rejects_bad_input() {
         let mut buf = [0u8; 1600];
