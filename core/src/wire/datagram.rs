@@ -579,6 +579,14 @@ mod tests {
         );
         b[6] = 0xCE; // 1486 fits in 1500 bytes
         assert!(Datagram::new_checked(&b[..]).is_ok());
+        // The checks' order: a header alone with an overlong length is too long, a buffer
+        // shorter than the header is truncated whatever its length bytes say.
+        b[6] = 0xCF;
+        assert_eq!(
+            Datagram::new_checked(&b[..10]).err(),
+            Some(Error::DatagramTooLong { len: 1487 })
+        );
+        assert_eq!(Datagram::new_checked(&b[..9]).err(), Some(Error::Truncated));
     }
 
     /// REQ-WIRE-004/013: the len/flags word decodes the same for all 2^16 values, checked
