@@ -525,6 +525,31 @@ mod tests {
         );
     }
 
+    /// The length and flag setters change their own bits of the length/flags word and keep
+    /// the others; setting a flag that is set leaves it set.
+    #[test]
+    fn length_and_flag_setters() {
+        let mut buf = FRMW;
+        let mut d = Datagram::new_unchecked(&mut buf[..]);
+        d.set_len_flags(0x5800 | 0x0123);
+        d.set_data_len(0x0FFF);
+        assert_eq!(d.len_flags(), 0x5800 | 0x07FF);
+        d.set_data_len(0x0008);
+        assert_eq!(d.len_flags(), 0x5808);
+        for _ in 0..2 {
+            d.set_more(true);
+            assert_eq!(d.len_flags(), 0xD808);
+        }
+        d.set_more(false);
+        d.set_circulating(false);
+        assert_eq!(d.len_flags(), 0x1808);
+        d.set_circulating(true);
+        assert_eq!(
+            (d.len_flags(), d.more(), d.circulating()),
+            (0x5808, false, true)
+        );
+    }
+
     #[test]
     fn display() {
         use std::string::ToString;

@@ -304,6 +304,9 @@ mod tests {
             EthernetFrame::new_checked(&b[..17]).err(),
             Some(Error::Truncated)
         );
+        // A header and nothing else is a (useless but) complete header.
+        assert!(EthernetFrame::new_checked(&b[..18]).is_ok());
+        assert!(EthernetFrame::new_checked(&frame(false)[..14]).is_ok());
     }
 
     /// REQ-WIRE-061: the processed bit round trip.
