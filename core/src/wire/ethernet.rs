@@ -309,6 +309,26 @@ mod tests {
         assert!(EthernetFrame::new_checked(&frame(false)[..14]).is_ok());
     }
 
+    /// The borrowing walk refuses another EtherType as the view's does; the EtherType setter
+    /// writes after the tag of a tagged frame.
+    #[test]
+    fn into_ecat_frame_and_ethertype() {
+        for tagged in [false, true] {
+            let mut b = frame(tagged);
+            let e = EthernetFrame::new_checked(&b[..]).unwrap();
+            assert_eq!(e.into_ecat_frame().map(|f| f.length()), Ok(14));
+            let mut e = EthernetFrame::new_checked(&mut b[..]).unwrap();
+            e.set_ethertype(0x0800);
+            assert_eq!(e.ethertype(), 0x0800);
+            assert_eq!(e.is_tagged(), tagged);
+            let e = EthernetFrame::new_checked(&b[..]).unwrap();
+            assert_eq!(
+                e.into_ecat_frame().err(),
+                Some(Error::NotEtherCat { ethertype: 0x0800 })
+            );
+        }
+    }
+
     /// REQ-WIRE-061: the processed bit round trip.
     // verifies: REQ-WIRE-061
     #[test]

@@ -957,6 +957,21 @@ mod tests {
     }
 
     /// The iterator fuses after an error.
+    /// The header setters: `set_header` keeps 11 bits of length and 4 of type with the
+    /// reserved bit clear, `set_header_raw` writes the word as given.
+    #[test]
+    fn header_setters() {
+        let mut b = [0xffu8; 2];
+        let mut f = EcatFrame::new_unchecked(&mut b[..]);
+        f.set_header(0xFFFF, 0xFF);
+        assert_eq!(f.header(), 0xF7FF);
+        f.set_header(14, 1);
+        assert_eq!((f.header(), f.length(), f.frame_type()), (0x100E, 14, 1));
+        assert!(!f.reserved());
+        f.set_header_raw(0x0800 | 0x100E);
+        assert_eq!(b, [0x0E, 0x18]);
+    }
+
     #[test]
     fn fuses() {
         let mut x = base();
