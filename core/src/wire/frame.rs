@@ -1033,6 +1033,12 @@ mod tests {
                 let f = EcatFrame::new_unchecked(&x[..]);
                 let got = f.check_len();
                 assert_eq!(got, walk(&x), "byte {at} = {v:#04x}");
+                // The fast path itself, not only its fallback, accepts what the walk accepts.
+                assert_eq!(
+                    valid_fast(&x).is_some(),
+                    got.is_ok(),
+                    "byte {at} = {v:#04x}"
+                );
                 accepted += usize::from(got.is_ok());
                 if got.is_ok() {
                     // The unvalidated split walk yields the same datagrams.
@@ -1062,6 +1068,15 @@ mod tests {
                 walk(&b[..n]),
                 "truncated to {n}"
             );
+        }
+        // One datagram of the largest data length, and one byte more.
+        for (len, ok) in [(1486u16, true), (1487, false)] {
+            let mut x = vec![0u8; 2 + 12 + usize::from(len)];
+            x[..2].copy_from_slice(&((12 + len) | 0x1000).to_le_bytes());
+            x[2] = Command::Lrd.code();
+            x[8..10].copy_from_slice(&len.to_le_bytes());
+            assert_eq!(valid_fast(&x).is_some(), ok, "{len}");
+            assert_eq!(walk(&x).is_ok(), ok, "{len}");
         }
     }
 
