@@ -867,6 +867,49 @@ mod tests {
         }
     }
 
+    /// `matches_pattern` at the EtherCAT length limit: a frame of exactly 1498 datagram bytes
+    /// matches its patterns, one of 1499 does not even where the buffer holds it all; and a
+    /// pattern that leaves the command out still refuses an unknown command code.
+    #[test]
+    fn matches_pattern_limits() {
+        let frame = |lens: &[u16]| {
+            let total: u16 = lens.iter().map(|l| l + 12).sum();
+            let mut x = vec![0u8; 2 + usize::from(total) + 8];
+            x[..2].copy_from_slice(&(total | 0x1000).to_le_bytes());
+            let mut at = 2;
+            for (i, &len) in lens.iter().enumerate() {
+                let more = if i + 1 < lens.len() { 0x8000 } else { 0 };
+                x[at] = Command::Lrd.code();
+                x[at + 6..at + 8].copy_from_slice(&(len | more).to_le_bytes());
+                at += 12 + usize::from(len);
+            }
+            x
+        };
+        let pattern = |lens: &[u16], i: usize| {
+            Some(HeaderPattern {
+                want: HeaderKey::new(Command::Lrd, 0, 0, 0, 0),
+                mask: 0xFFFF_FFFF_FFFF,
+                len: *lens.get(i)?,
+            })
+        };
+        let fits = [1486u16];
+        assert!(matches_pattern(&frame(&fits), 1, |i| pattern(&fits, i)));
+        let over = [1475u16, 0];
+        assert!(!matches_pattern(&frame(&over), 2, |i| pattern(&over, i)));
+
+        let unknown = [15u8, 0, 0, 0, 0, 0, 2, 0];
+        let any_command = HeaderPattern {
+            want: HeaderKey::new(Command::Lrd, 0, 0, 0, 0),
+            mask: 0xFFFF_FFFF_FF00,
+            len: 2,
+        };
+        assert_eq!(Command::ALL.len(), 15);
+        assert!(!any_command.matches(&unknown, false));
+        let mut known = unknown;
+        known[0] = 14;
+        assert!(any_command.matches(&known, false));
+    }
+
     fn err(b: &[u8]) -> Error {
         let e = EcatFrame::new_checked(b).unwrap_err();
         // iter on the unchecked view reports the same first error
