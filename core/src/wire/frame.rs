@@ -955,6 +955,25 @@ mod tests {
         }
     }
 
+    /// A datagram cut off by the header length reports how far the walk would have needed to
+    /// go: the whole datagram once its length word is inside the region (10 bytes left), the
+    /// minimum datagram before (8 bytes left).
+    #[test]
+    fn cut_datagram_reports_the_length_needed() {
+        for (left, walked) in [(10u16, 14 + 20), (8, 14 + 12)] {
+            let mut b = base();
+            b[..2].copy_from_slice(&((14 + left) | 0x1000).to_le_bytes());
+            assert_eq!(
+                EcatFrame::new_checked(&b[..]).err(),
+                Some(Error::LengthMismatch {
+                    header: 14 + left,
+                    walked
+                }),
+                "{left} bytes left"
+            );
+        }
+    }
+
     fn err(b: &[u8]) -> Error {
         let e = EcatFrame::new_checked(b).unwrap_err();
         // iter on the unchecked view reports the same first error
