@@ -907,6 +907,22 @@ impl ReceiveTimes {
 mod tests {
     use super::*;
 
+    /// Every typed register has a width: `len` is its byte count and it is never empty.
+    #[test]
+    fn typed_registers_have_a_width() {
+        assert_eq!(
+            (
+                typed::SYNC_ACTIVATION.len(),
+                typed::SYNC_ACTIVATION.is_empty()
+            ),
+            (1, false)
+        );
+        assert_eq!(
+            (typed::DL_STATUS.len(), typed::DL_STATUS.is_empty()),
+            (2, false)
+        );
+    }
+
     /// REQ-WIRE-073: sign-magnitude, bit 31 = local behind = negative.
     // verifies: REQ-WIRE-073
     #[test]
