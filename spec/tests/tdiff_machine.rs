@@ -354,6 +354,10 @@ fn line_measures_every_middle_slave() {
     }
     assert_eq!(ring.dl_writes, writes);
     assert!(ring.dl_control.iter().all(|&v| v == DL_CONTROL_RESET));
+    // DL control is read from the possible targets only: slaves with two open ports, not the
+    // line end.
+    let dl_reads = ring.reads.iter().filter(|&&r| r == 0x0100).count();
+    assert_eq!(dl_reads, 5);
     assert!(r.events.contains(&Event::TdiffResolved {
         measured: 4,
         same_type: 2,
