@@ -369,6 +369,8 @@ fn line_measures_every_middle_slave() {
     // restore.
     let (base, rounds) = (6, 3);
     assert_eq!(r.tdiff_frames, 1 + 1 + base + 4 * (1 + 1 + rounds + 1));
+    // One trigger per round: the last round of a kind carries none.
+    assert_eq!(ring.triggers, base + 4 * rounds);
     // The step leaves nothing behind: the delay measurement follows.
     assert_eq!(m.state(), State::LatchReadBefore);
 }
