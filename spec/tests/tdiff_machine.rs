@@ -47,8 +47,9 @@ struct Ring {
     reads: Vec<u16>,
     /// Latch triggers answered so far.
     triggers: usize,
-    /// (ESC, trigger number): that ESC's latch unit misses that trigger (stamps nothing).
-    missed_latch: Option<(usize, usize)>,
+    /// (ESC, trigger number, ports): that ESC's latch unit misses that trigger on those ports
+    /// (bit `p`: port `p`), stamping only the others.
+    missed_latch: Option<(usize, usize, u8)>,
     /// Every trigger's working counter counts every DC slave, cut off or not (a faulty ring).
     wkc_ignores_cut: bool,
 }
@@ -188,10 +189,17 @@ impl Ring {
         let t0 = i128::from(self.now);
         for (j, k) in map.iter().enumerate() {
             let Some(k) = *k else { continue };
-            if self.net.escs[j].dc == Dc::None || self.missed_latch == Some((j, self.triggers)) {
+            if self.net.escs[j].dc == Dc::None {
                 continue;
             }
+            let missed = match self.missed_latch {
+                Some((esc, trigger, ports)) if (esc, trigger) == (j, self.triggers) => ports,
+                _ => 0,
+            };
             for (p, rx) in latch.port_rx[k].iter().enumerate() {
+                if missed & (1 << p) != 0 {
+                    continue;
+                }
                 if let Some(t) = rx {
                     let local = self.net.local_time(j, t0 + t).rem_euclid(1 << 32);
                     self.ports[j][p] = u32::try_from(local).expect("32 bits");
@@ -610,10 +618,21 @@ fn lost_frames_and_stale_latches_are_retried() {
     }
     // Trigger 3 is an all-open round (slave 1 is the first target and the second one's
     // upstream slave, 2 the second target), 12 a closed round of the second target (its
-    // upstream slave 1 misses it), 5 an all-open round missed by the last target.
-    for (esc, trigger) in [(1, 3), (2, 3), (1, 12), (4, 5)] {
+    // upstream slave 1 misses it), 5 an all-open round missed by the last target. A latch
+    // missed on one port only (the last target's last port, a target's entry port, the upstream
+    // slave's port towards it) is stale as well.
+    let all = 0b1111;
+    for (esc, trigger, ports) in [
+        (1, 3, all),
+        (2, 3, all),
+        (1, 12, all),
+        (4, 5, all),
+        (4, 3, 0b0010),
+        (2, 3, 0b0001),
+        (1, 3, 0b0010),
+    ] {
         let mut ring = Ring::new(net.clone(), vec![0x1111; 6]);
-        ring.missed_latch = Some((esc, trigger));
+        ring.missed_latch = Some((esc, trigger, ports));
         let mut m = Machine::<8>::new(quick()).unwrap();
         let r = run(&mut m, &mut ring);
         for i in 1..5 {
@@ -625,7 +644,7 @@ fn lost_frames_and_stale_latches_are_retried() {
             .any(|e| matches!(e, Event::Error(Error::Measurement { .. })));
         assert!(
             stale,
-            "missed latch of {esc} at {trigger} not seen: {:?}",
+            "missed latch of {esc} ports {ports:#b} at {trigger} not seen: {:?}",
             r.events
         );
     }
