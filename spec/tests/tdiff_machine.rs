@@ -620,7 +620,7 @@ fn lost_frames_and_stale_latches_are_retried() {
     // upstream slave, 2 the second target), 12 a closed round of the second target (its
     // upstream slave 1 misses it), 5 an all-open round missed by the last target. A latch
     // missed on one port only (the last target's last port, a target's entry port, the upstream
-    // slave's port towards it) is stale as well.
+    // slave's port towards it or the one before) is stale as well.
     let all = 0b1111;
     for (esc, trigger, ports) in [
         (1, 3, all),
@@ -630,6 +630,8 @@ fn lost_frames_and_stale_latches_are_retried() {
         (4, 3, 0b0010),
         (2, 3, 0b0001),
         (1, 3, 0b0010),
+        (0, 3, 0b0010),
+        (0, 3, 0b0001),
     ] {
         let mut ring = Ring::new(net.clone(), vec![0x1111; 6]);
         ring.missed_latch = Some((esc, trigger, ports));
