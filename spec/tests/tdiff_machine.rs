@@ -52,6 +52,11 @@ struct Ring {
     missed_latch: Option<(usize, usize, u8)>,
     /// Every trigger's working counter counts every DC slave, cut off or not (a faulty ring).
     wkc_ignores_cut: bool,
+    /// The number of every frame that carried a latch trigger (frames counted from 1).
+    trigger_frames: Vec<usize>,
+    frames: usize,
+    /// [`Ring::reached`] until DL control changes.
+    cache: Option<(Vec<usize>, Network, Vec<Option<usize>>)>,
 }
 
 impl Ring {
@@ -71,6 +76,9 @@ impl Ring {
             triggers: 0,
             missed_latch: None,
             wkc_ignores_cut: false,
+            trigger_frames: Vec::new(),
+            frames: 0,
+            cache: None,
         }
     }
 
@@ -97,6 +105,7 @@ impl Ring {
         let mut out = frame.to_vec();
         let mut eth = EthernetFrame::new_unchecked(&mut out[..]);
         eth.mark_processed_by_slave();
+        self.frames += 1;
         for d in eth.ecat_frame_mut().expect("an EtherCAT frame").iter_mut() {
             let mut d = d.expect("a datagram");
             let (cmd, adp, ado) = (d.command().expect("a command"), d.adp(), d.ado());
@@ -107,7 +116,28 @@ impl Ring {
     }
 
     fn datagram(&mut self, cmd: Command, adp: u16, ado: u16, data: &mut [u8]) -> u16 {
-        let (reached, net, map) = self.reached();
+        let (reached, net, map) = match self.cache.take() {
+            Some(c) => c,
+            None => self.reached(),
+        };
+        let wkc = self.datagram_on(cmd, adp, ado, data, &reached, &net, &map);
+        if self.cache.is_none() && !(cmd == Command::Fpwr && ado == 0x0100) {
+            self.cache = Some((reached, net, map));
+        }
+        wkc
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn datagram_on(
+        &mut self,
+        cmd: Command,
+        adp: u16,
+        ado: u16,
+        data: &mut [u8],
+        reached: &[usize],
+        net: &Network,
+        map: &[Option<usize>],
+    ) -> u16 {
         let count = |n: usize| u16::try_from(n).expect("small");
         match cmd {
             Command::Brd => count(reached.len()),
@@ -140,7 +170,8 @@ impl Ring {
             }
             Command::Bwr if ado == 0x0900 => {
                 self.triggers += 1;
-                self.latch(&net, &map);
+                self.trigger_frames.push(self.frames);
+                self.latch(net, map);
                 let dc = |j: &usize| self.net.escs[*j].dc != Dc::None;
                 if self.wkc_ignores_cut {
                     count(self.net.escs.iter().filter(|e| e.dc != Dc::None).count())
@@ -697,4 +728,27 @@ fn restart_while_closed_reopens_first() {
         );
     }
     assert!(ring.dl_control.iter().all(|&v| v == DL_CONTROL_RESET));
+}
+
+/// REQ-DC-124: on a line long enough that each latch round's reads take two frames, a lost
+/// frame that carried a trigger is not simply sent again: its trigger was executed, so the
+/// reads it carried would see a newer latch than the reads of the frame before. The step
+/// latches again and reads every slave anew, and every value stays exact.
+#[test]
+fn lost_trigger_frame_relatches_every_slave() {
+    let delays: Vec<_> = (0..60).map(|i| (400 + 3 * i, 300, 20 + i)).collect();
+    let net = line(&delays);
+    let measure = |lost: &[usize]| {
+        let mut ring = Ring::new(net.clone(), vec![0x1111; 60]);
+        let mut m = Machine::<64>::new(quick()).unwrap();
+        let r = run_until(&mut m, &mut ring, lost, |_, _| false);
+        (r, ring.trigger_frames)
+    };
+    let (_, frames) = measure(&[]);
+    // The first all-open round's reads end in the frame with the second trigger.
+    let (r, _) = measure(&[frames[1]]);
+    assert_eq!(frames[1] - frames[0], 2, "two frames a round: {frames:?}");
+    for i in 1..59 {
+        assert_eq!(r.slaves[i].t_diff_ns, truth(&net, i), "slave {i}");
+    }
 }
