@@ -609,8 +609,7 @@ mod tests {
     fn minimum_buffers() {
         let mut buf = [0u8; 60];
         let mut b = FrameBuilder::new(&mut buf).unwrap();
-        b.push(Command::Brd, 1, Address::broadcast(0), &[0, 0])
-            .unwrap();
+        b.push(Command::Nop, 0, Address::Raw(0), &[]).unwrap();
         assert_eq!(b.finish(), Ok(60));
         let mut again = buf;
         let b = FrameBuilder::resume(&mut again).unwrap();
@@ -698,30 +697,17 @@ mod tests {
                 let want = &frame[16..16 + 12 + usize::from(len)];
                 let mut out = [0xeeu8; 22];
                 let total = 12 + usize::from(len);
+                let put = |dst: &mut &mut [u8]| {
+                    put_small(dst, Command::Frmw, 7, address, len, more, value)
+                };
                 let mut dst = &mut out[..total];
-                assert!(put_small(
-                    &mut dst,
-                    Command::Frmw,
-                    7,
-                    address,
-                    len,
-                    more,
-                    value
-                ));
+                assert!(put(&mut dst));
                 assert!(dst.is_empty());
                 assert_eq!(&out[..total], want, "len {len} more {more}");
 
                 let mut short = [0xeeu8; 22];
                 let mut dst = &mut short[..total - 1];
-                assert!(!put_small(
-                    &mut dst,
-                    Command::Frmw,
-                    7,
-                    address,
-                    len,
-                    more,
-                    value
-                ));
+                assert!(!put(&mut dst));
                 assert_eq!(dst.len(), total - 1);
                 assert_eq!(short, [0xee; 22]);
             }
