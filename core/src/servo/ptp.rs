@@ -488,6 +488,21 @@ mod tests {
         }
     }
 
+    /// `command_of` turns a frequency offset into the engine's integral command: −ppb · h · 2^F
+    /// / 10^9, rounded to nearest with halves away from zero, for either sign.
+    #[test]
+    fn command_of_rounds_half_away_from_zero() {
+        let s = PtpServo::new(cfg()).unwrap();
+        let want = |ppb: i64| {
+            let n = -i128::from(ppb) * 125_000_000 * (1i128 << FRAC_BITS);
+            let q = (n.abs() + 500_000_000) / 1_000_000_000;
+            i64::try_from(if n < 0 { -q } else { q }).unwrap()
+        };
+        for ppb in [0, 1, -1, 3, -3, 17, -17, 250_000, -250_000] {
+            assert_eq!(s.command_of(ppb), want(ppb), "{ppb} ppb");
+        }
+    }
+
     /// Runs `n` exchanges against a slave `drift_ppb` fast starting `init` ns ahead; returns per
     /// exchange the output and the true offset after it was applied and one interval passed.
     fn trace(

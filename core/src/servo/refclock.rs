@@ -314,4 +314,27 @@ mod tests {
         })
         .is_err());
     }
+
+    /// A deviation of exactly `max_jump_ns` is still accepted, one more refused; with
+    /// `max_jump_ns` 0 the check is off and any deviation is accepted.
+    #[test]
+    fn jump_limit_boundary_and_off() {
+        let follower = |max_jump_ns| {
+            RefFollower::new(RefFollowConfig {
+                period_ns: 1_000_000,
+                every: 1,
+                lead_ns: 0,
+                ref_32bit: false,
+                max_jump_ns,
+            })
+            .unwrap()
+        };
+        let mut r = follower(100);
+        r.on_cycle(5_000_000).unwrap();
+        assert!(r.on_cycle(6_000_100).is_ok());
+        assert!(r.on_cycle(7_000_201).is_err());
+        let mut r = follower(0);
+        r.on_cycle(5_000_000).unwrap();
+        assert!(r.on_cycle(6_000_001).unwrap().is_some());
+    }
 }
