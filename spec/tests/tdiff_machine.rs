@@ -663,6 +663,7 @@ fn lost_frames_and_stale_latches_are_retried() {
         (1, 3, 0b0010),
         (0, 3, 0b0010),
         (0, 3, 0b0001),
+        (1, 12, 0b0010),
     ] {
         let mut ring = Ring::new(net.clone(), vec![0x1111; 6]);
         ring.missed_latch = Some((esc, trigger, ports));
