@@ -488,6 +488,28 @@ mod tests {
         }
     }
 
+    /// With the offset filter on, the servo is fed the filter's output over consecutive
+    /// exchanges: the filter keeps its state from one exchange to the next (it is reset only
+    /// after a step).
+    #[test]
+    fn offset_filter_keeps_its_state_between_exchanges() {
+        let mut c = cfg();
+        c.offset_filter = true;
+        let mut s = PtpServo::new(c).unwrap();
+        let mut f = OffsetFilter::new();
+        for (k, o) in [1_000u64, 3_000, 500, 2_000].into_iter().enumerate() {
+            let e = Exchange {
+                t1: 1_000_000,
+                t2: 1_000_000 + 800 + o,
+                t3: 1_010_000 + o,
+                t4: 1_010_000 + 800,
+            };
+            let out = s.sample(k as u64 * 125_000_000, Some(&e));
+            assert_eq!(out.step_ns, 0);
+            assert_eq!(out.offset_ns, f.update(o as i64), "exchange {k}");
+        }
+    }
+
     /// `command_of` turns a frequency offset into the engine's integral command: −ppb · h · 2^F
     /// / 10^9, rounded to nearest with halves away from zero, for either sign.
     #[test]
