@@ -315,12 +315,12 @@ fn quick() -> Config {
     c
 }
 
-/// A line: ESC `i` entered at port 0, wired to port 1 of ESC `i − 1`; `(t_P, t_F, cable)` per
+/// A line: ESC `i` entered at port 0, wired to port 1 of ESC `i − 1`; `[t_P, t_F, cable]` per
 /// ESC, 64-bit DC, ideal clocks with phases that make port times wrap.
-fn line(delays: &[(i128, i128, i128)]) -> Network {
+fn line(delays: &[[i128; 3]]) -> Network {
     let escs = (0..delays.len())
         .map(|i| {
-            let (t_p, t_f, cable) = delays[i];
+            let [t_p, t_f, cable] = delays[i];
             Esc {
                 parent: i.checked_sub(1).map(|p| (p, 1)),
                 entry: 0,
@@ -339,14 +339,14 @@ fn line(delays: &[(i128, i128, i128)]) -> Network {
     net
 }
 
-/// (t_P, t_F, cable) of six slaves with their own t_P and t_F.
-const LINE6: [(i128, i128, i128); 6] = [
-    (420, 300, 200),
-    (390, 310, 35),
-    (505, 280, 60),
-    (300, 300, 15),
-    (610, 330, 500),
-    (470, 290, 40),
+/// [t_P, t_F, cable] of six slaves with their own t_P and t_F.
+const LINE6: [[i128; 3]; 6] = [
+    [420, 300, 200],
+    [390, 310, 35],
+    [505, 280, 60],
+    [300, 300, 15],
+    [610, 330, 500],
+    [470, 290, 40],
 ];
 
 fn line6() -> Network {
@@ -492,7 +492,7 @@ fn random_trees_measure_every_measurable_slave() {
 /// within the rounding of the integer stamps.
 #[test]
 fn clock_rates_are_corrected() {
-    let mut net = line(&[(420, 300, 200), (390, 310, 35), (505, 280, 40_000)]);
+    let mut net = line(&[[420, 300, 200], [390, 310, 35], [505, 280, 40_000]]);
     net.escs[0].rate_ppb = 100_000;
     net.escs[1].rate_ppb = -100_000;
     net.escs[2].rate_ppb = 30_000;
@@ -508,7 +508,7 @@ fn clock_rates_are_corrected() {
 /// measurable one), every other slave of that type takes its value.
 #[test]
 fn per_esc_type_measures_one_of_each() {
-    let net = line(&[&LINE6[..], &[(400, 300, 40)]].concat());
+    let net = line(&[&LINE6[..], &[[400, 300, 40]]].concat());
     let (a, b) = (0xA000, 0xB000);
     let mut ring = Ring::new(net.clone(), vec![a, a, b, a, b, b, a]);
     let mut cfg = quick();
@@ -737,7 +737,7 @@ fn restart_while_closed_reopens_first() {
 /// latches again and reads every slave anew, and every value stays exact.
 #[test]
 fn lost_trigger_frame_relatches_every_slave() {
-    let delays: Vec<_> = (0..60).map(|i| (400 + 3 * i, 300, 20 + i)).collect();
+    let delays: Vec<_> = (0..60).map(|i| [400 + 3 * i, 300, 20 + i]).collect();
     let net = line(&delays);
     let measure = |lost: &[usize]| {
         let mut ring = Ring::new(net.clone(), vec![0x1111; 60]);
