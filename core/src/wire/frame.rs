@@ -753,6 +753,22 @@ mod tests {
     /// The base frame of docs/background/wire-format.md §2.3 (EtherCAT part), written by hand:
     /// header len 34 type 1; BRD idx 1 ADP 0 ADO 0 len 2 M=1; FRMW idx 2 ADP 0x1001 ADO 0x0910
     /// len 8 M=0; 10 bytes of padding.
+    /// A DLPDU whose header length covers exactly one zeroed LRD of each data length of
+    /// `lens`, M set on all but the last (no padding).
+    fn lrd_frame(lens: &[u16]) -> Vec<u8> {
+        let total: u16 = lens.iter().map(|l| l + 12).sum();
+        let mut x = vec![0u8; 2 + usize::from(total)];
+        x[..2].copy_from_slice(&(total | 0x1000).to_le_bytes());
+        let mut at = 2;
+        for (i, &len) in lens.iter().enumerate() {
+            let more = if i + 1 < lens.len() { 0x8000 } else { 0 };
+            x[at] = Command::Lrd.code();
+            x[at + 6..at + 8].copy_from_slice(&(len | more).to_le_bytes());
+            at += 12 + usize::from(len);
+        }
+        x
+    }
+
     fn base() -> Vec<u8> {
         let mut f = Vec::new();
         f.extend_from_slice(&[0x22, 0x10]); // length 34, type 1
@@ -873,16 +889,8 @@ mod tests {
     #[test]
     fn matches_pattern_limits() {
         let frame = |lens: &[u16]| {
-            let total: u16 = lens.iter().map(|l| l + 12).sum();
-            let mut x = vec![0u8; 2 + usize::from(total) + 8];
-            x[..2].copy_from_slice(&(total | 0x1000).to_le_bytes());
-            let mut at = 2;
-            for (i, &len) in lens.iter().enumerate() {
-                let more = if i + 1 < lens.len() { 0x8000 } else { 0 };
-                x[at] = Command::Lrd.code();
-                x[at + 6..at + 8].copy_from_slice(&(len | more).to_le_bytes());
-                at += 12 + usize::from(len);
-            }
+            let mut x = lrd_frame(lens);
+            x.extend_from_slice(&[0; 8]);
             x
         };
         let pattern = |lens: &[u16], i: usize| {
@@ -1178,10 +1186,7 @@ mod tests {
         }
         // One datagram of the largest data length, and one byte more.
         for (len, ok) in [(1486u16, true), (1487, false)] {
-            let mut x = vec![0u8; 2 + 12 + usize::from(len)];
-            x[..2].copy_from_slice(&((12 + len) | 0x1000).to_le_bytes());
-            x[2] = Command::Lrd.code();
-            x[8..10].copy_from_slice(&len.to_le_bytes());
+            let x = lrd_frame(&[len]);
             assert_eq!(valid_fast(&x).is_some(), ok, "{len}");
             assert_eq!(walk(&x).is_ok(), ok, "{len}");
         }
