@@ -22,7 +22,7 @@ use ecdc_core::dc::{
 };
 use ecdc_core::time::SystemTime;
 use ecdc_core::wire::{Address, Command, EthernetFrame};
-use ecdc_spec::network::{generate, Dc, Esc, GenParams, Network, Shape, SplitMix};
+use ecdc_spec::network::{generate, Dc, Esc, GenParams, Latch, Network, Shape, SplitMix};
 
 /// DL control 0x0100..0x0101 at power-on (forwarding rule bit set, every loop on "auto").
 const DL_CONTROL_RESET: u16 = 0x0001;
@@ -55,15 +55,30 @@ struct Ring {
     /// The number of every frame that carried a latch trigger (frames counted from 1).
     trigger_frames: Vec<usize>,
     frames: usize,
-    /// [`Ring::reached`] until DL control changes.
-    cache: Option<(Vec<usize>, Network, Vec<Option<usize>>)>,
+    /// [`Ring::reach`] until DL control changes.
+    cache: Option<Reach>,
+    /// DL status 0x0110 of each ESC (its open ports; forcing a loop closed does not change it).
+    dl_status: Vec<u16>,
+}
+
+/// What a frame reaches while DL control forces some ports closed.
+struct Reach {
+    /// The ESCs reached, in auto-increment order.
+    order: Vec<usize>,
+    /// The index of each ESC in the reduced network (`None`: cut off).
+    map: Vec<Option<usize>>,
+    /// A latch frame's walk through the reduced network.
+    latch: Latch,
 }
 
 impl Ring {
     fn new(net: Network, esc_type: Vec<u16>) -> Ring {
         let n = net.escs.len();
         assert_eq!(esc_type.len(), n);
+        let full = net.latch().expect("a tree");
+        let dl_status = (0..n).map(|j| net.observe(&full, j, 1).dl_status).collect();
         Ring {
+            dl_status,
             ports: net.escs.iter().map(|e| e.stale).collect(),
             net,
             esc_type,
@@ -87,8 +102,8 @@ impl Ring {
         (self.dl_control[i] >> (8 + 2 * u16::from(port))) & 0b11 == 0b11
     }
 
-    /// The ESCs a frame reaches, in auto-increment order, and the network it sees.
-    fn reached(&self) -> (Vec<usize>, Network, Vec<Option<usize>>) {
+    /// What a frame reaches with the ports DL control forces closed now.
+    fn reach(&self) -> Reach {
         let (net, map) = self.net.with_closed_ports(|i, p| self.forced_closed(i, p));
         let mut back = vec![0; net.escs.len()];
         for (old, new) in map.iter().enumerate() {
@@ -96,8 +111,9 @@ impl Ring {
                 back[*k] = old;
             }
         }
-        let order = net.latch().expect("a tree").order;
-        (order.iter().map(|&k| back[k]).collect(), net, map)
+        let latch = net.latch().expect("a tree");
+        let order = latch.order.iter().map(|&k| back[k]).collect();
+        Reach { order, map, latch }
     }
 
     /// The slaves' answer to one of the machine's frames.
@@ -116,28 +132,23 @@ impl Ring {
     }
 
     fn datagram(&mut self, cmd: Command, adp: u16, ado: u16, data: &mut [u8]) -> u16 {
-        let (reached, net, map) = match self.cache.take() {
-            Some(c) => c,
-            None => self.reached(),
-        };
-        let wkc = self.datagram_on(cmd, adp, ado, data, &reached, &net, &map);
-        if self.cache.is_none() && !(cmd == Command::Fpwr && ado == 0x0100) {
-            self.cache = Some((reached, net, map));
+        let reach = self.cache.take().unwrap_or_else(|| self.reach());
+        let wkc = self.datagram_on(cmd, adp, ado, data, &reach);
+        if !(cmd == Command::Fpwr && ado == 0x0100) {
+            self.cache = Some(reach);
         }
         wkc
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn datagram_on(
         &mut self,
         cmd: Command,
         adp: u16,
         ado: u16,
         data: &mut [u8],
-        reached: &[usize],
-        net: &Network,
-        map: &[Option<usize>],
+        reach: &Reach,
     ) -> u16 {
+        let reached = &reach.order;
         let count = |n: usize| u16::try_from(n).expect("small");
         match cmd {
             Command::Brd => count(reached.len()),
@@ -171,7 +182,7 @@ impl Ring {
             Command::Bwr if ado == 0x0900 => {
                 self.triggers += 1;
                 self.trigger_frames.push(self.frames);
-                self.latch(net, map);
+                self.latch(reach);
                 let dc = |j: &usize| self.net.escs[*j].dc != Dc::None;
                 if self.wkc_ignores_cut {
                     count(self.net.escs.iter().filter(|e| e.dc != Dc::None).count())
@@ -194,10 +205,7 @@ impl Ring {
                 Dc::Bits64 => 0x000C,
             },
             0x0100 => u64::from(self.dl_control[j]),
-            0x0110 => {
-                let full = self.net.latch().expect("a tree");
-                u64::from(self.net.observe(&full, j, 1).dl_status)
-            }
+            0x0110 => u64::from(self.dl_status[j]),
             0x0130 => u64::from(self.al[j]),
             0x0900 => {
                 for (chunk, t) in data.chunks_mut(4).zip(self.ports[j]) {
@@ -213,12 +221,12 @@ impl Ring {
         }
     }
 
-    /// A latch trigger at `self.now` on the network `net` the frame sees (`map`: old index →
-    /// index in `net`): every DC ESC it reaches stamps the ports the frame passes.
-    fn latch(&mut self, net: &Network, map: &[Option<usize>]) {
-        let latch = net.latch().expect("a tree");
+    /// A latch trigger at `self.now` through what the frame reaches: every DC ESC it reaches
+    /// stamps the ports the frame passes.
+    fn latch(&mut self, reach: &Reach) {
+        let latch = &reach.latch;
         let t0 = i128::from(self.now);
-        for (j, k) in map.iter().enumerate() {
+        for (j, k) in reach.map.iter().enumerate() {
             let Some(k) = *k else { continue };
             if self.net.escs[j].dc == Dc::None {
                 continue;
