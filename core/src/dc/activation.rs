@@ -71,32 +71,36 @@ impl<const N: usize> Machine<N> {
                 }
                 _ => Item::Skip,
             },
-            Phase::Activation(ActivationStep::ProgramSync) => match SyncWrite::of(i) {
-                Some((pos, write)) => match self.sh.line.slave(pos) {
-                    Some(s) if sync_target(s) => Item::Send(match write {
-                        SyncWrite::StartTime => Op::fpwr(
-                            s.station,
-                            reg::SYNC0_START_TIME,
-                            s.dc.time_width(),
-                            self.sh.line.sync_start.map_or(0, SystemTime::as_nanos),
-                        ),
-                        SyncWrite::Sync0Cycle => Op::fpwr(
-                            s.station,
-                            reg::SYNC0_CYCLE,
-                            4,
-                            u64::from(sync.sync0_cycle_ns),
-                        ),
-                        SyncWrite::Sync1Cycle => Op::fpwr(
-                            s.station,
-                            reg::SYNC1_CYCLE,
-                            4,
-                            u64::from(sync.sync1_cycle_ns),
-                        ),
-                    }),
+            // `activation_done` leaves the reference-time read only with a start time, so
+            // `start` is always there; without one nothing is written.
+            Phase::Activation(ActivationStep::ProgramSync) => {
+                match (SyncWrite::of(i), self.sh.line.sync_start) {
+                    (Some((pos, write)), Some(start)) => match self.sh.line.slave(pos) {
+                        Some(s) if sync_target(s) => Item::Send(match write {
+                            SyncWrite::StartTime => Op::fpwr(
+                                s.station,
+                                reg::SYNC0_START_TIME,
+                                s.dc.time_width(),
+                                start.as_nanos(),
+                            ),
+                            SyncWrite::Sync0Cycle => Op::fpwr(
+                                s.station,
+                                reg::SYNC0_CYCLE,
+                                4,
+                                u64::from(sync.sync0_cycle_ns),
+                            ),
+                            SyncWrite::Sync1Cycle => Op::fpwr(
+                                s.station,
+                                reg::SYNC1_CYCLE,
+                                4,
+                                u64::from(sync.sync1_cycle_ns),
+                            ),
+                        }),
+                        _ => Item::Skip,
+                    },
                     _ => Item::Skip,
-                },
-                None => Item::Skip,
-            },
+                }
+            }
             Phase::Activation(ActivationStep::ActivateSync) => match self.sh.line.slave(i) {
                 Some(s) if sync_target(s) => Item::Send(Op::fpwr(
                     s.station,
@@ -139,17 +143,21 @@ impl<const N: usize> Machine<N> {
 
     pub(crate) fn activation_done(&mut self) -> Result<State, Error> {
         match self.phase {
-            Phase::Activation(ActivationStep::ReadReferenceTime) => Ok(State::ClearActivation),
+            // The read is skipped when the reference is not a slave found; no SYNC unit is
+            // then programmed (REQ-DC-036: one start, from one reference read).
+            Phase::Activation(ActivationStep::ReadReferenceTime) => match self.sh.line.sync_start {
+                Some(_) => Ok(State::ClearActivation),
+                None => Err(Error::NoReferenceClock),
+            },
             Phase::Activation(ActivationStep::ClearActivation) => Ok(State::ProgramSync),
             Phase::Activation(ActivationStep::ProgramSync) => Ok(State::ActivateSync),
             Phase::Activation(ActivationStep::ActivateSync) => {
                 let n = self.slaves().iter().filter(|s| s.sync_programmed).count();
                 let slaves = u16::try_from(n).unwrap_or(u16::MAX);
-                self.sh.push_event(Event::SyncStarted {
-                    // Set by the reference-time read that opened this phase.
-                    start: self.sh.line.sync_start.unwrap_or(SystemTime::EPOCH),
-                    slaves,
-                });
+                // Set by the reference-time read that opened this phase.
+                if let Some(start) = self.sh.line.sync_start {
+                    self.sh.push_event(Event::SyncStarted { start, slaves });
+                }
                 Ok(State::Cyclic)
             }
             _ => Ok(self.state()),

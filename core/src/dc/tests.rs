@@ -555,6 +555,43 @@ fn reference_time_reply_sets_the_sync_start() {
     assert_eq!(Some(start), expected);
 }
 
+/// Without a reference time (the read skipped: the reference is no slave found) the SYNC
+/// programming stops with a fault instead of writing a start time nobody computed, and
+/// nothing of `ProgramSync` is sent.
+// verifies: REQ-DC-036
+#[test]
+fn sync_programming_needs_the_reference_time() {
+    use crate::dc::activation::SyncWrite;
+    use crate::dc::machine::Item;
+    use crate::dc::phase::{ActivationStep, Phase};
+    use crate::dc::work::PerSlave;
+    let c = Config {
+        sync: Some(crate::dc::SyncConfig::default()),
+        ..Config::default()
+    };
+    let mut m = Machine::<4>::new(c).unwrap();
+    m.sh.line.count = 1;
+    m.sh.line.sys_count = 1;
+    m.sh.line.reference = 1;
+    m.sh.line.slaves[0].station = 0x1001;
+    m.sh.line.slaves[0].dc = crate::dc::DcKind::Bits64;
+    m.sh.line.slaves[0].al_status = Some(0x01);
+    m.phase = Phase::Activation(ActivationStep::ReadReferenceTime);
+    assert!(matches!(m.activation_item(0), Item::Skip));
+    assert_eq!(m.activation_done(), Err(Error::NoReferenceClock));
+    let program = |m: &Machine<4>| {
+        (0..SyncWrite::items(1))
+            .filter(|&i| matches!(m.activation_item(i), Item::Send(_)))
+            .count()
+    };
+    m.phase = Phase::Activation(ActivationStep::ProgramSync);
+    assert_eq!(program(&m), 0);
+    m.sh.line.sync_start = Some(SystemTime(T0));
+    assert_eq!(program(&m), 3);
+    m.phase = Phase::Activation(ActivationStep::ReadReferenceTime);
+    assert_eq!(m.activation_done(), Ok(State::ClearActivation));
+}
+
 /// The invariant the model checker asserts is not vacuous: each broken timer rule is named.
 #[test]
 fn invariant_violations_are_reported() {
