@@ -151,6 +151,21 @@ fn drifting_master_clock_still_locks() {
     assert!(st.max_true_err < 100, "{st:?}");
 }
 
+/// A master clock in the upper half of the 64-bit range (wrapping time orders it before 0)
+/// brings the line up and locks as well: no deadline of the machine is an absolute instant
+/// of its own choosing (the first cycle is due when the bring-up ends, not at the epoch).
+#[test]
+fn master_clock_in_the_upper_half_locks() {
+    let net = ecdc_harness::emu::Network::new(&Scenario::line(4)).unwrap();
+    let m: ecdc_core::dc::Machine<8> = ecdc_core::dc::Machine::new(config()).unwrap();
+    let mut s = ecdc_harness::sim::Sim::new(m, net).with_master_epoch((1 << 63) + 1_000_000_000);
+    s.start();
+    lock(&mut s, 2_000_000_000);
+    let _ = steady(&mut s, 300_000_000, &[EscKind::Dc64; 4]);
+    let st = steady(&mut s, 500_000_000, &[EscKind::Dc64; 4]);
+    assert!(st.max_true_err < 100, "{st:?}");
+}
+
 /// ARMW (by the reference's position, as TwinCAT) instead of FRMW works the same.
 #[test]
 fn armw_drift_command_locks() {

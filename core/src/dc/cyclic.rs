@@ -141,12 +141,9 @@ impl<const N: usize> CyclicCx<'_, N> {
         if self.holdover_expired(now) {
             return false;
         }
-        // The next cycle one period after this one's due time, or after now if that passed.
-        let due = self
-            .sh
-            .timers
-            .get(Timer::Cycle)
-            .unwrap_or(SystemTime::EPOCH);
+        // The next cycle one period after this one's due time, or after now if that passed
+        // (the timer is armed throughout `Cyclic`; a cycle the caller forces is due now).
+        let due = self.sh.timers.get(Timer::Cycle).unwrap_or(now);
         let next = due.wrapping_add(period);
         let next = if next.is_after(now) {
             next

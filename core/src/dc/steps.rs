@@ -109,11 +109,7 @@ impl<const N: usize> Machine<N> {
                 self.sh.latch.round = 0;
                 self.tdiff_reset();
             }
-            State::Cyclic => {
-                self.sh.scratch.monitor.invalidate();
-                // The first cycle is due at once.
-                self.sh.timers.set(Timer::Cycle, SystemTime::EPOCH);
-            }
+            State::Cyclic => self.sh.scratch.monitor.invalidate(),
             _ => {}
         }
     }
@@ -130,7 +126,14 @@ impl<const N: usize> Machine<N> {
             Phase::Idle | Phase::Cyclic(_) | Phase::RestartWait | Phase::Failed => return,
         };
         match next {
-            Ok(s) => self.enter(s),
+            Ok(s) => {
+                self.enter(s);
+                if self.phase.is_cyclic() {
+                    // The first cycle is due at once: the cycle grid starts where the
+                    // bring-up ends.
+                    self.sh.timers.set(Timer::Cycle, now);
+                }
+            }
             Err(e) => self.fault(now, e),
         }
     }

@@ -21,7 +21,9 @@ pub(crate) enum Timer {
     /// The pause before the next re-initialisation ends (REQ-DC-130). Armed exactly in
     /// `RestartWait`.
     Restart,
-    /// The next cyclic frame is due (`MonitorConfig::cycle_ns`). Armed exactly in `Cyclic`.
+    /// The next cyclic frame is due (`MonitorConfig::cycle_ns`). Armed exactly in `Cyclic`,
+    /// first at the instant the bring-up ends (a fixed instant such as the epoch would be
+    /// "after now" on the wrapping circle for half of all clock readings).
     Cycle,
 }
 
