@@ -841,6 +841,33 @@ mod tests {
         );
     }
 
+    /// Entering `Cyclic` forgets the list of monitored slaves the block path keeps: a new
+    /// bring-up that finds as many slaves as the last one but a different table (a slave with
+    /// a system time where there was none, another at a new station) is read as found now.
+    #[test]
+    fn entering_cyclic_rebuilds_the_monitored_list() {
+        use crate::dc::phase::{ActivationStep, Phase};
+        let mut m = cyclic_machine(3, 3, 0, DriftCommand::Frmw, 0x80);
+        let reads = |m: &mut Machine<48>| {
+            let mut buf = [0u8; 1514];
+            let n = m.poll_transmit(SystemTime(T), &mut buf).unwrap();
+            m.sh.stop_awaiting();
+            crate::dc::testing::headers(&buf[..n])
+                .into_iter()
+                .filter(|h| h.0 == Command::Fprd && h.3 == reg::SYSTEM_TIME_DIFFERENCE)
+                .map(|h| h.2)
+                .collect::<std::vec::Vec<u16>>()
+        };
+        assert_eq!(reads(&mut m), [0x1001, 0x1203]);
+        m.sh.line.slaves[1].dc = DcKind::Bits64;
+        m.sh.line.slaves[2].station = 0x2203;
+        m.sh.line.sys_count = 3;
+        m.phase = Phase::Activation(ActivationStep::ActivateSync);
+        m.enter(State::Cyclic);
+        m.sh.timers.set(Timer::Cycle, SystemTime(T));
+        assert_eq!(reads(&mut m), [0x1001, 0x1102, 0x2203]);
+    }
+
     /// The round robin starts at its cursor, wrapped into the slave count.
     #[test]
     fn round_robin_start_wraps_into_the_count() {
