@@ -279,6 +279,7 @@ mod tests {
     use crate::time::SystemTime;
     use crate::wire::{Command, EthernetFrame};
 
+    /// `slaves` 64-bit slaves (stations 0x1001, ...) in `DriftCheck`.
     fn in_check<const N: usize>(slaves: u16, check: DriftCheck) -> Machine<N> {
         let cfg = Config {
             drift: DriftConfig {
@@ -291,19 +292,8 @@ mod tests {
             },
             ..Config::default()
         };
-        let mut m = Machine::<N>::new(cfg).unwrap();
-        m.sh.line.count = slaves;
-        m.sh.line.sys_count = slaves;
-        for (i, s) in
-            m.sh.line
-                .slaves
-                .iter_mut()
-                .take(usize::from(slaves))
-                .enumerate()
-        {
-            s.station = 0x1000 + u16::try_from(i).unwrap();
-            s.dc = DcKind::Bits64;
-        }
+        let kinds = std::vec![DcKind::Bits64; usize::from(slaves)];
+        let mut m = crate::dc::testing::line_with::<N>(cfg, &kinds);
         m.phase = m.phase.enter(State::DriftCheck);
         m
     }
@@ -414,7 +404,7 @@ mod tests {
         // A slave over the spike bound (400) is named, even beside a larger bound.
         assert_eq!(
             worst(at_frame_limit(DriftCheck::Both, &[-500, 0], 600)),
-            (1, 0x1000, 500)
+            (1, 0x1001, 500)
         );
         // In range: the larger bound is the worst reading ...
         assert_eq!(
@@ -428,12 +418,12 @@ mod tests {
         // ... an equal one is not.
         assert_eq!(
             worst(at_frame_limit(DriftCheck::Both, &[100, -50], 100)),
-            (0, 0x1000, 100)
+            (0, 0x1001, 100)
         );
         // Per slave only, all readings 0: still a slave's station, never 0.
         let (over, station, ns) = worst(at_frame_limit(DriftCheck::PerSlave, &[0, 0], u32::MAX));
         assert_eq!(over, 0);
-        assert!(matches!(station, 0x1000 | 0x1001), "{station:#x}");
+        assert!(matches!(station, 0x1001 | 0x1002), "{station:#x}");
         assert_eq!(ns, 0);
     }
 
@@ -451,7 +441,7 @@ mod tests {
             .filter(|h| h.0 == Command::Fprd)
             .map(|h| h.2)
             .collect();
-        assert_eq!(fprds, [0x1000, 0x1002]);
+        assert_eq!(fprds, [0x1001, 0x1003]);
     }
 
     /// A burst FRMW whose working counter is not the number of slaves with a system time is

@@ -18,7 +18,12 @@ pub(crate) const fn closed(n: u16) -> u16 {
 /// A machine in `Idle` whose slave table holds one slave of each of `kinds`, at stations
 /// 0x1001, 0x1002, ... (the phase is the caller's to set).
 pub(crate) fn line<const N: usize>(kinds: &[DcKind]) -> Machine<N> {
-    let mut m = Machine::<N>::new(Config::default()).unwrap();
+    line_with(Config::default(), kinds)
+}
+
+/// [`line`] with configuration `cfg`.
+pub(crate) fn line_with<const N: usize>(cfg: Config, kinds: &[DcKind]) -> Machine<N> {
+    let mut m = Machine::<N>::new(cfg).unwrap();
     let count = u16::try_from(kinds.len()).unwrap();
     m.sh.line.count = count;
     m.sh.line.sys_count =
