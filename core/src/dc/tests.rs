@@ -512,23 +512,24 @@ fn offset_step_items_follow_system_time_and_al_status() {
     assert_eq!(sent(&m, 3..6), [(0x1001, 0x0920)]);
 }
 
-/// The reference time read before the SYNC programming sets the start time all SYNC units
-/// share; nothing else does.
-#[test]
-fn reference_time_reply_sets_the_sync_start() {
+/// One 64-bit slave at 0x1001 (the reference), SYNC configured, in `ReadReferenceTime`.
+fn reading_reference_time() -> Machine<4> {
     use crate::dc::phase::{ActivationStep, Phase};
-    use crate::dc::request::{Pending, Reply, Tag};
     let c = Config {
         sync: Some(crate::dc::SyncConfig::default()),
         ..Config::default()
     };
-    let mut m = Machine::<4>::new(c).unwrap();
-    m.sh.line.count = 1;
-    m.sh.line.sys_count = 1;
-    m.sh.line.reference = 0;
-    m.sh.line.slaves[0].station = 0x1001;
-    m.sh.line.slaves[0].dc = crate::dc::DcKind::Bits64;
+    let mut m = crate::dc::testing::line_with::<4>(c, &[crate::dc::DcKind::Bits64]);
     m.phase = Phase::Activation(ActivationStep::ReadReferenceTime);
+    m
+}
+
+/// The reference time read before the SYNC programming sets the start time all SYNC units
+/// share; nothing else does.
+#[test]
+fn reference_time_reply_sets_the_sync_start() {
+    use crate::dc::request::{Pending, Reply, Tag};
+    let mut m = reading_reference_time();
     let sent = Pending {
         command: Command::Fprd,
         index: 1,
@@ -548,7 +549,7 @@ fn reference_time_reply_sets_the_sync_start() {
     m.activation_reply(SystemTime(T0), r).unwrap();
     let start = m.sh.line.sync_start.unwrap();
     assert!(start.is_after(SystemTime(T0)), "{start}");
-    let sync = c.sync.unwrap();
+    let sync = m.sh.cfg.sync.unwrap();
     let now = SystemTime(T0);
     let expected =
         m.sh.compute_sync_start(now, T0, &m.sh.line.slaves[0], &sync);
@@ -565,18 +566,9 @@ fn sync_programming_needs_the_reference_time() {
     use crate::dc::machine::Item;
     use crate::dc::phase::{ActivationStep, Phase};
     use crate::dc::work::PerSlave;
-    let c = Config {
-        sync: Some(crate::dc::SyncConfig::default()),
-        ..Config::default()
-    };
-    let mut m = Machine::<4>::new(c).unwrap();
-    m.sh.line.count = 1;
-    m.sh.line.sys_count = 1;
+    let mut m = reading_reference_time();
     m.sh.line.reference = 1;
-    m.sh.line.slaves[0].station = 0x1001;
-    m.sh.line.slaves[0].dc = crate::dc::DcKind::Bits64;
     m.sh.line.slaves[0].al_status = Some(0x01);
-    m.phase = Phase::Activation(ActivationStep::ReadReferenceTime);
     assert!(matches!(m.activation_item(0), Item::Skip));
     assert_eq!(m.activation_done(), Err(Error::NoReferenceClock));
     let program = |m: &Machine<4>| {
