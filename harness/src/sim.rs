@@ -141,16 +141,16 @@ impl<const N: usize> Sim<N> {
         self
     }
 
+    /// Current true time.
+    pub fn now(&self) -> TrueTime {
+        self.now
+    }
+
     /// Sets what the master's clock reads at true time 0 (default
     /// [`DEFAULT_MASTER_EPOCH_NS`]).
     pub fn with_master_epoch(mut self, ns: u64) -> Self {
         self.master_epoch = ns;
         self
-    }
-
-    /// Current true time.
-    pub fn now(&self) -> TrueTime {
-        self.now
     }
 
     /// The master's clock (DC epoch) at true time `t`.
