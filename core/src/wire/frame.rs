@@ -750,9 +750,6 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    /// The base frame of docs/background/wire-format.md §2.3 (EtherCAT part), written by hand:
-    /// header len 34 type 1; BRD idx 1 ADP 0 ADO 0 len 2 M=1; FRMW idx 2 ADP 0x1001 ADO 0x0910
-    /// len 8 M=0; 10 bytes of padding.
     /// A DLPDU whose header length covers exactly one zeroed LRD of each data length of
     /// `lens`, M set on all but the last (no padding).
     fn lrd_frame(lens: &[u16]) -> Vec<u8> {
@@ -769,6 +766,9 @@ mod tests {
         x
     }
 
+    /// The base frame of docs/background/wire-format.md §2.3 (EtherCAT part), written by hand:
+    /// header len 34 type 1; BRD idx 1 ADP 0 ADO 0 len 2 M=1; FRMW idx 2 ADP 0x1001 ADO 0x0910
+    /// len 8 M=0; 10 bytes of padding.
     fn base() -> Vec<u8> {
         let mut f = Vec::new();
         f.extend_from_slice(&[0x22, 0x10]); // length 34, type 1
