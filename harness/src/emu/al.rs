@@ -21,13 +21,16 @@ pub const OP: u16 = 0x8;
 /// AL status bit 4: error indication; AL control bit 4: error acknowledge.
 pub const ERROR: u16 = 0x10;
 
-/// AL status codes (ETG.1000.6, "AL Status Codes").
-pub mod code {
-    pub const INVALID_TRANSITION: u16 = 0x0011;
-    pub const UNKNOWN_STATE: u16 = 0x0012;
-    pub const INVALID_MAILBOX_CONFIG: u16 = 0x0016;
-    pub const INVALID_OUTPUT_CONFIG: u16 = 0x001D;
-    pub const INVALID_INPUT_CONFIG: u16 = 0x001E;
+/// The AL status codes this firmware reports (ETG.1000.6, "AL Status Codes"); the
+/// discriminant is the value of 0x0134.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u16)]
+pub enum StatusCode {
+    InvalidTransition = 0x0011,
+    UnknownState = 0x0012,
+    InvalidMailboxConfig = 0x0016,
+    InvalidOutputConfig = 0x001D,
+    InvalidInputConfig = 0x001E,
 }
 
 /// Registers of SyncManager `n` (datasheet 0x0800 + 8n: start, length, control, status,
@@ -88,7 +91,12 @@ fn fmmu_maps(regs: &RegisterFile, n: usize, dir: u8) -> bool {
 /// The code of the first SyncManager of a type in `types` that is not configured as the SII
 /// says; then (when `fmmus`, and all of them are) of the first that no FMMU of its direction
 /// maps.
-fn check(regs: &RegisterFile, sms: &[SmEntry], types: &[(u8, u16)], fmmus: bool) -> Option<u16> {
+fn check(
+    regs: &RegisterFile,
+    sms: &[SmEntry],
+    types: &[(u8, StatusCode)],
+    fmmus: bool,
+) -> Option<StatusCode> {
     // SyncManagers the SII lists as disabled or empty are not used.
     let used = || {
         sms.iter().enumerate().filter_map(|(n, e)| {
@@ -157,39 +165,31 @@ pub fn control(regs: &mut RegisterFile, sms: &[SmEntry]) -> u16 {
         // Waits for the acknowledge; status and code stay as they are.
         (cur, None)
     } else if !known {
-        (cur, Some(code::UNKNOWN_STATE))
+        (cur, Some(StatusCode::UnknownState))
     } else if !allowed {
-        (cur, Some(code::INVALID_TRANSITION))
+        (cur, Some(StatusCode::InvalidTransition))
     } else {
-        let failed = match (cur, req) {
-            (INIT, PREOP) => check(
-                regs,
-                sms,
-                &[
-                    (sm_type::MBX_OUT, code::INVALID_MAILBOX_CONFIG),
-                    (sm_type::MBX_IN, code::INVALID_MAILBOX_CONFIG),
-                ],
-                false,
-            ),
-            (PREOP, SAFEOP) => check(
-                regs,
-                sms,
-                &[
-                    (sm_type::PD_OUT, code::INVALID_OUTPUT_CONFIG),
-                    (sm_type::PD_IN, code::INVALID_INPUT_CONFIG),
-                ],
-                true,
-            ),
-            _ => None,
+        // The SyncManager types the firmware checks on this transition, each with the code
+        // of its failure, and whether their FMMUs are checked too (process data only).
+        let checked: &[(u8, StatusCode)] = match (cur, req) {
+            (INIT, PREOP) => &[
+                (sm_type::MBX_OUT, StatusCode::InvalidMailboxConfig),
+                (sm_type::MBX_IN, StatusCode::InvalidMailboxConfig),
+            ],
+            (PREOP, SAFEOP) => &[
+                (sm_type::PD_OUT, StatusCode::InvalidOutputConfig),
+                (sm_type::PD_IN, StatusCode::InvalidInputConfig),
+            ],
+            _ => &[],
         };
-        match failed {
+        match check(regs, sms, checked, req == SAFEOP) {
             Some(c) => (cur, Some(c)),
             None => (req, None),
         }
     };
     if let Some(c) = code {
         err = true;
-        regs.set_u16(addr::AL_STATUS_CODE, c);
+        regs.set_u16(addr::AL_STATUS_CODE, c as u16);
     } else if !err {
         regs.set_u16(addr::AL_STATUS_CODE, 0);
     }

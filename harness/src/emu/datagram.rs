@@ -13,23 +13,42 @@ const ETHERTYPE_VLAN: u16 = 0x8100;
 /// Datagram header length.
 pub const DG_HEADER: usize = 10;
 
-/// Command codes (docs/background/wire-format.md §1.4).
-pub mod cmd {
-    pub const NOP: u8 = 0;
-    pub const APRD: u8 = 1;
-    pub const APWR: u8 = 2;
-    pub const APRW: u8 = 3;
-    pub const FPRD: u8 = 4;
-    pub const FPWR: u8 = 5;
-    pub const FPRW: u8 = 6;
-    pub const BRD: u8 = 7;
-    pub const BWR: u8 = 8;
-    pub const BRW: u8 = 9;
-    pub const LRD: u8 = 10;
-    pub const LWR: u8 = 11;
-    pub const LRW: u8 = 12;
-    pub const ARMW: u8 = 13;
-    pub const FRMW: u8 = 14;
+/// Command codes (docs/background/wire-format.md §1.4), in wire-code order from 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cmd {
+    /// No operation.
+    Nop,
+    /// Auto-increment physical read, write, read-write.
+    Aprd,
+    Apwr,
+    Aprw,
+    /// Configured-address physical read, write, read-write.
+    Fprd,
+    Fpwr,
+    Fprw,
+    /// Broadcast read, write, read-write.
+    Brd,
+    Bwr,
+    Brw,
+    /// Logical read, write, read-write.
+    Lrd,
+    Lwr,
+    Lrw,
+    /// Auto-increment / configured-address read, multiple write.
+    Armw,
+    Frmw,
+}
+
+impl Cmd {
+    /// The command with wire code `code`; `None` for the reserved codes (15 and above), which
+    /// an ESC passes on untouched.
+    pub fn from_code(code: u8) -> Option<Cmd> {
+        use Cmd::*;
+        const BY_CODE: [Cmd; 15] = [
+            Nop, Aprd, Apwr, Aprw, Fprd, Fpwr, Fprw, Brd, Bwr, Brw, Lrd, Lwr, Lrw, Armw, Frmw,
+        ];
+        BY_CODE.get(usize::from(code)).copied()
+    }
 }
 
 /// Where one datagram sits in the frame.

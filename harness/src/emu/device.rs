@@ -9,7 +9,7 @@
 //! (docs/background/sii-al.md §2).
 
 use super::sii::{
-    category, config_crc, Identity, SiiImage, CATEGORY_START_WORD, MIN_CAPACITY_BYTES,
+    config_crc, Category, Identity, SiiImage, CATEGORY_START_WORD, MIN_CAPACITY_BYTES,
 };
 use serde::{Deserialize, Serialize};
 
@@ -113,12 +113,12 @@ pub struct SmEntry {
     pub typ: u8,
 }
 
-fn push_category(w: &mut Vec<u16>, typ: u16, bytes: &[u8]) {
+fn push_category(w: &mut Vec<u16>, typ: Category, bytes: &[u8]) {
     let words: Vec<u16> = bytes
         .chunks(2)
         .map(|c| u16::from_le_bytes([c[0], c.get(1).copied().unwrap_or(0)]))
         .collect();
-    w.push(typ);
+    w.push(typ.0);
     w.push(words.len() as u16);
     w.extend(words);
 }
@@ -199,7 +199,7 @@ impl BuildSpec {
             s.push(b.len() as u8);
             s.extend_from_slice(b);
         }
-        push_category(&mut w, category::STRINGS, &s);
+        push_category(&mut w, Category::STRINGS, &s);
         let mut g = [0u8; 32];
         g[0] = 2; // group index
         g[2] = 3; // order index
@@ -207,7 +207,7 @@ impl BuildSpec {
         g[0x0E] = 2; // group index again (ETG.2010 keeps a copy for old masters)
                      // Physical ports (4 bits each: 1 = MII): two ports (ecdc choice; informational).
         g[0x10] = 0x11;
-        push_category(&mut w, category::GENERAL, &g);
+        push_category(&mut w, Category::GENERAL, &g);
         let sms = self.sync_managers();
         let (o, i) = self.device.process_bytes();
         if o > 0 || i > 0 {
@@ -218,14 +218,14 @@ impl BuildSpec {
             if i > 0 {
                 f.push(2); // inputs
             }
-            push_category(&mut w, category::FMMU, &f);
+            push_category(&mut w, Category::FMMU, &f);
             let mut b = Vec::new();
             for e in &sms {
                 b.extend_from_slice(&e.start.to_le_bytes());
                 b.extend_from_slice(&e.len.to_le_bytes());
                 b.extend_from_slice(&[e.control, 0, e.enable, e.typ]);
             }
-            push_category(&mut w, category::SYNC_MANAGER, &b);
+            push_category(&mut w, Category::SYNC_MANAGER, &b);
             let sm_of = |t: u8| sms.iter().position(|e| e.typ == t).unwrap_or(0) as u8;
             let (tx, rx): (Vec<PdoEntry>, Vec<PdoEntry>) = match self.device {
                 // BOOL = 0x0001, INTEGER32 = 0x0004, UNSIGNED16 = 0x0006 (ETG.1000.6 types).
@@ -241,19 +241,19 @@ impl BuildSpec {
             };
             let mut t = Vec::new();
             pdo(&mut t, 0x1A00, sm_of(sm_type::PD_IN), &tx);
-            push_category(&mut w, category::TXPDO, &t);
+            push_category(&mut w, Category::TXPDO, &t);
             let mut r = Vec::new();
             pdo(&mut r, 0x1600, sm_of(sm_type::PD_OUT), &rx);
-            push_category(&mut w, category::RXPDO, &r);
+            push_category(&mut w, Category::RXPDO, &r);
         }
         if self.dc && self.device != Device::Bare {
             // One operation mode: SYNC0 synchronous, assign-activate 0x0300 (0x0980/0x0981
             // values: SYNC0 + cyclic unit active), cycle and shifts given by the master.
             let mut d = [0u8; 24];
             d[14..16].copy_from_slice(&0x0300u16.to_le_bytes());
-            push_category(&mut w, category::DC, &d);
+            push_category(&mut w, Category::DC, &d);
         }
-        w.push(category::END);
+        w.push(Category::END.0);
         let mut bytes: Vec<u8> = w.iter().flat_map(|x| x.to_le_bytes()).collect();
         bytes.resize(bytes.len().max(2 * CATEGORY_START_WORD), 0xFF);
         SiiImage::padded(&bytes)
@@ -262,11 +262,7 @@ impl BuildSpec {
 
 /// The SyncManager category of an image (the layout the slave's firmware checks).
 pub fn sync_managers_of(img: &SiiImage) -> Vec<SmEntry> {
-    let Some((_, d)) = img
-        .categories()
-        .into_iter()
-        .find(|(t, _)| *t == category::SYNC_MANAGER)
-    else {
+    let Some(d) = img.category(Category::SYNC_MANAGER) else {
         return Vec::new();
     };
     let b: Vec<u8> = d.iter().flat_map(|w| w.to_le_bytes()).collect();

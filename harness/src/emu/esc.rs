@@ -9,7 +9,7 @@
 
 use super::al;
 use super::control_loop::{ControlLoop, LoopGains};
-use super::datagram::{cmd, DgSpan};
+use super::datagram::{Cmd, DgSpan};
 use super::device::{sm_type, sync_managers_of, Application, Device, SmEntry};
 use super::oscillator::{correction_rate, Oscillator, Wander};
 use super::process_data::{ProcessImage, SmGate};
@@ -574,7 +574,10 @@ impl Esc {
         let Some(hdr) = frame.get(s.start..s.data()) else {
             return;
         };
-        let c = hdr[0];
+        let Some(c) = Cmd::from_code(hdr[0]) else {
+            // A reserved command: passed on untouched.
+            return;
+        };
         let adp = u16::from_le_bytes([hdr[2], hdr[3]]);
         let ado = u16::from_le_bytes([hdr[4], hdr[5]]);
         let logical = u32::from_le_bytes([hdr[2], hdr[3], hdr[4], hdr[5]]);
@@ -582,15 +585,15 @@ impl Esc {
         let mut wkc_inc: u16 = 0;
         let mut adp_inc = false;
         match c {
-            cmd::APRD | cmd::APWR | cmd::APRW | cmd::ARMW => {
+            Cmd::Aprd | Cmd::Apwr | Cmd::Aprw | Cmd::Armw => {
                 adp_inc = true;
                 if adp == 0 {
                     wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, true);
-                } else if c == cmd::ARMW {
+                } else if c == Cmd::Armw {
                     wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, false);
                 }
             }
-            cmd::FPRD | cmd::FPWR | cmd::FPRW | cmd::FRMW => {
+            Cmd::Fprd | Cmd::Fpwr | Cmd::Fprw | Cmd::Frmw => {
                 let station = self.regs.get_u16(addr::STATION_ADDRESS);
                 // implements: REQ-ESC-003
                 let alias_on = self.regs.get_u8(addr::DL_CONTROL + 3) & 0x01 != 0;
@@ -598,18 +601,18 @@ impl Esc {
                 let hit = adp == station || (alias_on && adp == alias);
                 if hit {
                     wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, true);
-                } else if c == cmd::FRMW {
+                } else if c == Cmd::Frmw {
                     wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, false);
                 }
             }
-            cmd::BRD | cmd::BWR | cmd::BRW => {
+            Cmd::Brd | Cmd::Bwr | Cmd::Brw => {
                 adp_inc = true;
                 wkc_inc = self.reg_access(c, ado, &mut frame[data_range], st, true);
             }
-            cmd::LRD | cmd::LWR | cmd::LRW => {
+            Cmd::Lrd | Cmd::Lwr | Cmd::Lrw => {
                 wkc_inc = self.logical(c, logical, &mut frame[data_range]);
             }
-            _ => {}
+            Cmd::Nop => {}
         }
         if adp_inc {
             let v = adp.wrapping_add(1).to_le_bytes();
@@ -627,29 +630,29 @@ impl Esc {
     #[inline(always)]
     fn reg_access(
         &mut self,
-        c: u8,
+        c: Cmd,
         ado: u16,
         data: &mut [u8],
         st: &mut Visit,
         addressed: bool,
     ) -> u16 {
         match c {
-            cmd::APRD | cmd::FPRD => u16::from(self.read(ado, data, st, false)),
-            cmd::BRD => u16::from(self.read(ado, data, st, true)),
-            cmd::APWR | cmd::FPWR | cmd::BWR => u16::from(self.write(c, ado, data, st)),
-            cmd::APRW | cmd::FPRW => {
+            Cmd::Aprd | Cmd::Fprd => u16::from(self.read(ado, data, st, false)),
+            Cmd::Brd => u16::from(self.read(ado, data, st, true)),
+            Cmd::Apwr | Cmd::Fpwr | Cmd::Bwr => u16::from(self.write(c, ado, data, st)),
+            Cmd::Aprw | Cmd::Fprw => {
                 let input: Vec<u8> = data.to_vec();
                 let r = self.read(ado, data, st, false);
                 let w = self.write(c, ado, &input, st);
                 u16::from(r) + 2 * u16::from(w)
             }
-            cmd::BRW => {
+            Cmd::Brw => {
                 let input: Vec<u8> = data.to_vec();
                 let r = self.read(ado, data, st, true);
                 let w = self.write(c, ado, &input, st);
                 u16::from(r) + 2 * u16::from(w)
             }
-            cmd::ARMW | cmd::FRMW => {
+            Cmd::Armw | Cmd::Frmw => {
                 if addressed {
                     u16::from(self.read(ado, data, st, false))
                 } else {
@@ -709,7 +712,7 @@ impl Esc {
     }
 
     #[inline(always)]
-    fn write(&mut self, c: u8, ado: u16, data: &[u8], st: &mut Visit) -> bool {
+    fn write(&mut self, c: Cmd, ado: u16, data: &[u8], st: &mut Visit) -> bool {
         // Fast path for the drift-compensation sample (FRMW/ARMW/BWR to 0x0910, 4 or 8
         // bytes): nothing is stored, only the lower 32 bits are compared.
         if ado == addr::SYSTEM_TIME
@@ -725,7 +728,7 @@ impl Esc {
 
     /// [`Esc::write`] beyond the drift-compensation fast path.
     #[inline(never)]
-    fn write_general(&mut self, c: u8, ado: u16, data: &[u8], st: &mut Visit) -> bool {
+    fn write_general(&mut self, c: Cmd, ado: u16, data: &[u8], st: &mut Visit) -> bool {
         let kind = self.cfg.kind;
         // Offset, SYNC configuration or a 0x0930 reset may move the next pulse.
         self.quiet_until = 0;
@@ -789,7 +792,7 @@ impl Esc {
         }
         // REQ-ESC-030: only BWR/FPWR covering 0x0900 trigger the receive-time latch.
         // REQ-ESC-083: a non-DC slave never latches (it still adds its delays in the walk).
-        if touched.latch && (c == cmd::BWR || c == cmd::FPWR) && kind.has_receive_times() {
+        if touched.latch && (c == Cmd::Bwr || c == Cmd::Fpwr) && kind.has_receive_times() {
             st.latch = true;
         }
         if touched.system_time {
@@ -936,7 +939,7 @@ impl Esc {
     }
 
     /// LRD/LWR/LRW through the FMMU table (byte granularity; start/stop bits ignored).
-    fn logical(&mut self, c: u8, laddr: u32, data: &mut [u8]) -> u16 {
+    fn logical(&mut self, c: Cmd, laddr: u32, data: &mut [u8]) -> u16 {
         let mut read = false;
         let mut wrote = false;
         let dlen = data.len() as u64;
@@ -960,8 +963,8 @@ impl Esc {
             let phys = u64::from(self.regs.get_u16(base + 8));
             let lo = l0.max(ls);
             let hi = (l0 + dlen).min(ls + flen);
-            let do_read = typ & 0x01 != 0 && c != cmd::LWR;
-            let do_write = typ & 0x02 != 0 && c != cmd::LRD;
+            let do_read = typ & 0x01 != 0 && c != Cmd::Lwr;
+            let do_write = typ & 0x02 != 0 && c != Cmd::Lrd;
             let mut j = lo;
             while j < hi {
                 let k = (j - l0) as usize;
@@ -993,7 +996,7 @@ impl Esc {
             }
         }
         match c {
-            cmd::LRW => u16::from(read) + 2 * u16::from(wrote),
+            Cmd::Lrw => u16::from(read) + 2 * u16::from(wrote),
             _ => u16::from(read || wrote),
         }
     }

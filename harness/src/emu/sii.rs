@@ -19,16 +19,28 @@ pub const CATEGORY_START_WORD: usize = 0x40;
 /// address algorithm addresses (datasheet, 0x0502 bit 7).
 pub const MAX_IMAGE_BYTES: usize = 512 * 1024;
 
-/// Category types (ETG.2010, "Category types").
-pub mod category {
-    pub const STRINGS: u16 = 10;
-    pub const GENERAL: u16 = 30;
-    pub const FMMU: u16 = 40;
-    pub const SYNC_MANAGER: u16 = 41;
-    pub const TXPDO: u16 = 50;
-    pub const RXPDO: u16 = 51;
-    pub const DC: u16 = 60;
-    pub const END: u16 = 0xFFFF;
+/// A category type (ETG.2010, "Category types"). Types this emulator does not know, such as
+/// vendor-specific ones, are kept as they are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Category(pub u16);
+
+impl Category {
+    /// Strings (names the other categories refer to by index).
+    pub const STRINGS: Category = Category(10);
+    /// General (group, image and name indices, CoE/FoE details, ports).
+    pub const GENERAL: Category = Category(30);
+    /// FMMU usage.
+    pub const FMMU: Category = Category(40);
+    /// SyncManager layout (start, length, control, enable, type per SyncManager).
+    pub const SYNC_MANAGER: Category = Category(41);
+    /// Transmit PDOs (the slave's inputs).
+    pub const TXPDO: Category = Category(50);
+    /// Receive PDOs (the slave's outputs).
+    pub const RXPDO: Category = Category(51);
+    /// Distributed-clock operation modes.
+    pub const DC: Category = Category(60);
+    /// The type word that ends the category list.
+    pub const END: Category = Category(0xFFFF);
 }
 
 /// CRC-8 of the configuration area (ETG.2010): polynomial x^8 + x^2 + x + 1 (0x07), initial
@@ -205,21 +217,29 @@ impl SiiImage {
 
     /// The categories from word 0x40 on: (type, data words), stopping at the end marker, at
     /// the end of the image or at a category that runs past it.
-    pub fn categories(&self) -> Vec<(u16, &[u16])> {
+    pub fn categories(&self) -> Vec<(Category, &[u16])> {
         let mut out = Vec::new();
         let mut i = CATEGORY_START_WORD;
         while let (Some(&typ), Some(&len)) = (self.words.get(i), self.words.get(i + 1)) {
-            if typ == category::END {
+            if Category(typ) == Category::END {
                 break;
             }
             let start = i + 2;
             let Some(data) = self.words.get(start..start + usize::from(len)) else {
                 break;
             };
-            out.push((typ & 0x7FFF, data));
+            out.push((Category(typ & 0x7FFF), data));
             i = start + usize::from(len);
         }
         out
+    }
+
+    /// The data words of the first category of type `typ`.
+    pub fn category(&self, typ: Category) -> Option<&[u16]> {
+        self.categories()
+            .into_iter()
+            .find(|(t, _)| *t == typ)
+            .map(|(_, data)| data)
     }
 
     /// String `idx` (1-based) of the Strings category; `None` for 0 or a missing string.
@@ -227,10 +247,7 @@ impl SiiImage {
         if idx == 0 {
             return None;
         }
-        let (_, data) = self
-            .categories()
-            .into_iter()
-            .find(|(t, _)| *t == category::STRINGS)?;
+        let data = self.category(Category::STRINGS)?;
         let bytes: Vec<u8> = data.iter().flat_map(|w| w.to_le_bytes()).collect();
         let n = *bytes.first()?;
         let mut p = 1usize;
@@ -248,10 +265,8 @@ impl SiiImage {
     /// Identity words and the General category's device name.
     pub fn identity(&self) -> Identity {
         let name_idx = self
-            .categories()
-            .into_iter()
-            .find(|(t, _)| *t == category::GENERAL)
-            .and_then(|(_, d)| d.get(1).map(|w| (w >> 8) as u8));
+            .category(Category::GENERAL)
+            .and_then(|d| d.get(1).map(|w| (w >> 8) as u8));
         Identity {
             vendor: self.u32_at(8),
             product: self.u32_at(0x0A),

@@ -50,9 +50,9 @@ impl Network {
             // FPWR covering 0x0900) or to a loss cut (it draws over the full visit count).
             let stamps = self.loss_rate > 0.0
                 || spans.iter().any(|s| {
-                    let c = buf[s.start];
+                    let c = datagram::Cmd::from_code(buf[s.start]);
                     let ado = usize::from(u16::from_le_bytes([buf[s.start + 4], buf[s.start + 5]]));
-                    let latch_cmd = c == datagram::cmd::BWR || c == datagram::cmd::FPWR;
+                    let latch_cmd = matches!(c, Some(datagram::Cmd::Bwr | datagram::Cmd::Fpwr));
                     latch_cmd && ado <= 0x0900 && ado + s.len > 0x0900
                 });
             Some(self.walk_static(t_in, true, stamps))
