@@ -24,14 +24,23 @@ pub enum SyncSignal {
 /// Near-future window with 0x0981 bit 6 set ("≈ 2.1 s"): 2^31 ns, this model's reading.
 pub const NEAR_FUTURE_SHORT_NS: u64 = 1 << 31;
 
-const ACT_ACTIVE: u8 = 0x01;
-const ACT_SYNC0: u8 = 0x02;
-const ACT_SYNC1: u8 = 0x04;
-const ACT_AUTO: u8 = 0x08;
-const ACT_EXTEND: u8 = 0x10;
-const ACT_CHECK: u8 = 0x20;
-const ACT_SHORT_WINDOW: u8 = 0x40;
-const ACT_DEBUG_PULSE: u8 = 0x80;
+// The bits of Activation 0x0981, by the datasheet's bit numbers.
+/// Bit 0: cyclic operation.
+const ACT_ACTIVE: u8 = 1 << 0;
+/// Bit 1: SYNC0 generation.
+const ACT_SYNC0: u8 = 1 << 1;
+/// Bit 2: SYNC1 generation.
+const ACT_SYNC1: u8 = 1 << 2;
+/// Bit 3: auto-activation by writing the start time.
+const ACT_AUTO: u8 = 1 << 3;
+/// Bit 4: extension of a 32-bit start time to 64 bits.
+const ACT_EXTEND: u8 = 1 << 4;
+/// Bit 5: start time plausibility check (near future).
+const ACT_CHECK: u8 = 1 << 5;
+/// Bit 6: the short near-future window.
+const ACT_SHORT_WINDOW: u8 = 1 << 6;
+/// Bit 7: one debug pulse (self-clearing).
+const ACT_DEBUG_PULSE: u8 = 1 << 7;
 
 /// Dynamic state of the cyclic unit (configuration lives in the register file).
 #[derive(Debug, Clone, Default)]

@@ -2,7 +2,7 @@
 
 use std::fmt::Write;
 
-use super::{esc, open};
+use super::{esc, open, Cell};
 
 /// One series: name, colour, points (x, y), all positive.
 #[derive(Debug, Clone)]
@@ -30,12 +30,8 @@ pub struct Panel {
     pub series: Vec<Series>,
 }
 
-const W: f64 = 460.0;
-const H: f64 = 300.0;
-const ML: f64 = 70.0;
-const MR: f64 = 20.0;
-const MT: f64 = 40.0;
-const MB: f64 = 50.0;
+/// One panel: 460 × 300 px, margins left, right, top, bottom.
+const CELL: Cell = Cell::new(460.0, 300.0).with_margins(70.0, 20.0, 40.0, 50.0);
 
 fn decades(lo: f64, hi: f64) -> (f64, f64) {
     (
@@ -59,8 +55,8 @@ fn fmt_tick(e: f64) -> String {
 pub fn render_panels(title: &str, panels: &[Panel]) -> String {
     let cols = panels.len().clamp(1, 2);
     let rows = panels.len().div_ceil(2).max(1);
-    let total_w = W * cols as f64;
-    let total_h = H * rows as f64 + 30.0;
+    let total_w = CELL.width * cols as f64;
+    let total_h = CELL.height * rows as f64 + 30.0;
     let mut s = open(total_w, total_h, Some(11), None);
     let _ = writeln!(
         s,
@@ -69,8 +65,8 @@ pub fn render_panels(title: &str, panels: &[Panel]) -> String {
         esc(title)
     );
     for (pi, p) in panels.iter().enumerate() {
-        let ox = W * (pi % 2) as f64;
-        let oy = 30.0 + H * (pi / 2) as f64;
+        let ox = CELL.width * (pi % 2) as f64;
+        let oy = 30.0 + CELL.height * (pi / 2) as f64;
         let pts = p.series.iter().flat_map(|s| s.points.iter());
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for &(x, y) in pts {
@@ -86,22 +82,22 @@ pub fn render_panels(title: &str, panels: &[Panel]) -> String {
         }
         let (dx0, dx1) = decades(x0, x1);
         let (dy0, dy1) = decades(y0, y1);
-        let pw = W - ML - MR;
-        let ph = H - MT - MB;
-        let px = |x: f64| ox + ML + (x.log10() - dx0) / (dx1 - dx0) * pw;
-        let py = |y: f64| oy + MT + ph - (y.log10() - dy0) / (dy1 - dy0) * ph;
+        let pw = CELL.plot_width();
+        let ph = CELL.plot_height();
+        let px = |x: f64| ox + CELL.left + (x.log10() - dx0) / (dx1 - dx0) * pw;
+        let py = |y: f64| oy + CELL.top + ph - (y.log10() - dy0) / (dy1 - dy0) * ph;
         let _ = writeln!(
             s,
             r#"<text x="{}" y="{}" font-size="12" text-anchor="middle">{}</text>"#,
-            ox + ML + pw / 2.0,
+            ox + CELL.left + pw / 2.0,
             oy + 20.0,
             esc(&p.title)
         );
         let _ = writeln!(
             s,
             r##"<rect x="{}" y="{}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##,
-            ox + ML,
-            oy + MT
+            ox + CELL.left,
+            oy + CELL.top
         );
         let mut e = dx0;
         while e <= dx1 + 1e-9 {
@@ -109,9 +105,9 @@ pub fn render_panels(title: &str, panels: &[Panel]) -> String {
             let _ = writeln!(
                 s,
                 r##"<line x1="{x}" y1="{}" x2="{x}" y2="{}" stroke="#ddd"/><text x="{x}" y="{}" text-anchor="middle">{}</text>"##,
-                oy + MT,
-                oy + MT + ph,
-                oy + MT + ph + 14.0,
+                oy + CELL.top,
+                oy + CELL.top + ph,
+                oy + CELL.top + ph + 14.0,
                 fmt_tick(e)
             );
             e += 1.0;
@@ -122,9 +118,9 @@ pub fn render_panels(title: &str, panels: &[Panel]) -> String {
             let _ = writeln!(
                 s,
                 r##"<line x1="{}" y1="{y}" x2="{}" y2="{y}" stroke="#ddd"/><text x="{}" y="{}" text-anchor="end">{}</text>"##,
-                ox + ML,
-                ox + ML + pw,
-                ox + ML - 4.0,
+                ox + CELL.left,
+                ox + CELL.left + pw,
+                ox + CELL.left - 4.0,
                 y + 4.0,
                 fmt_tick(e)
             );
@@ -133,15 +129,15 @@ pub fn render_panels(title: &str, panels: &[Panel]) -> String {
         let _ = writeln!(
             s,
             r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
-            ox + ML + pw / 2.0,
-            oy + H - 12.0,
+            ox + CELL.left + pw / 2.0,
+            oy + CELL.height - 12.0,
             esc(&p.x_label)
         );
         let _ = writeln!(
             s,
             r#"<text transform="translate({},{}) rotate(-90)" text-anchor="middle">{}</text>"#,
             ox + 16.0,
-            oy + MT + ph / 2.0,
+            oy + CELL.top + ph / 2.0,
             esc(&p.y_label)
         );
         for (si, ser) in p.series.iter().enumerate() {
@@ -172,16 +168,16 @@ pub fn render_panels(title: &str, panels: &[Panel]) -> String {
                     );
                 }
             }
-            let ly = oy + MT + 12.0 + 14.0 * si as f64;
+            let ly = oy + CELL.top + 12.0 + 14.0 * si as f64;
             let _ = writeln!(
                 s,
                 r#"<line x1="{}" y1="{}" x2="{}" y2="{}" stroke="{}" stroke-width="2"{dash}/><text x="{}" y="{}">{}</text>"#,
-                ox + ML + 8.0,
+                ox + CELL.left + 8.0,
                 ly - 4.0,
-                ox + ML + 26.0,
+                ox + CELL.left + 26.0,
                 ly - 4.0,
                 ser.color,
-                ox + ML + 30.0,
+                ox + CELL.left + 30.0,
                 ly,
                 esc(&ser.name)
             );

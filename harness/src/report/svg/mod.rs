@@ -14,6 +14,53 @@ pub mod plots;
 pub use loglog::{Panel, Series};
 pub use plots::{render, render_bench, render_sensitivity, BenchSeries, SensitivityPanel};
 
+/// One panel's cell of a figure, px: its size and the margins around its plot area (title
+/// above, axis labels to the left and below, legend to the right).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Cell {
+    pub width: f64,
+    pub height: f64,
+    pub left: f64,
+    pub right: f64,
+    pub top: f64,
+    pub bottom: f64,
+}
+
+impl Cell {
+    /// A `width` × `height` cell whose plot area fills it.
+    pub(crate) const fn new(width: f64, height: f64) -> Cell {
+        Cell {
+            width,
+            height,
+            left: 0.0,
+            right: 0.0,
+            top: 0.0,
+            bottom: 0.0,
+        }
+    }
+
+    /// The same cell with these margins around the plot area.
+    pub(crate) const fn with_margins(self, left: f64, right: f64, top: f64, bottom: f64) -> Cell {
+        Cell {
+            left,
+            right,
+            top,
+            bottom,
+            ..self
+        }
+    }
+
+    /// Width of the plot area.
+    pub(crate) fn plot_width(&self) -> f64 {
+        self.width - self.left - self.right
+    }
+
+    /// Height of the plot area.
+    pub(crate) fn plot_height(&self) -> f64 {
+        self.height - self.top - self.bottom
+    }
+}
+
 /// Escapes text for SVG character data and attribute values.
 pub(crate) fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
