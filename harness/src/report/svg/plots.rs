@@ -5,15 +5,17 @@
 
 use std::fmt::Write;
 
-use super::{esc, open};
+use super::{esc, open, Cell};
 use crate::schemes::run::Record;
 
-const W: f64 = 900.0;
-const PANEL_H: f64 = 260.0;
-const LEFT: f64 = 80.0;
-const RIGHT: f64 = 140.0;
+/// One panel: 900 px wide; a plot area 260 px high with 70 px below it for the x-axis labels
+/// and the gap to the next panel; margins for the y-axis labels (left) and the legend (right).
+const CELL: Cell = Cell::new(900.0, 260.0 + 70.0).with_margins(80.0, 140.0, 0.0, 70.0);
+/// Page width, and the left edge of every plot area.
+const W: f64 = CELL.width;
+const LEFT: f64 = CELL.left;
+/// Space above the first panel.
 const TOP: f64 = 40.0;
-const GAP: f64 = 70.0;
 const COLORS: [&str; 10] = [
     "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
     "#bcbd22", "#17becf",
@@ -55,8 +57,8 @@ fn y_range(r: &Record, from: usize, clip: bool) -> f64 {
 fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
     let from = plot_start(r);
     let n = r.cyc_t.len();
-    let pw = W - LEFT - RIGHT;
-    let ph = PANEL_H;
+    let pw = CELL.plot_width();
+    let ph = CELL.plot_height();
     panel_frame(out, y0, format_args!("{}", esc(title)));
     if from >= n {
         return;
@@ -143,8 +145,8 @@ fn panel(out: &mut String, r: &Record, title: &str, y0: f64, clip: bool) {
 
 /// A panel's bold `title` above it and its frame, the panel's top at `y0`.
 fn panel_frame(out: &mut String, y0: f64, title: std::fmt::Arguments) {
-    let pw = W - LEFT - RIGHT;
-    let ph = PANEL_H;
+    let pw = CELL.plot_width();
+    let ph = CELL.plot_height();
     let _ = writeln!(
         out,
         r#"<text x="{LEFT}" y="{}" font-size="15" font-weight="bold">{}</text>"#,
@@ -174,7 +176,7 @@ fn time_labels(
             out,
             r#"<text x="{}" y="{}" font-size="11" text-anchor="middle">{:.prec$} {name}</text>"#,
             x(t),
-            y0 + PANEL_H + 16.0,
+            y0 + CELL.plot_height() + 16.0,
             t / per
         );
     }
@@ -184,7 +186,7 @@ fn time_labels(
 /// scale (1 ns .. 1 ms, clipped), for the schemes that distribute the reference time, with the
 /// 100 ns lock threshold.
 fn lock_panel(out: &mut String, records: &[&Record], y0: f64) {
-    let pw = W - LEFT - RIGHT;
+    let pw = CELL.plot_width();
     let shown: Vec<&&Record> = records.iter().filter(|r| r.dist_frames > 0).collect();
     let t_end = shown
         .iter()
@@ -239,7 +241,7 @@ fn series(out: &mut String, color: &str, pts: &str, y0: f64, pw: f64, row: usize
 
 /// The SVG document for the given records (in panel order), followed by the lock panel.
 pub fn render(records: &[&Record]) -> String {
-    let h = TOP + (records.len() + 1) as f64 * (PANEL_H + GAP) + 10.0;
+    let h = TOP + (records.len() + 1) as f64 * CELL.height + 10.0;
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -251,7 +253,7 @@ pub fn render(records: &[&Record]) -> String {
         r#"<text x="{LEFT}" y="20" font-size="13">Clock error (slave system time − reference system time, true time), one sample per cycle</text>"#
     );
     for (i, r) in records.iter().enumerate() {
-        let y0 = TOP + 30.0 + i as f64 * (PANEL_H + GAP);
+        let y0 = TOP + 30.0 + i as f64 * CELL.height;
         let clip = r.name != "uncompensated";
         let title = match r.name {
             "ecdc" => "ecdc (cf. seed 000 Fig. 10)".to_string(),
@@ -268,7 +270,7 @@ pub fn render(records: &[&Record]) -> String {
         };
         panel(&mut out, r, &title, y0, clip);
     }
-    let y0 = TOP + 30.0 + records.len() as f64 * (PANEL_H + GAP);
+    let y0 = TOP + 30.0 + records.len() as f64 * CELL.height;
     lock_panel(&mut out, records, y0);
     out.push_str("</svg>\n");
     out
@@ -301,7 +303,7 @@ fn bench_color(name: &str, k: usize) -> &'static str {
 
 /// Log-scale y axis 1 ns .. 10^`decades` ns with grid lines, for a panel at `y0`.
 fn log_axis(out: &mut String, y0: f64, pw: f64, decades: i32) -> impl Fn(f64) -> f64 {
-    let ph = PANEL_H;
+    let ph = CELL.plot_height();
     let hi = f64::from(decades);
     let y = move |e: f64| y0 + ph - (e.max(1.0).log10().clamp(0.0, hi) / hi) * ph;
     let labels = [
@@ -343,9 +345,9 @@ fn plot_header(title: &str, command: &str, h: f64) -> String {
 /// (2) the distribution of steady-state |SYNC0 skew| (empirical CDF, log x). `command` is
 /// written into the file.
 pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchSeries]) -> String {
-    let pw = W - LEFT - RIGHT;
-    let ph = PANEL_H;
-    let h = TOP + 2.0 * (PANEL_H + GAP) + 50.0;
+    let pw = CELL.plot_width();
+    let ph = CELL.plot_height();
+    let h = TOP + 2.0 * CELL.height + 50.0;
     let mut out = plot_header(title, command, h);
     let _ = writeln!(
         out,
@@ -400,7 +402,7 @@ pub fn render_bench(title: &str, subtitle: &str, command: &str, series: &[BenchS
         series_line(&mut out, bench_color(&s.name, k), &pts, y0, pw, k, &s.name);
     }
     // Panel 2: skew CDF.
-    let y0 = TOP + 40.0 + PANEL_H + GAP;
+    let y0 = TOP + 40.0 + CELL.plot_height() + CELL.bottom;
     panel_frame(
         &mut out,
         y0,
@@ -478,9 +480,9 @@ pub struct SensitivityPanel {
 /// The `ecdc bench sensitivity` plot: one panel per axis, the mean |SYNC0 skew| of every scheme
 /// at each value of the axis (log scale 1 ns .. 1 µs, larger values drawn at the top). `command` is written into the file.
 pub fn render_sensitivity(title: &str, command: &str, panels: &[SensitivityPanel]) -> String {
-    let pw = W - LEFT - RIGHT;
-    let ph = PANEL_H;
-    let h = TOP + panels.len() as f64 * (PANEL_H + GAP) + 50.0;
+    let pw = CELL.plot_width();
+    let ph = CELL.plot_height();
+    let h = TOP + panels.len() as f64 * CELL.height + 50.0;
     let mut out = plot_header(title, command, h);
     let _ = writeln!(
         out,
@@ -489,7 +491,7 @@ pub fn render_sensitivity(title: &str, command: &str, panels: &[SensitivityPanel
         esc(command)
     );
     for (p, panel) in panels.iter().enumerate() {
-        let y0 = TOP + 30.0 + p as f64 * (PANEL_H + GAP);
+        let y0 = TOP + 30.0 + p as f64 * CELL.height;
         panel_frame(
             &mut out,
             y0,
