@@ -254,8 +254,7 @@ fn every_machine_call_refuses_null_and_foreign_handles() {
         }
     }
     // NULL out-pointers on a live machine.
-    let c = default_config();
-    let m = new_machine(&c);
+    let m = new_machine(&default_config());
     unsafe {
         assert!(!ecdc_poll_timeout(m, ptr::null_mut()));
         assert!(!ecdc_poll_event(m, ptr::null_mut()));
@@ -326,8 +325,7 @@ fn poll_transmit_writes_the_count_frame_and_reports_a_small_buffer() {
 
 #[test]
 fn frame_builder_carries_host_and_machine_datagrams() {
-    let c = default_config();
-    let m = new_machine(&c);
+    let m = new_machine(&default_config());
     let mut buf = [0u8; 1514];
     let mut f = unsafe { core::mem::zeroed::<ecdc_frame>() };
     unsafe {

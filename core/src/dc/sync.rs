@@ -449,22 +449,19 @@ mod tests {
         assert!(a.sync0() && !a.sync1());
         assert_eq!(a.to_register(), [0x00, 0x03]);
         assert!(Activation::from_assign_activate(0x0700, 0).unwrap().sync1());
-        assert_eq!(
-            Activation::from_assign_activate(0x0301, 0),
-            Err(SyncError::PdiOwnsCyclicUnit)
-        );
-        assert_eq!(
-            Activation::from_assign_activate(0x8300, 0x0100),
-            Err(SyncError::DebugPulse)
-        );
-        assert_eq!(
-            Activation::from_assign_activate(0x0200, 0),
-            Err(SyncError::SyncWithoutUnit)
-        );
-        assert_eq!(
-            Activation::from_assign_activate(0x0B00, 0),
-            Err(SyncError::EnhancedUnsupported)
-        );
+        // (AssignActivate, the ESC features 0x0008, the refusal).
+        let refused = [
+            (0x0301, 0, SyncError::PdiOwnsCyclicUnit),
+            (0x8300, 0x0100, SyncError::DebugPulse),
+            (0x0200, 0, SyncError::SyncWithoutUnit),
+            (0x0B00, 0, SyncError::EnhancedUnsupported),
+        ];
+        for (assign, features, want) in refused {
+            assert_eq!(
+                Activation::from_assign_activate(assign, features),
+                Err(want)
+            );
+        }
         assert!(Activation::from_assign_activate(0x0B00, 0x0100).is_ok());
     }
 }

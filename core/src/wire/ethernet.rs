@@ -279,23 +279,13 @@ mod tests {
 
     #[test]
     fn not_ethercat_and_truncated() {
-        let mut b = frame(false);
-        b[12] = 0x08;
-        b[13] = 0x00;
-        let e = EthernetFrame::new_checked(&b[..]).unwrap();
-        assert_eq!(
-            e.ecat_frame().err(),
-            Some(Error::NotEtherCat { ethertype: 0x0800 })
-        );
-        // double tag: the inner type is 0x8100 -> not EtherCAT
-        let mut b = frame(true);
-        b[16] = 0x81;
-        b[17] = 0x00;
-        let e = EthernetFrame::new_checked(&b[..]).unwrap();
-        assert_eq!(
-            e.ecat_frame().err(),
-            Some(Error::NotEtherCat { ethertype: 0x8100 })
-        );
+        // IPv4 in an untagged frame; a double tag, whose inner type is 0x8100.
+        for (tagged, at, ethertype) in [(false, 12, 0x0800u16), (true, 16, 0x8100)] {
+            let mut b = frame(tagged);
+            b[at..at + 2].copy_from_slice(&ethertype.to_be_bytes());
+            let e = EthernetFrame::new_checked(&b[..]).unwrap();
+            assert_eq!(e.ecat_frame().err(), Some(Error::NotEtherCat { ethertype }));
+        }
         let b = frame(true);
         for n in 0..18 {
             assert!(EthernetFrame::new_checked(&b[..n]).is_err() || n >= 14 && b[12] != 0x81);

@@ -999,14 +999,6 @@ mod tests {
         let b = base();
         // cut inside the header length
         assert_eq!(err(&b[..35]), Error::Truncated);
-        // type 5 (mailbox gateway)
-        let mut x = b.clone();
-        x[1] = 0x50;
-        assert_eq!(err(&x), Error::NotDlpdu { frame_type: 5 });
-        // reserved bit 11
-        let mut x = b.clone();
-        x[1] = 0x18;
-        assert_eq!(err(&x), Error::HeaderReservedBit);
         // length 1499
         let mut x = vec![0u8; 1600];
         x[0] = 0xDB;
@@ -1014,50 +1006,35 @@ mod tests {
         assert_eq!(err(&x), Error::FrameTooLong { len: 1499 });
         // length 0
         assert_eq!(err(&[0x00, 0x10, 0, 0]), Error::NoDatagram);
-        // header length 36 (2 more than the walk): M clear on FRMW -> trailing data
-        let mut x = b.clone();
-        x[0] = 36;
-        assert_eq!(err(&x), Error::TrailingData);
-        // header length 32: FRMW ends past it
-        let mut x = b.clone();
-        x[0] = 32;
-        assert_eq!(
-            err(&x),
-            Error::LengthMismatch {
-                header: 32,
-                walked: 34
-            }
-        );
-        // header length 14: BRD has M set but the length ends after it
-        let mut x = b.clone();
-        x[0] = 14;
-        assert_eq!(err(&x), Error::MoreBitOnLast);
-        // header length 20: second datagram header incomplete
-        let mut x = b.clone();
-        x[0] = 20;
-        assert_eq!(
-            err(&x),
-            Error::LengthMismatch {
-                header: 20,
-                walked: 26
-            }
-        );
-        // M clear on BRD while the header covers FRMW too
-        let mut x = b.clone();
-        x[9] = 0x00;
-        assert_eq!(err(&x), Error::TrailingData);
-        // M set on FRMW (last) -> region exhausted
-        let mut x = b.clone();
-        x[23] = 0x80;
-        assert_eq!(err(&x), Error::MoreBitOnLast);
-        // command 15 in the second datagram
-        let mut x = b.clone();
-        x[16] = 15;
-        assert_eq!(err(&x), Error::UnknownCommand { code: 15 });
-        // reserved bit 13 of the second datagram
-        let mut x = b.clone();
-        x[23] = 0x20;
-        assert_eq!(err(&x), Error::DatagramReservedBits);
+        // One byte of the valid frame changed: (byte, new value, the error).
+        let lm = |header, walked| Error::LengthMismatch { header, walked };
+        let corruptions = [
+            // type 5 (mailbox gateway)
+            (1, 0x50, Error::NotDlpdu { frame_type: 5 }),
+            // reserved bit 11
+            (1, 0x18, Error::HeaderReservedBit),
+            // header length 36 (2 more than the walk): M clear on FRMW -> trailing data
+            (0, 36, Error::TrailingData),
+            // header length 32: FRMW ends past it
+            (0, 32, lm(32, 34)),
+            // header length 14: BRD has M set but the length ends after it
+            (0, 14, Error::MoreBitOnLast),
+            // header length 20: second datagram header incomplete
+            (0, 20, lm(20, 26)),
+            // M clear on BRD while the header covers FRMW too
+            (9, 0x00, Error::TrailingData),
+            // M set on FRMW (last) -> region exhausted
+            (23, 0x80, Error::MoreBitOnLast),
+            // command 15 in the second datagram
+            (16, 15, Error::UnknownCommand { code: 15 }),
+            // reserved bit 13 of the second datagram
+            (23, 0x20, Error::DatagramReservedBits),
+        ];
+        for (at, value, want) in corruptions {
+            let mut x = b.clone();
+            x[at] = value;
+            assert_eq!(err(&x), want, "byte {at} = {value:#04x}");
+        }
         // data length 1487 in a 1500-byte payload
         let mut x = vec![0u8; 1500];
         x[0] = 0xDA;
