@@ -13,25 +13,12 @@
 use super::device::{sm_type, SmEntry};
 use super::registers::{addr, RegisterFile};
 
+/// AL states, as AL control and AL status bits 0..3 hold them.
 pub const INIT: u16 = 0x1;
 pub const PREOP: u16 = 0x2;
 pub const BOOT: u16 = 0x3;
 pub const SAFEOP: u16 = 0x4;
 pub const OP: u16 = 0x8;
-/// AL status bit 4: error indication; AL control bit 4: error acknowledge.
-pub const ERROR: u16 = 0x10;
-
-/// The AL status codes this firmware reports (ETG.1000.6, "AL Status Codes"); the
-/// discriminant is the value of 0x0134.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u16)]
-pub enum StatusCode {
-    InvalidTransition = 0x0011,
-    UnknownState = 0x0012,
-    InvalidMailboxConfig = 0x0016,
-    InvalidOutputConfig = 0x001D,
-    InvalidInputConfig = 0x001E,
-}
 
 /// Registers of SyncManager `n` (datasheet 0x0800 + 8n: start, length, control, status,
 /// activate, PDI control).
@@ -133,6 +120,38 @@ pub fn apply_pdi_control(regs: &mut RegisterFile, sms: &[SmEntry], state: u16) {
     }
 }
 
+/// AL status bit 4: error indication, with the reason in the AL status code 0x0134; AL
+/// control bit 4: error acknowledge.
+pub const ERROR: u16 = 0x10;
+
+/// The AL status codes this firmware reports (ETG.1000.6, "AL Status Codes").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StatusCode {
+    /// The requested transition is not allowed from the current state.
+    InvalidTransition,
+    /// The requested state is not a state.
+    UnknownState,
+    /// A mailbox SyncManager is not configured as the SII says.
+    InvalidMailboxConfig,
+    /// The output SyncManager or its FMMU is not configured as needed.
+    InvalidOutputConfig,
+    /// The input SyncManager or its FMMU is not configured as needed.
+    InvalidInputConfig,
+}
+
+impl StatusCode {
+    /// The value of 0x0134.
+    pub fn value(self) -> u16 {
+        match self {
+            StatusCode::InvalidTransition => 0x0011,
+            StatusCode::UnknownState => 0x0012,
+            StatusCode::InvalidMailboxConfig => 0x0016,
+            StatusCode::InvalidOutputConfig => 0x001D,
+            StatusCode::InvalidInputConfig => 0x001E,
+        }
+    }
+}
+
 /// Handles a write to AL control (REQ-ESC-020, SyncManager checks REQ-ESC-025, FMMU checks
 /// REQ-ESC-028). `sms` is the
 /// SII's SyncManager category. Returns the new state. Rules (ETG.1000.6): any state → INIT; INIT → PREOP/BOOT; PREOP → SAFEOP; SAFEOP →
@@ -189,7 +208,7 @@ pub fn control(regs: &mut RegisterFile, sms: &[SmEntry]) -> u16 {
     };
     if let Some(c) = code {
         err = true;
-        regs.set_u16(addr::AL_STATUS_CODE, c as u16);
+        regs.set_u16(addr::AL_STATUS_CODE, c.value());
     } else if !err {
         regs.set_u16(addr::AL_STATUS_CODE, 0);
     }
