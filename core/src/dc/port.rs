@@ -384,16 +384,7 @@ impl PortSet {
     /// );
     /// ```
     pub fn next_after(self, from: Port) -> Option<Port> {
-        let mut p = from.next();
-        let mut steps = 0u8;
-        while steps < 4 {
-            if self.contains(p) {
-                return Some(p);
-            }
-            p = p.next();
-            steps = steps.saturating_add(1);
-        }
-        None
+        self.first_from(from.next(), Port::next)
     }
 
     /// The member of the set visited just before `to` when walking from `from` (the entry port):
@@ -405,19 +396,23 @@ impl PortSet {
     /// use ecdc_core::dc::port::{Port, PortSet};
     ///
     /// let s = PortSet::from_bits(0b0111); // ports 0, 1, 2
-    ///                                     // Walking 0 → 1 → 2, the port visited before 2 is 1.
+    /// // Walking 0 → 1 → 2, the port visited before 2 is 1.
     /// assert_eq!(s.prev_before(Port::P2), Some(Port::P1));
     /// assert_eq!(s.prev_before(Port::P1), Some(Port::P0));
     /// ```
     pub fn prev_before(self, to: Port) -> Option<Port> {
-        let mut p = to.prev();
-        let mut steps = 0u8;
-        while steps < 4 {
+        self.first_from(to.prev(), Port::prev)
+    }
+
+    /// The first member met walking from `start` (included) one `step` at a time, round the
+    /// four ports once.
+    fn first_from(self, start: Port, step: fn(Port) -> Port) -> Option<Port> {
+        let mut p = start;
+        for _ in 0..4 {
             if self.contains(p) {
                 return Some(p);
             }
-            p = p.prev();
-            steps = steps.saturating_add(1);
+            p = step(p);
         }
         None
     }
