@@ -94,6 +94,8 @@
 extern crate std;
 
 pub mod dc;
+#[cfg(test)]
+mod digest;
 pub mod num;
 pub mod servo;
 pub mod time;

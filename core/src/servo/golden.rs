@@ -8,6 +8,7 @@
 //! record the new digest (the assertion message prints it).
 #![allow(clippy::all, clippy::pedantic, clippy::restriction)]
 
+use crate::digest::Digest;
 use crate::servo::engine::Output;
 use crate::servo::master::MasterOutput;
 
@@ -18,25 +19,8 @@ const SERVO_DIGEST: u64 = 0x8e1f_fff2_ad6c_dc65;
 /// Master adapter: every `MasterOutput`, 200 000 updates.
 const MASTER_DIGEST: u64 = 0x40e9_3a8e_ca9a_02e7;
 
-/// FNV-1a over 64-bit words.
-struct Digest(u64);
-
+/// The servo's outputs folded into a digest.
 impl Digest {
-    fn new() -> Self {
-        Digest(0xcbf2_9ce4_8422_2325)
-    }
-
-    fn word(&mut self, w: u64) {
-        for b in w.to_le_bytes() {
-            self.0 ^= u64::from(b);
-            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01B3);
-        }
-    }
-
-    fn int(&mut self, v: i64) {
-        self.word(v as u64);
-    }
-
     fn threshold(&mut self, t: Option<(i64, i64)>) {
         match t {
             None => self.word(0),
@@ -65,10 +49,6 @@ impl Digest {
         self.int(o.app_time_step_ns);
         self.int(o.phase_error_ns);
         self.output(&o.engine);
-    }
-
-    fn finish(&self) -> u64 {
-        self.0
     }
 }
 
