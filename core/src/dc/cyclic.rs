@@ -10,6 +10,7 @@ use crate::dc::event::Event;
 use crate::dc::holdover::{Holdover, HoldoverCause};
 use crate::dc::machine::Machine;
 use crate::dc::phase::Phase;
+use crate::dc::remeasure::{Remeasure, RemeasureRun};
 use crate::dc::request::{le, Op, Pending, Reply, Tag};
 use crate::dc::shared::Shared;
 use crate::dc::slave::SlaveInfo;
@@ -18,22 +19,6 @@ use crate::dc::timer::Timer;
 use crate::time::SystemTime;
 use crate::wire::register::{reg, SystemTimeDifference};
 use crate::wire::FrameBuilder;
-
-/// Steps of a delay re-measurement running inside cyclic frames.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub(crate) enum Remeasure {
-    /// Not running.
-    #[default]
-    Idle,
-    /// FPRD 0x0900 (16 bytes) per latching slave.
-    Before,
-    /// BWR 0x0900.
-    Trigger,
-    /// FPRD 0x0900..0x091F per latching slave.
-    After,
-    /// FPWR 0x0928 per slave with a system time.
-    Write,
-}
 
 /// Per-cycle bookkeeping; its `Default` is a cycle run not started.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -49,29 +34,35 @@ pub(crate) struct CyclicState {
     pub(crate) not_locked_reported: bool,
     pub(crate) bound_ns: Option<u32>,
     pub(crate) ref_time: Option<SystemTime>,
-    // Results of the cycle in flight.
-    pub(crate) frmw_wkc: Option<u16>,
-    pub(crate) bound_wkc: Option<u16>,
-    pub(crate) topo_wkc: Option<u16>,
-    pub(crate) lost_station: Option<u16>,
+    /// What the replies of the cycle in flight reported.
+    pub(crate) replies: CycleReplies,
+    /// Master time the cycle in flight was sent.
     pub(crate) sent_at: SystemTime,
-    // Delay re-measurement.
-    pub(crate) remeasure_requested: bool,
-    pub(crate) remeasure: Remeasure,
-    pub(crate) rm_cursor: u16,
-    pub(crate) rm_sent_to: u16,
-    pub(crate) rm_error: Option<Error>,
+    /// Delay re-measurement (`dc/remeasure.rs`).
+    pub(crate) remeasure: RemeasureRun,
     // Hold-over (`dc/holdover.rs`).
     /// The hold-over sub-state, when silent.
     pub(crate) holdover: Option<Holdover>,
     /// Master time of the last complete cycle's transmission (`None`: none yet).
     pub(crate) last_good: Option<SystemTime>,
-    /// OR of every AL status (BRD 0x0130 data) of the cycle in flight.
-    pub(crate) al_status: Option<u16>,
-    /// The same of the last complete cycle.
+    /// [`CycleReplies::al_status`] of the last complete cycle.
     pub(crate) al_ok: Option<u16>,
-    /// BRD 0x092C bound read by the cycle in flight (`bound_ns` keeps the last one read).
-    pub(crate) cycle_bound_ns: Option<u32>,
+}
+
+/// What the replies of one cycle reported; cleared when a cycle is sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub(crate) struct CycleReplies {
+    /// WKC of the FRMW that distributes the reference time.
+    pub(crate) frmw_wkc: Option<u16>,
+    /// WKC of the BRD 0x092C, and the bound it read (`CyclicState::bound_ns` keeps the last
+    /// one read).
+    pub(crate) bound_wkc: Option<u16>,
+    pub(crate) bound_ns: Option<u32>,
+    /// WKC of the BRD 0x0130 topology check, and the OR of every AL status it read.
+    pub(crate) topo_wkc: Option<u16>,
+    pub(crate) al_status: Option<u16>,
+    /// A monitored slave whose FPRD 0x092C came back unanswered (WKC ≠ 1).
+    pub(crate) lost_station: Option<u16>,
 }
 
 /// Cyclic operation at work: its own data and the machine's shared parts. A fault found here
@@ -153,12 +144,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         self.sh.timers.set(Timer::Cycle, next);
         let before = b.datagram_count();
         self.sh.inflight.clear();
-        self.c.frmw_wkc = None;
-        self.c.bound_wkc = None;
-        self.c.topo_wkc = None;
-        self.c.lost_station = None;
-        self.c.al_status = None;
-        self.c.cycle_bound_ns = None;
+        self.c.replies = CycleReplies::default();
         let frmw = self.sh.frmw_op(now);
         if !self.push_cycle_block(b, frmw) && !self.push_cycle_each(b, frmw) {
             if before == 0 {
@@ -257,7 +243,7 @@ impl<const N: usize> CyclicCx<'_, N> {
                 if let Some(&raw) = data.first_chunk::<4>().filter(|_| data.len() == 4) {
                     self.on_diff_reply(pos, p.station, wkc, raw);
                 } else if wkc != 1 {
-                    self.c.lost_station.get_or_insert(p.station);
+                    self.c.replies.lost_station.get_or_insert(p.station);
                 }
             }
             Tag::CycRemeasure(i) => self.remeasure_reply(Reply {
@@ -274,7 +260,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// around `now`), used only with the full working counter.
     #[inline(always)]
     pub(crate) fn on_frmw_reply(&mut self, now: SystemTime, len: u16, wkc: u16, data: &[u8]) {
-        self.c.frmw_wkc = Some(wkc);
+        self.c.replies.frmw_wkc = Some(wkc);
         if wkc == self.sh.line.sys_count {
             if let Some(v) = le(data, usize::from(len)) {
                 let t = if len == 8 {
@@ -292,12 +278,12 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// working counter.
     #[inline(always)]
     pub(crate) fn on_bound_reply(&mut self, wkc: u16, data: &[u8]) {
-        self.c.bound_wkc = Some(wkc);
+        self.c.replies.bound_wkc = Some(wkc);
         if wkc == self.sh.line.sys_count {
             if let Some(raw) = le(data, 4).and_then(|v| u32::try_from(v).ok()) {
                 let bound = SystemTimeDifference::from_raw(raw).magnitude();
                 self.c.bound_ns = Some(bound);
-                self.c.cycle_bound_ns = Some(bound);
+                self.c.replies.bound_ns = Some(bound);
             }
         }
     }
@@ -306,9 +292,9 @@ impl<const N: usize> CyclicCx<'_, N> {
     /// of every AL status.
     #[inline(always)]
     pub(crate) fn on_topology_reply(&mut self, wkc: u16, data: &[u8]) {
-        self.c.topo_wkc = Some(wkc);
+        self.c.replies.topo_wkc = Some(wkc);
         if wkc > 0 {
-            self.c.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
+            self.c.replies.al_status = le(data, 2).and_then(|v| u16::try_from(v).ok());
         }
     }
 
@@ -343,12 +329,12 @@ impl<const N: usize> CyclicCx<'_, N> {
             }
         }
         self.c.last_good = Some(self.c.sent_at);
-        self.c.al_ok = self.c.al_status;
+        self.c.al_ok = self.c.replies.al_status;
         self.c.lost_streak = 0;
         let max_wkc = self.sh.cfg.monitor.max_wkc_errors;
         // Every slave counts the BRD of 0x0130, every slave with a system time the BRD of
         // 0x092C: either count changing means slaves appeared or disappeared.
-        let topo = match (self.c.topo_wkc, self.c.bound_wkc) {
+        let topo = match (self.c.replies.topo_wkc, self.c.replies.bound_wkc) {
             (Some(w), _) if w != self.sh.line.count => Some(w),
             (_, Some(w)) if w != self.sh.line.sys_count => Some(
                 self.sh
@@ -362,7 +348,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         match topo {
             // A slave gone from its address in the same cycle as the count changed: the
             // topology changed, no need to wait for confirmation.
-            Some(found) if self.c.lost_station.is_some() => {
+            Some(found) if self.c.replies.lost_station.is_some() => {
                 return self.fail(Error::TopologyChanged {
                     expected: self.sh.line.count,
                     found,
@@ -381,7 +367,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         }
         // A reset or lost reference no longer reads the FRMW; slaves behind a break no longer
         // write it.
-        match self.c.frmw_wkc {
+        match self.c.replies.frmw_wkc {
             Some(w) if w != self.sh.line.sys_count => {
                 self.c.wkc_streak = self.c.wkc_streak.saturating_add(1);
                 if self.c.wkc_streak >= max_wkc {
@@ -401,12 +387,12 @@ impl<const N: usize> CyclicCx<'_, N> {
             }
             _ => self.c.wkc_streak = 0,
         }
-        if let Some(station) = self.c.lost_station {
+        if let Some(station) = self.c.replies.lost_station {
             // A power-cycled ESC has lost its station address; a broken link drops it too.
             return self.fail(Error::SlaveLost { station });
         }
-        if let Some(e) = self.c.rm_error.take() {
-            self.c.remeasure = crate::dc::cyclic::Remeasure::Idle;
+        if let Some(e) = self.c.remeasure.error.take() {
+            self.c.remeasure.step = Remeasure::Idle;
             return self.fail(e);
         }
         self.remeasure_advance();
@@ -465,11 +451,11 @@ impl<const N: usize> CyclicCx<'_, N> {
         self.sh.stats.lost_cycles = self.sh.stats.lost_cycles.saturating_add(1);
         self.c.lost_streak = self.c.lost_streak.saturating_add(1);
         // A lost re-measurement step is resent (a lost trigger restarts the measurement).
-        self.c.rm_sent_to = self.c.rm_cursor;
-        if self.c.remeasure == Remeasure::After {
-            self.c.remeasure = Remeasure::Before;
-            self.c.rm_cursor = 0;
-            self.c.rm_sent_to = 0;
+        self.c.remeasure.sent_to = self.c.remeasure.cursor;
+        if self.c.remeasure.step == Remeasure::After {
+            self.c.remeasure.step = Remeasure::Before;
+            self.c.remeasure.cursor = 0;
+            self.c.remeasure.sent_to = 0;
         }
         if self.c.holdover.is_some() {
             let _ = self.holdover_expired(now);
@@ -511,7 +497,7 @@ pub(crate) fn diff_reply(
     raw: [u8; 4],
 ) {
     if wkc != 1 {
-        cyc.lost_station.get_or_insert(station);
+        cyc.replies.lost_station.get_or_insert(station);
     } else if let Some(s) = slaves.get_mut(usize::from(pos)).filter(|_| pos < count) {
         let d = SystemTimeDifference::from_raw(u32::from_le_bytes(raw));
         s.last_diff_ns = Some(i64::from(d.to_ns()));
@@ -915,11 +901,14 @@ mod tests {
         m.in_cyclic(SystemTime(T), |cx| {
             cx.on_cyclic_reply(SystemTime(T), diff(0x1203), 1, &[0, 0])
         });
-        assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, None);
+        assert_eq!(m.phase.cyclic_mut().unwrap().replies.lost_station, None);
         m.in_cyclic(SystemTime(T), |cx| {
             cx.on_cyclic_reply(SystemTime(T), diff(0x1203), 0, &[0, 0])
         });
-        assert_eq!(m.phase.cyclic_mut().unwrap().lost_station, Some(0x1203));
+        assert_eq!(
+            m.phase.cyclic_mut().unwrap().replies.lost_station,
+            Some(0x1203)
+        );
     }
 
     /// The end-of-cycle fault rules: a changed slave count (BRD 0x0130) or system-time count
@@ -988,8 +977,12 @@ mod tests {
             let mut failed_after = None;
             for k in 1..=max + 2 {
                 let c = m.phase.cyclic_mut().unwrap();
-                (c.topo_wkc, c.bound_wkc, c.frmw_wkc, c.lost_station) =
-                    (Some(topo), Some(bound), Some(fr), lost);
+                (
+                    c.replies.topo_wkc,
+                    c.replies.bound_wkc,
+                    c.replies.frmw_wkc,
+                    c.replies.lost_station,
+                ) = (Some(topo), Some(bound), Some(fr), lost);
                 m.in_cyclic(SystemTime(T), |cx| cx.cyclic_complete(SystemTime(T)));
                 if m.state() != State::Cyclic {
                     failed_after = Some(k);
@@ -1008,9 +1001,9 @@ mod tests {
         // The AL status OR is taken only from a BRD 0x0130 some slave answered.
         let mut m = base.clone();
         m.in_cyclic(SystemTime(T), |cx| cx.on_topology_reply(0, &[0x08, 0]));
-        assert_eq!(m.phase.cyclic_mut().unwrap().al_status, None);
+        assert_eq!(m.phase.cyclic_mut().unwrap().replies.al_status, None);
         m.in_cyclic(SystemTime(T), |cx| cx.on_topology_reply(1, &[0x08, 0]));
-        assert_eq!(m.phase.cyclic_mut().unwrap().al_status, Some(0x08));
+        assert_eq!(m.phase.cyclic_mut().unwrap().replies.al_status, Some(0x08));
     }
 
     /// Lock is lost only when the bound stays above `unlock_ns` for `unlock_cycles` cycles;
@@ -1051,10 +1044,10 @@ mod tests {
             line.slaves[5].last_diff_ns, None,
             "position 5 is beyond the count"
         );
-        assert_eq!(c.lost_station, None);
+        assert_eq!(c.replies.lost_station, None);
         diff_reply(&mut line.slaves, 5, &mut c, 3, 0x1304, 0, minus_300);
         assert_eq!(
-            (c.lost_station, line.slaves[3].last_diff_ns),
+            (c.replies.lost_station, line.slaves[3].last_diff_ns),
             (Some(0x1304), None)
         );
     }

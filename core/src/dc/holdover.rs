@@ -25,10 +25,11 @@
 //! A failed check is a typed fault ([`Error::ResumeCheckFailed`]) and the usual
 //! re-initialisation; a passed one resumes monitoring and lock detection where they were.
 
-use crate::dc::cyclic::{CyclicCx, Remeasure};
+use crate::dc::cyclic::CyclicCx;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::machine::Machine;
+use crate::dc::remeasure::{Remeasure, RemeasureRun};
 use crate::time::SystemTime;
 
 /// Why a hold-over began.
@@ -182,12 +183,11 @@ impl<const N: usize> CyclicCx<'_, N> {
         });
         // A delay re-measurement cut by the silence is run again from its first step once
         // the wire is back (some 0x0928 may already be rewritten: the rerun rewrites all).
-        if self.c.remeasure != Remeasure::Idle {
-            self.c.remeasure = Remeasure::Idle;
-            self.c.remeasure_requested = true;
-            self.c.rm_cursor = 0;
-            self.c.rm_sent_to = 0;
-            self.c.rm_error = None;
+        if self.c.remeasure.step != Remeasure::Idle {
+            self.c.remeasure = RemeasureRun {
+                requested: true,
+                ..RemeasureRun::default()
+            };
         }
         self.sh.push_event(Event::HoldoverStarted { since, cause });
     }
@@ -238,21 +238,21 @@ impl<const N: usize> CyclicCx<'_, N> {
 
     fn resume_result(&self, h: Holdover) -> Result<ResumeCheck, ResumeFailure> {
         let c = &*self.c;
-        let found = c.topo_wkc.unwrap_or(0);
+        let found = c.replies.topo_wkc.unwrap_or(0);
         if found != self.sh.line.count {
             return Err(ResumeFailure::SlaveCount {
                 expected: self.sh.line.count,
                 found,
             });
         }
-        let frmw = c.frmw_wkc.unwrap_or(0);
+        let frmw = c.replies.frmw_wkc.unwrap_or(0);
         if frmw != self.sh.line.sys_count {
             return Err(ResumeFailure::ReferenceWkc {
                 expected: self.sh.line.sys_count,
                 actual: frmw,
             });
         }
-        let bound_wkc = c.bound_wkc.unwrap_or(0);
+        let bound_wkc = c.replies.bound_wkc.unwrap_or(0);
         if bound_wkc != self.sh.line.sys_count {
             return Err(ResumeFailure::SlaveCount {
                 expected: self.sh.line.count,
@@ -264,10 +264,10 @@ impl<const N: usize> CyclicCx<'_, N> {
                     .saturating_add(bound_wkc),
             });
         }
-        if let Some(station) = c.lost_station {
+        if let Some(station) = c.replies.lost_station {
             return Err(ResumeFailure::SlaveLost { station });
         }
-        let al_status = c.al_status.unwrap_or(0);
+        let al_status = c.replies.al_status.unwrap_or(0);
         if let Some(before) = h.al_before {
             if al_status & AL_INIT_BIT != 0 && before & AL_INIT_BIT == 0 {
                 return Err(ResumeFailure::SlaveReset { al_status, before });
@@ -275,7 +275,7 @@ impl<const N: usize> CyclicCx<'_, N> {
         }
         // The bound is taken from this cycle only: `bound_ns` still holds the last value
         // from before the silence when this cycle's read carried none.
-        let bound_ns = c.cycle_bound_ns.unwrap_or(u32::MAX);
+        let bound_ns = c.replies.bound_ns.unwrap_or(u32::MAX);
         if bound_ns > self.sh.cfg.holdover_check_ns {
             return Err(ResumeFailure::Bound { bound_ns });
         }
@@ -402,6 +402,38 @@ mod tests {
         ));
     }
 
+    /// A delay re-measurement the silence cuts is dropped, with its progress and error, and
+    /// asked for again, so it runs from its first step once the wire is back; one that is not
+    /// running is left alone.
+    #[test]
+    fn holdover_reruns_a_cut_remeasurement() {
+        let cut = RemeasureRun {
+            requested: false,
+            step: Remeasure::After,
+            cursor: 1,
+            sent_to: 2,
+            error: Some(Error::NoReferenceClock),
+        };
+        for (before, after) in [
+            (
+                cut,
+                RemeasureRun {
+                    requested: true,
+                    ..RemeasureRun::default()
+                },
+            ),
+            (RemeasureRun::default(), RemeasureRun::default()),
+        ] {
+            let mut m = cyclic(1);
+            let after_start = m.in_cyclic(SystemTime(T), |cx| {
+                cx.c.remeasure = before;
+                cx.holdover_start(SystemTime(T), HoldoverCause::Silence);
+                cx.c.remeasure
+            });
+            assert_eq!(after_start, Some(after));
+        }
+    }
+
     /// Hold-over ends in a re-initialisation once the silence is longer than `holdover_ns`
     /// plus one period; a silence of exactly that is still held over.
     // verifies: REQ-DC-127
@@ -453,11 +485,11 @@ mod tests {
     fn resume(al: u16, before: Option<u16>, bound: u32) -> Result<ResumeCheck, ResumeFailure> {
         let mut m = cyclic(1_000_000_000);
         let c = m.phase.cyclic_mut().unwrap();
-        c.topo_wkc = Some(2);
-        c.frmw_wkc = Some(2);
-        c.bound_wkc = Some(2);
-        c.al_status = Some(al);
-        c.cycle_bound_ns = Some(bound);
+        c.replies.topo_wkc = Some(2);
+        c.replies.frmw_wkc = Some(2);
+        c.replies.bound_wkc = Some(2);
+        c.replies.al_status = Some(al);
+        c.replies.bound_ns = Some(bound);
         let h = Holdover {
             since: SystemTime(T),
             cause: HoldoverCause::Silence,

@@ -353,7 +353,7 @@ impl<const N: usize> Machine<N> {
     /// ```
     pub fn request_delay_measurement(&mut self) {
         if let Some(c) = self.phase.cyclic_mut() {
-            c.remeasure_requested = true;
+            c.remeasure.requested = true;
         }
     }
 

@@ -4,7 +4,7 @@
 //! never touched here: a delay change is slewed by the ESC, an offset change would step the
 //! clock (Lambert, IgH patch 0009).
 
-use crate::dc::cyclic::{CyclicCx, Remeasure};
+use crate::dc::cyclic::CyclicCx;
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::measure::{latch_read, store_latch_reply, LATCH_TRIGGER};
@@ -14,13 +14,44 @@ use crate::dc::slave::LatchRead;
 use crate::wire::register::reg;
 use crate::wire::FrameBuilder;
 
+/// Steps of a delay re-measurement running inside cyclic frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub(crate) enum Remeasure {
+    /// Not running.
+    #[default]
+    Idle,
+    /// FPRD 0x0900 (16 bytes) per latching slave.
+    Before,
+    /// BWR 0x0900.
+    Trigger,
+    /// FPRD 0x0900..0x091F per latching slave.
+    After,
+    /// FPWR 0x0928 per slave with a system time.
+    Write,
+}
+
+/// A delay re-measurement inside cyclic operation: whether one is asked for, its step and how
+/// far the step has got.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub(crate) struct RemeasureRun {
+    /// Asked for; starts with the next cycle that has room.
+    pub(crate) requested: bool,
+    pub(crate) step: Remeasure,
+    /// First work item of the step not yet answered.
+    pub(crate) cursor: u16,
+    /// One past the last work item the cycle in flight carries.
+    pub(crate) sent_to: u16,
+    /// The step's first error, reported when the step ends.
+    pub(crate) error: Option<Error>,
+}
+
 /// Re-measurement datagrams per cycle at most. ecdc choice: 8 keeps the cyclic frame small.
 const PER_CYCLE: u16 = 8;
 
 impl<const N: usize> CyclicCx<'_, N> {
     fn remeasure_op(&self, pos: u16) -> Option<Op> {
         let s = self.sh.line.slave(pos)?;
-        match self.c.remeasure {
+        match self.c.remeasure.step {
             Remeasure::Idle => None,
             Remeasure::Trigger => Some(LATCH_TRIGGER),
             Remeasure::Before => latch_read(s, LatchRead::Before),
@@ -33,7 +64,7 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     fn remeasure_len(&self) -> u16 {
-        match self.c.remeasure {
+        match self.c.remeasure.step {
             Remeasure::Idle => 0,
             Remeasure::Trigger => 1,
             Remeasure::Before | Remeasure::After | Remeasure::Write => self.sh.line.count,
@@ -41,18 +72,18 @@ impl<const N: usize> CyclicCx<'_, N> {
     }
 
     pub(crate) fn fill_remeasure(&mut self, b: &mut FrameBuilder<'_>) {
-        if self.c.remeasure == Remeasure::Idle {
-            if !self.c.remeasure_requested {
+        if self.c.remeasure.step == Remeasure::Idle {
+            if !self.c.remeasure.requested {
                 return;
             }
-            self.c.remeasure_requested = false;
-            self.c.remeasure = Remeasure::Before;
-            self.c.rm_cursor = 0;
-            self.c.rm_error = None;
+            self.c.remeasure.requested = false;
+            self.c.remeasure.step = Remeasure::Before;
+            self.c.remeasure.cursor = 0;
+            self.c.remeasure.error = None;
         }
         // A range, not a loop condition: the walk ends after `len` positions whatever else
         // happens. `sent_to`: the first position not sent this cycle.
-        let start = self.c.rm_cursor;
+        let start = self.c.remeasure.cursor;
         let mut sent_to = start.max(self.remeasure_len());
         let mut pushed = 0u16;
         for pos in start..sent_to {
@@ -68,18 +99,18 @@ impl<const N: usize> CyclicCx<'_, N> {
                 pushed = pushed.saturating_add(1);
             }
         }
-        self.c.rm_sent_to = sent_to;
+        self.c.remeasure.sent_to = sent_to;
     }
 
     pub(crate) fn remeasure_reply(&mut self, r: Reply<'_>) {
         if let Err(e) = self.remeasure_store(r) {
-            self.c.rm_error.get_or_insert(e);
+            self.c.remeasure.error.get_or_insert(e);
         }
     }
 
     fn remeasure_store(&mut self, r: Reply<'_>) -> Result<(), Error> {
         let line = &mut self.sh.line;
-        match self.c.remeasure {
+        match self.c.remeasure.step {
             Remeasure::Trigger => {
                 r.sent
                     .check_latch_wkc(r.wkc, line.latching_count(), line.count)?;
@@ -94,22 +125,22 @@ impl<const N: usize> CyclicCx<'_, N> {
 
     /// Called when a cycle came back complete: move the re-measurement on.
     pub(crate) fn remeasure_advance(&mut self) {
-        if self.c.remeasure == Remeasure::Idle {
+        if self.c.remeasure.step == Remeasure::Idle {
             return;
         }
-        self.c.rm_cursor = self.c.rm_sent_to;
-        if self.c.rm_cursor < self.remeasure_len() {
+        self.c.remeasure.cursor = self.c.remeasure.sent_to;
+        if self.c.remeasure.cursor < self.remeasure_len() {
             return;
         }
-        self.c.rm_cursor = 0;
-        self.c.rm_sent_to = 0;
-        self.c.remeasure = match self.c.remeasure {
+        self.c.remeasure.cursor = 0;
+        self.c.remeasure.sent_to = 0;
+        self.c.remeasure.step = match self.c.remeasure.step {
             Remeasure::Before => Remeasure::Trigger,
             Remeasure::Trigger => Remeasure::After,
             Remeasure::After => match self.remeasure_compute() {
                 Ok(()) => Remeasure::Write,
                 Err(e) => {
-                    self.c.remeasure = Remeasure::Idle;
+                    self.c.remeasure.step = Remeasure::Idle;
                     return self.fail(e);
                 }
             },
@@ -177,7 +208,7 @@ mod tests {
             s.delay_new = if i == 2 { 130 } else { 100 };
         }
         m.in_cyclic(SystemTime(1_000_000), |cx| {
-            cx.c.remeasure = step;
+            cx.c.remeasure.step = step;
             [0, 1, 2].map(|pos| cx.remeasure_op(pos))
         })
         .unwrap()
