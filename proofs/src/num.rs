@@ -310,14 +310,19 @@ pub fn kani_p2_wrapping_diff_u64() {
     prop_wrapping_diff_any::<u64>(a, b);
 }
 
+/// Four port times for the entry-port harnesses: a base, an offset per port below 2^31 (the
+/// true times span less than half the 32-bit circle) and which ports take part.
+fn any_port_times() -> (u32, [u32; 4], [bool; 4]) {
+    let base: u32 = kani::any();
+    let offsets: [u32; 4] = kani::any::<[u32; 4]>().map(|o| o & 0x7FFF_FFFF);
+    (base, offsets, kani::any())
+}
+
 /// Kani: P2 entry port under wrap, 4 ports, any activity mask.
 #[cfg_attr(kani, kani::proof)]
 #[cfg_attr(kani, kani::unwind(6))]
 pub fn kani_p2_earliest_port() {
-    let base: u32 = kani::any();
-    // Offsets below 2^31: the true times span less than half the 32-bit circle.
-    let offsets: [u32; 4] = kani::any::<[u32; 4]>().map(|o| o & 0x7FFF_FFFF);
-    let active: [bool; 4] = kani::any();
+    let (base, offsets, active) = any_port_times();
     kani::cover!(
         base.checked_add(offsets[0]).is_none() && active[0],
         "active port past the wrap"
@@ -377,9 +382,7 @@ pub fn kani_sign_magnitude_u32() {
 #[cfg_attr(kani, kani::unwind(10))]
 pub fn kani_port_time_earliest() {
     use ecdc_core::time::PortTime;
-    let base: u32 = kani::any();
-    let offsets: [u32; 4] = kani::any::<[u32; 4]>().map(|o| o & 0x7FFF_FFFF);
-    let present: [bool; 4] = kani::any();
+    let (base, offsets, present) = any_port_times();
     let ports: [Option<PortTime>; 4] =
         core::array::from_fn(|i| present[i].then(|| PortTime(base.wrapping_add(offsets[i]))));
     kani::cover!(
