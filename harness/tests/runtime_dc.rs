@@ -2,68 +2,28 @@
 //! ESC emulator through an in-memory link in real time: what `ecdc scan` and `ecdc run` do,
 //! without sockets or root. The netns test (scripts/netns-test.sh) repeats it over veth.
 
-use std::collections::VecDeque;
 use std::io;
 use std::sync::atomic::AtomicBool;
 
 use ecdc_core::dc::{Config, DcKind, Event, Machine, State};
 use ecdc_core::servo::master::{MasterConfig, MasterServo};
 use ecdc_core::wire::MASTER_MAC;
-use ecdc_harness::emu::{Delivery, Network, Scenario};
+use ecdc_harness::emu::{Network, Scenario};
 use ecdc_harness::runtime::bringup::{self, BringupError, Limits, Outcome, Until};
 use ecdc_harness::runtime::clock::{self, DcClock};
 use ecdc_harness::runtime::cyclic::{self, CycleConfig};
 use ecdc_harness::runtime::dc_task::DcTask;
+use ecdc_harness::runtime::emu_link::EmuLink;
 use ecdc_harness::runtime::errors::RuntimeError;
 use ecdc_harness::runtime::socket::Link;
 use ecdc_harness::runtime::transport::Transport;
 
-/// The emulated chain behind an in-memory link: true time = host monotonic time since start.
-struct EmuLink {
-    net: Network,
-    start: u64,
-    queue: VecDeque<(u64, Vec<u8>)>,
-    /// Extra frames delivered before every reply (e.g. another master's).
-    inject: Option<Vec<u8>>,
-}
-
-impl EmuLink {
-    fn new(sc: &Scenario) -> Self {
-        EmuLink {
-            net: Network::new(sc).unwrap(),
-            start: clock::now_ns(),
-            queue: VecDeque::new(),
-            inject: None,
-        }
-    }
-}
-
-impl Link for EmuLink {
-    fn send(&mut self, frame: &[u8]) -> io::Result<()> {
-        let t = (clock::now_ns() - self.start).max(self.net.now());
-        if let Some(f) = &self.inject {
-            self.queue.push_back((0, f.clone()));
-        }
-        if let Delivery::Returned(r) = self.net.transact(frame, t).unwrap() {
-            self.queue.push_back((self.start + r.arrival, r.frame));
-        }
-        Ok(())
-    }
-    fn recv(&mut self, buf: &mut [u8], deadline_ns: u64) -> io::Result<Option<usize>> {
-        let stop = AtomicBool::new(false);
-        match self.queue.front() {
-            Some((at, _)) if *at <= deadline_ns => {
-                clock::sleep_until(*at, 200_000, &stop);
-                let (_, f) = self.queue.pop_front().unwrap();
-                buf[..f.len()].copy_from_slice(&f);
-                Ok(Some(f.len()))
-            }
-            _ => {
-                clock::sleep_until(deadline_ns, 0, &stop);
-                Ok(None)
-            }
-        }
-    }
+/// The emulated chain behind an in-memory link; a reply's wait ends in a 200 µs spin, so it
+/// arrives on time.
+fn emu_link(sc: &Scenario) -> EmuLink {
+    let mut link = EmuLink::new(Network::new(sc).unwrap());
+    link.spin_ns = 200_000;
+    link
 }
 
 type M = Machine<16>;
@@ -100,7 +60,7 @@ fn bring_up_quietly<L: Link>(
 
 #[test]
 fn scan_stops_after_delays_without_writing_offsets() {
-    let mut t = Transport::new(EmuLink::new(&Scenario::line(3)), MASTER_MAC);
+    let mut t = Transport::new(emu_link(&Scenario::line(3)), MASTER_MAC);
     let mut m = machine(1_000_000);
     let stop = AtomicBool::new(false);
     let mut events = Vec::new();
@@ -146,7 +106,7 @@ fn scan_stops_after_delays_without_writing_offsets() {
 #[test]
 fn run_brings_up_dc_and_locks_in_cyclic_operation() {
     let cycle = 1_000_000;
-    let mut t = Transport::new(EmuLink::new(&Scenario::line(3)), MASTER_MAC);
+    let mut t = Transport::new(emu_link(&Scenario::line(3)), MASTER_MAC);
     let mut m = machine(cycle);
     let stop = AtomicBool::new(false);
     let dc = DcClock::from_realtime();
@@ -222,7 +182,7 @@ fn silent_wire_is_reported_as_no_slaves() {
 
 #[test]
 fn another_master_on_the_segment_is_an_error() {
-    let mut link = EmuLink::new(&Scenario::line(2));
+    let mut link = emu_link(&Scenario::line(2));
     // A request from a master with SOEM's default MAC, as a switch would flood it to us.
     let mut other = vec![0xff; 6];
     other.extend_from_slice(&[0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x88, 0xa4]);

@@ -13,6 +13,7 @@
 //! - [`bringup`]: drives the DC machine's request steps up to delays (scan) or cyclic (run);
 //! - [`dc_task`]: the machine + master-follows-reference servo as the cyclic loop's task;
 //! - [`capture_link`]: records every frame sent and received into a pcap file;
+//! - [`emu_link`]: an in-memory link to the ESC emulator in real time, for tests;
 //! - [`serve`]: the slave side (`ecdc emulate`): answer masters' frames in real time.
 //!
 //! See `docs/runtime.md` for the design and measured round trips.
@@ -22,6 +23,7 @@ pub mod capture_link;
 pub mod clock;
 pub mod cyclic;
 pub mod dc_task;
+pub mod emu_link;
 pub mod errors;
 pub mod rt;
 pub mod serve;

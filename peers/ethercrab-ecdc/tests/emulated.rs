@@ -19,7 +19,7 @@ fn ethercrab_configures_ecdc_synchronises() {
     // ethercrab's addresses (0x1000 + position), adopted, not ecdc's default 0x1001 + position.
     assert_eq!(s.stations, [0x1000, 0x1001, 0x1002]);
     for pos in 0..slaves {
-        let reg = link.net.peek(pos, 0x0010, 2).expect("peek");
+        let reg = link.emu.net.peek(pos, 0x0010, 2).expect("peek");
         assert_eq!(u16::from_le_bytes([reg[0], reg[1]]), 0x1000 + pos as u16);
     }
     assert!(s.locked, "ecdc not locked at the end");
@@ -31,7 +31,7 @@ fn ethercrab_configures_ecdc_synchronises() {
     assert_eq!(c.crab_refused, 0, "{c:?}");
     assert_eq!(c.crab_received, c.crab_sent, "{c:?}");
 
-    let spreads: Vec<u64> = sync0_spreads(&mut link.net, slaves)
+    let spreads: Vec<u64> = sync0_spreads(&mut link.emu.net, slaves)
         .into_iter()
         .map(|(_, s)| s)
         .collect();

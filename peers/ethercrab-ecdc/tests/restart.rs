@@ -52,7 +52,7 @@ fn restart_in_op_reuses_the_measured_t_diff() {
         "{resolved:?}"
     );
     // The last 0.5 s, well after the second lock: the pulses still coincide.
-    let spreads = sync0_spreads(&mut link.net, slaves);
+    let spreads = sync0_spreads(&mut link.emu.net, slaves);
     let end = spreads.last().expect("pulses").0;
     let tail: Vec<u64> = spreads
         .iter()

@@ -1,12 +1,10 @@
 //! The in-process emulator link of the tests and the SYNC0 spread they judge by.
 #![allow(dead_code)]
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::io;
-use std::sync::atomic::AtomicBool;
 
-use ecdc_harness::emu::{Delivery, Network, Scenario, SyncSignal};
-use ecdc_harness::runtime::clock;
+use ecdc_harness::emu::{Network, Scenario, SyncSignal};
 use ecdc_harness::runtime::socket::Link;
 use ethercrab::PduStorage;
 use ethercrab_ecdc::{route, run, Options, Report, Route};
@@ -24,12 +22,10 @@ pub fn run_for(link: EmuLink, seconds: f64) -> (Report, EmuLink) {
     run(link, tx, rx, pdu_loop, &opts).expect("run")
 }
 
-/// The emulated chain behind an in-memory link: a sent frame goes through the network at once
-/// (at the current true time) and its reply is handed out when its last bit would arrive.
+/// The emulated chain behind the runtime's in-memory link, able to drop ecdc's frames for a
+/// while.
 pub struct EmuLink {
-    pub net: Network,
-    start: u64,
-    queue: VecDeque<(u64, Vec<u8>)>,
+    pub emu: ecdc_harness::runtime::emu_link::EmuLink,
     /// Drop ecdc's frames for this long (ns), starting this long (ns) after every slave is
     /// in OP (AL status 0x0130 = 8 in the emulator): the loss a host stall of the DC side
     /// looks like.
@@ -42,9 +38,7 @@ pub struct EmuLink {
 impl EmuLink {
     pub fn new(sc: &Scenario) -> Self {
         EmuLink {
-            net: Network::new(sc).expect("scenario"),
-            start: clock::now_ns(),
-            queue: VecDeque::new(),
+            emu: ecdc_harness::runtime::emu_link::EmuLink::new(Network::new(sc).expect("scenario")),
             drop_ecdc: None,
             all_op: None,
             dropped: 0,
@@ -53,10 +47,9 @@ impl EmuLink {
 
     fn dropping(&mut self, frame: &[u8], t: u64) -> bool {
         if self.all_op.is_none() {
-            let n = self.net.slave_count();
-            let op = (0..n).all(|i| {
-                self.net
-                    .peek(i, 0x0130, 1)
+            let net = &self.emu.net;
+            let op = (0..net.slave_count()).all(|i| {
+                net.peek(i, 0x0130, 1)
                     .is_ok_and(|v| v.first().is_some_and(|s| s & 0x1F == 8))
             });
             if op {
@@ -78,38 +71,15 @@ impl EmuLink {
 
 impl Link for EmuLink {
     fn send(&mut self, frame: &[u8]) -> io::Result<()> {
-        let t = clock::now_ns()
-            .saturating_sub(self.start)
-            .max(self.net.now());
-        if self.dropping(frame, t) {
+        if self.dropping(frame, self.emu.true_now()) {
             self.dropped += 1;
             return Ok(());
         }
-        match self.net.transact(frame, t) {
-            Ok(Delivery::Returned(r)) => self.queue.push_back((self.start + r.arrival, r.frame)),
-            Ok(Delivery::Lost(_)) => {}
-            Err(e) => return Err(io::Error::other(format!("{e:?}"))),
-        }
-        Ok(())
+        self.emu.send(frame)
     }
 
     fn recv(&mut self, buf: &mut [u8], deadline_ns: u64) -> io::Result<Option<usize>> {
-        let stop = AtomicBool::new(false);
-        match self.queue.front() {
-            Some((at, _)) if *at <= deadline_ns => {
-                clock::sleep_until(*at, 0, &stop);
-                let Some((_, f)) = self.queue.pop_front() else {
-                    return Ok(None);
-                };
-                let n = f.len().min(buf.len());
-                buf[..n].copy_from_slice(&f[..n]);
-                Ok(Some(f.len()))
-            }
-            _ => {
-                clock::sleep_until(deadline_ns, 0, &stop);
-                Ok(None)
-            }
-        }
+        self.emu.recv(buf, deadline_ns)
     }
 }
 
