@@ -37,6 +37,7 @@ use super::igh_steps::{assign_addresses, count_slaves, station};
 use super::link::{le_u32, le_u64, SimLink};
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
+use crate::schemes::cycle_grid::CycleGrid;
 
 /// `MainDeviceConfig::dc_static_sync_iterations` default.
 pub const STATIC_SYNC_ITERATIONS: u64 = 10_000;
@@ -287,7 +288,7 @@ pub struct Ethercrab {
     reference: usize,
     burst_sent: u64,
     dist_frames: u64,
-    next_cycle: TrueTime,
+    grid: CycleGrid,
     written: Vec<Written>,
 }
 
@@ -302,7 +303,7 @@ impl Ethercrab {
             reference: 0,
             burst_sent: 0,
             dist_frames: 0,
-            next_cycle: 0,
+            grid: CycleGrid::new(cycle_ns),
             written: Vec::new(),
         }
     }
@@ -454,45 +455,39 @@ impl Scheme for Ethercrab {
         "ethercrab"
     }
 
+    /// The phases run in order; a call picks up where the last one stopped.
     fn advance(&mut self, until: TrueTime) -> anyhow::Result<()> {
-        loop {
-            match self.phase {
-                Phase::BringUp => {
-                    self.bring_up()?;
-                    self.phase = Phase::Burst;
-                }
-                Phase::Burst => {
-                    // A lost FRMW times out and the loop goes on with the next iteration
-                    // (ASSUMPTION: what a timed-out static-sync PDU does is not documented;
-                    // docs/bench.md "Frame loss").
-                    let reference = self.reference;
-                    let sent = &mut self.burst_sent;
-                    let dist = &mut self.dist_frames;
-                    let send = |link: &mut SimLink| frmw(link, reference);
-                    if !self
-                        .link
-                        .burst(sent, STATIC_SYNC_ITERATIONS, dist, until, send)?
-                    {
-                        break;
-                    }
-                    self.phase = Phase::Sync;
-                }
-                Phase::Sync => {
-                    self.configure_sync()?;
-                    let c = u64::from(self.cycle_ns.max(1));
-                    self.next_cycle = (self.link.now / c + 1) * c;
-                    self.phase = Phase::Cyclic;
-                }
-                Phase::Cyclic => {
-                    while self.next_cycle < until {
-                        self.link.now = self.link.now.max(self.next_cycle);
-                        self.frmw()?;
-                        self.dist_frames += 1;
-                        self.next_cycle += u64::from(self.cycle_ns.max(1));
-                    }
-                    break;
-                }
+        if self.phase == Phase::BringUp {
+            self.bring_up()?;
+            self.phase = Phase::Burst;
+        }
+        if self.phase == Phase::Burst {
+            // A lost FRMW times out and the loop goes on with the next iteration
+            // (ASSUMPTION: what a timed-out static-sync PDU does is not documented;
+            // docs/bench.md "Frame loss").
+            let reference = self.reference;
+            let send = |link: &mut SimLink| frmw(link, reference);
+            let done = self.link.burst(
+                &mut self.burst_sent,
+                STATIC_SYNC_ITERATIONS,
+                &mut self.dist_frames,
+                until,
+                send,
+            )?;
+            if !done {
+                return self.link.advance_to(until);
             }
+            self.phase = Phase::Sync;
+        }
+        if self.phase == Phase::Sync {
+            self.configure_sync()?;
+            self.grid.start_after(self.link.now);
+            self.phase = Phase::Cyclic;
+        }
+        while let Some(t) = self.grid.take_before(until) {
+            self.link.now = self.link.now.max(t);
+            self.frmw()?;
+            self.dist_frames += 1;
         }
         self.link.advance_to(until)
     }

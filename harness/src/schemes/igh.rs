@@ -42,6 +42,7 @@ use super::igh_steps::{assign_addresses, count_slaves, station};
 use super::link::{le_u32, le_u64, SimLink};
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
+use crate::schemes::cycle_grid::CycleGrid;
 use crate::sim::DEFAULT_MASTER_EPOCH_NS;
 
 /// `EC_SYSTEM_TIME_TOLERANCE_NS`: offset dead band.
@@ -103,7 +104,7 @@ pub struct Igh {
     /// System-time slaves in position order (the FSMs' order).
     sys: Vec<usize>,
     step: Option<Step>,
-    next_cycle: TrueTime,
+    grid: CycleGrid,
     /// First application time (`dc_ref_time`, the phase anchor).
     dc_ref_time: Option<u64>,
     dist_frames: u64,
@@ -222,7 +223,7 @@ impl Igh {
             reference: 0,
             sys: Vec::new(),
             step: None,
-            next_cycle: 0,
+            grid: CycleGrid::new(cycle_ns),
             dc_ref_time: None,
             dist_frames: 0,
             static_frames: None,
@@ -464,14 +465,11 @@ impl Scheme for Igh {
     fn advance(&mut self, until: TrueTime) -> anyhow::Result<()> {
         if self.phase == Phase::Idle {
             self.idle_phase()?;
-            let c = u64::from(self.cycle_ns.max(1));
-            self.next_cycle = (self.link.now / c + 1) * c;
+            self.grid.start_after(self.link.now);
             self.phase = Phase::Operation;
         }
-        while self.next_cycle < until {
-            let t = self.next_cycle;
+        while let Some(t) = self.grid.take_before(until) {
             self.cycle(t)?;
-            self.next_cycle += u64::from(self.cycle_ns.max(1));
         }
         self.link.advance_to(until)
     }

@@ -43,6 +43,7 @@ macro_rules! sim_link_scheme {
     };
 }
 
+pub mod cycle_grid;
 pub mod ecdc;
 pub mod ethercrab;
 pub mod igh;

@@ -41,6 +41,7 @@ use super::igh_steps::{self, station, Latched};
 use super::link::SimLink;
 use super::{Given, Scheme, Written};
 use crate::emu::{Network, TrueTime};
+use crate::schemes::cycle_grid::CycleGrid;
 use crate::sim::DEFAULT_MASTER_EPOCH_NS;
 
 /// Burst length of §2.3 ("about 15 000 ARMW/FRMW commands").
@@ -88,7 +89,7 @@ pub struct Seed000 {
     cycle_ns: u32,
     burst_sent: u64,
     dist_frames: u64,
-    next_cycle: TrueTime,
+    grid: CycleGrid,
     written: Vec<Written>,
     /// §3.1 gate threshold and per-slave wait, ns.
     gate_threshold_ns: u32,
@@ -135,7 +136,7 @@ impl Seed000 {
             cycle_ns,
             burst_sent: 0,
             dist_frames: 0,
-            next_cycle: 0,
+            grid: CycleGrid::new(cycle_ns),
             written: Vec::new(),
             gate_threshold_ns: GATE_THRESHOLD_NS,
             gate_wait_ns: GATE_WAIT_NS,
@@ -262,10 +263,6 @@ impl Seed000 {
             .ok()
             .map(|d| d.to_ns().unsigned_abs()))
     }
-
-    fn cycle_len(&self) -> u64 {
-        u64::from(self.cycle_ns.max(1))
-    }
 }
 
 impl Scheme for Seed000 {
@@ -292,12 +289,11 @@ impl Scheme for Seed000 {
                     {
                         break;
                     }
-                    let c = self.cycle_len();
-                    self.next_cycle = (self.link.now / c + 1) * c;
+                    self.grid.start_after(self.link.now);
                     self.phase = match self.variant {
                         Variant::Derived => Phase::Gate {
                             slave: 0,
-                            since: self.next_cycle,
+                            since: self.grid.next(),
                         },
                         Variant::Printed => Phase::Sync,
                     };
@@ -307,11 +303,9 @@ impl Scheme for Seed000 {
                         self.phase = Phase::Sync;
                         continue;
                     }
-                    if self.next_cycle >= until {
+                    let Some(t) = self.grid.take_before(until) else {
                         break;
-                    }
-                    let t = self.next_cycle;
-                    self.next_cycle += self.cycle_len();
+                    };
                     let d = self.derived_cycle(t, Some(slave))?;
                     let passed = d.is_some_and(|d| d <= self.gate_threshold_ns);
                     let timed_out = t.saturating_sub(since) >= self.gate_wait_ns;
@@ -321,21 +315,18 @@ impl Scheme for Seed000 {
                     if passed || timed_out {
                         self.phase = Phase::Gate {
                             slave: slave + 1,
-                            since: self.next_cycle,
+                            since: self.grid.next(),
                         };
                     }
                 }
                 Phase::Sync => {
                     let start = igh_steps::program_sync0(&mut self.link, self.n, self.cycle_ns)?;
                     self.sync_start = Some(start);
-                    let c = self.cycle_len();
-                    self.next_cycle = (self.link.now / c + 1) * c;
+                    self.grid.start_after(self.link.now);
                     self.phase = Phase::Cyclic;
                 }
                 Phase::Cyclic => {
-                    while self.next_cycle < until {
-                        let t = self.next_cycle;
-                        self.next_cycle += self.cycle_len();
+                    while let Some(t) = self.grid.take_before(until) {
                         match self.variant {
                             Variant::Derived => {
                                 self.derived_cycle(t, None)?;
