@@ -5,9 +5,10 @@
 //! verifies: P5
 
 use ecdc_core::servo::filter::OffsetFilter;
-use ecdc_core::servo::gains::{PiGains, Pole, ONE};
+use ecdc_core::servo::gains::{PiGains, Pole, EDGE_GAINS, ONE};
 use ecdc_core::servo::ieee1588::{mean_path_delay, offset_from_master, rate_ratio_ppb, Exchange};
 use ecdc_core::servo::master::{MasterConfig, MasterInput, MasterOutput, MasterServo};
+use ecdc_core::servo::pi::EDGE_LIMITS;
 use ecdc_core::servo::{Mode, PiLimits};
 use ecdc_proofs::servo as p;
 use ecdc_spec::servo as spec;
@@ -442,21 +443,6 @@ fn master_loop_numbers() {
 /// I and θ at and around every clamp edge.
 #[test]
 fn pi_step_matches_spec_on_boundaries() {
-    // Extremes of the admitted region: MARGIN ≤ Kp ≤ 2 − MARGIN, Ki ≥ 1, 2·Kp + Ki ≤ 4 − MARGIN.
-    let m = ecdc_core::servo::gains::MARGIN;
-    let gains = [
-        (m, 1),
-        (ONE, ONE / 2),
-        (2 * ONE - m, 1),
-        (m, 4 * ONE - 3 * m),
-        (ONE, 2 * ONE - m),
-    ];
-    let limits = [
-        (1, 1),
-        (1 << 60, 1 << 60),
-        (1 << 60, 1),
-        (1000 * ONE, 10 * ONE),
-    ];
     let thetas = [
         0,
         1,
@@ -469,8 +455,9 @@ fn pi_step_matches_spec_on_boundaries() {
         12_345,
     ];
     let mut n = 0u32;
-    for (kp, ki) in gains {
-        for (y, im) in limits {
+    // Extremes of the admitted region: MARGIN ≤ Kp ≤ 2 − MARGIN, Ki ≥ 1, 2·Kp + Ki ≤ 4 − MARGIN.
+    for (kp, ki) in EDGE_GAINS {
+        for (y, im) in EDGE_LIMITS {
             let is = [0, 1, -1, im, -im, im + 1, -im - 1, i64::MIN, i64::MAX, y];
             for i in is {
                 for th in thetas {

@@ -23,6 +23,18 @@ pub const ONE: i64 = 1 << FRAC_BITS;
 /// corner Kp = 1, Ki = 2 (a pole at z = −1: z² + z + 0 = z(z + 1)).
 pub const MARGIN: i64 = ONE >> 10;
 
+/// The corners of the admitted (Kp, Ki) region in Q32: Kp at M and at 2 − M with the least
+/// Ki, and the points on 2·Kp + Ki = 4 − M (feature `verification`): the gains every kernel
+/// test and proof of the PI step runs with.
+#[cfg(any(test, feature = "verification"))]
+pub const EDGE_GAINS: [(i64, i64); 5] = [
+    (MARGIN, 1),
+    (ONE, ONE / 2),
+    (2 * ONE - MARGIN, 1),
+    (MARGIN, 4 * ONE - 3 * MARGIN),
+    (ONE, 2 * ONE - MARGIN),
+];
+
 /// A closed-loop pole on the real axis in [0, 1), as a Q32 fraction (`u32`, so p < 1 holds by
 /// construction). p = 0 is dead-beat; p → 1 is an ever slower, quieter loop.
 ///

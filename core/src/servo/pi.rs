@@ -42,6 +42,16 @@ pub const THETA_MAX: i64 = 1 << THETA_BITS;
 /// Largest admissible y_max / I_max in ns per interval (2^28 ns ≈ 268 ms per interval).
 pub const LIMIT_MAX_NS: i64 = 1 << 28;
 
+/// Edges of the admitted (y_max, I_max) limits in Q32 (feature `verification`): the least,
+/// both at 2^60, an integrator limit far below the output limit, and a typical pair.
+#[cfg(any(test, feature = "verification"))]
+pub const EDGE_LIMITS: [(i64, i64); 4] = [
+    (1, 1),
+    (1 << 60, 1 << 60),
+    (1 << 60, 1),
+    (1000 * super::gains::ONE, 10 * super::gains::ONE),
+];
+
 /// Output and integrator clamps, in Q32 ns per interval.
 ///
 /// # Examples
@@ -406,7 +416,7 @@ pub fn hold(lim: PiLimits, i: i64) -> i64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::gains::{Pole, ONE};
+    use super::super::gains::{Pole, EDGE_GAINS, ONE};
     use super::*;
 
     #[test]
@@ -467,25 +477,11 @@ mod tests {
 
     #[test]
     fn word_kernel_equals_i64_body() {
-        use super::super::gains::MARGIN;
-        let gains = [
-            (MARGIN, 1),
-            (ONE, ONE / 2),
-            (2 * ONE - MARGIN, 1),
-            (MARGIN, 4 * ONE - 3 * MARGIN),
-            (ONE, 2 * ONE - MARGIN),
-        ];
-        let limits = [
-            (1, 1),
-            (1 << 60, 1 << 60),
-            (1 << 60, 1),
-            (1000 * ONE, 10 * ONE),
-        ];
         let mut n = 0u32;
         let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-        for (kp, ki) in gains {
+        for (kp, ki) in EDGE_GAINS {
             let g = PiGains::from_q32(kp, ki).unwrap();
-            for (y_max, i_max) in limits {
+            for (y_max, i_max) in EDGE_LIMITS {
                 let lim = PiLimits::from_q32(y_max, i_max).unwrap();
                 let mut is = std::vec![0, 1, -1, i_max, -i_max, i_max + 1, -i_max - 1, y_max];
                 is.extend([i64::MIN, i64::MAX, -y_max, i_max / 2, -(i_max / 3)]);
