@@ -38,24 +38,8 @@ pub fn prop_pi_step_bounded(kp: i64, ki: i64, y_max: i64, i_max: i64, i: i64, th
         "|I'| = {} > I_max = {i_max}",
         s.integrator
     );
-    assert_eq!(
-        widened(s),
-        spec_pi_step(kp, ki, y_max, i_max, i, theta),
-        "kernel differs from the i128 rule (an intermediate wrapped?)"
-    );
-}
-
-/// The spec's i128 rule for the kernel's inputs: (y, I', saturated).
-fn spec_pi_step(
-    kp: i64,
-    ki: i64,
-    y_max: i64,
-    i_max: i64,
-    i: i64,
-    theta: i64,
-) -> (i128, i128, bool) {
-    let w = i128::from;
-    spec::pi_step(w(kp), w(ki), w(y_max), w(i_max), w(i), w(theta))
+    // The i64 result is the i128 rule's, so no intermediate wrapped.
+    prop_pi_step_matches_spec(kp, ki, y_max, i_max, i, theta);
 }
 
 /// A kernel step as the spec states it: (y, I', saturated) in i128.
@@ -420,9 +404,10 @@ pub fn prop_pi_step_matches_spec(
         return false;
     };
     let s = pi_step(g, lim, i, theta);
+    let w = i128::from;
     assert_eq!(
         widened(s),
-        spec_pi_step(kp, ki, y_max, i_max, i, theta),
+        spec::pi_step(w(kp), w(ki), w(y_max), w(i_max), w(i), w(theta)),
         "pi_step differs from the i128 rule (kp {kp} ki {ki} y_max {y_max} i_max {i_max} i {i} \
          theta {theta})"
     );
