@@ -8,6 +8,7 @@
 use crate::dc::error::Error;
 use crate::dc::event::Event;
 use crate::dc::holdover::{Holdover, HoldoverCause};
+use crate::dc::lock::{LockChange, LockHysteresis};
 use crate::dc::machine::Machine;
 use crate::dc::phase::Phase;
 use crate::dc::remeasure::{Remeasure, RemeasureRun};
@@ -28,10 +29,8 @@ pub(crate) struct CyclicState {
     pub(crate) lost_streak: u16,
     pub(crate) wkc_streak: u16,
     pub(crate) topo_streak: u16,
-    pub(crate) locked: bool,
-    pub(crate) good_streak: u16,
-    pub(crate) bad_streak: u16,
-    pub(crate) not_locked_reported: bool,
+    /// Lock and loss of lock (`dc/lock.rs`).
+    pub(crate) lock: LockHysteresis,
     pub(crate) bound_ns: Option<u32>,
     pub(crate) ref_time: Option<SystemTime>,
     /// What the replies of the cycle in flight reported.
@@ -407,37 +406,31 @@ impl<const N: usize> CyclicCx<'_, N> {
         let Some(bound) = self.c.bound_ns else {
             return;
         };
-        if bound <= m.lock_ns {
-            self.c.good_streak = self.c.good_streak.saturating_add(1);
-        } else {
-            self.c.good_streak = 0;
+        match self.c.lock.judge(bound, &m) {
+            Some(LockChange::Locked) => {
+                self.sh.restarts.streak = 0;
+                let frames = self
+                    .sh
+                    .stats
+                    .frames_sent
+                    .saturating_sub(self.sh.restarts.frames_at_start);
+                self.sh.stats.lock_frames = Some(frames);
+                self.sh.push_event(Event::Locked {
+                    frames,
+                    bound_ns: bound,
+                });
+            }
+            Some(LockChange::Lost) => {
+                self.c.cycles = 0;
+                self.sh.push_event(Event::LockLost { bound_ns: bound });
+            }
+            None => {}
         }
-        if bound > m.unlock_ns {
-            self.c.bad_streak = self.c.bad_streak.saturating_add(1);
-        } else {
-            self.c.bad_streak = 0;
-        }
-        if !self.c.locked && self.c.good_streak >= m.lock_cycles {
-            self.c.locked = true;
-            self.sh.restarts.streak = 0;
-            let frames = self
-                .sh
-                .stats
-                .frames_sent
-                .saturating_sub(self.sh.restarts.frames_at_start);
-            self.sh.stats.lock_frames = Some(frames);
-            self.sh.push_event(Event::Locked {
-                frames,
-                bound_ns: bound,
-            });
-        } else if self.c.locked && self.c.bad_streak >= m.unlock_cycles {
-            self.c.locked = false;
-            self.c.not_locked_reported = false;
-            self.c.cycles = 0;
-            self.sh.push_event(Event::LockLost { bound_ns: bound });
-        }
-        if !self.c.locked && !self.c.not_locked_reported && self.c.cycles >= m.lock_timeout_cycles {
-            self.c.not_locked_reported = true;
+        if self
+            .c
+            .lock
+            .not_locked_due(self.c.cycles, m.lock_timeout_cycles)
+        {
             self.sh.push_event(Event::Error(Error::NotLocked {
                 cycles: self.c.cycles,
                 bound_ns: bound,
@@ -1014,12 +1007,16 @@ mod tests {
         let mon = base.sh.cfg.monitor;
         for (bound, lost) in [(mon.unlock_ns, false), (mon.unlock_ns + 1, true)] {
             let mut m = base.clone();
-            m.phase.cyclic_mut().unwrap().locked = true;
+            m.phase.cyclic_mut().unwrap().lock.locked = true;
             for _ in 0..mon.unlock_cycles {
                 m.phase.cyclic_mut().unwrap().bound_ns = Some(bound);
                 m.in_cyclic(SystemTime(T), |cx| cx.update_lock());
             }
-            assert_eq!(!m.phase.cyclic_mut().unwrap().locked, lost, "bound {bound}");
+            assert_eq!(
+                !m.phase.cyclic_mut().unwrap().lock.locked,
+                lost,
+                "bound {bound}"
+            );
             let evs: std::vec::Vec<_> = core::iter::from_fn(|| m.poll_event()).collect();
             assert_eq!(
                 evs.contains(&Event::LockLost { bound_ns: bound }),
@@ -1064,7 +1061,7 @@ mod tests {
             let mut reports = 0;
             for &n in cycles {
                 let c = m.phase.cyclic_mut().unwrap();
-                (c.locked, c.cycles, c.bound_ns) = (locked, n, Some(bound));
+                (c.lock.locked, c.cycles, c.bound_ns) = (locked, n, Some(bound));
                 m.in_cyclic(SystemTime(T), |cx| cx.update_lock());
                 reports += core::iter::from_fn(|| m.poll_event())
                     .filter(|e| matches!(e, Event::Error(Error::NotLocked { .. })))

@@ -516,7 +516,7 @@ impl<const N: usize> Machine<N> {
     pub fn is_locked(&self) -> bool {
         self.phase
             .cyclic()
-            .is_some_and(|c| c.locked && c.holdover.is_none())
+            .is_some_and(|c| c.lock.locked && c.holdover.is_none())
     }
     /// Last BRD 0x092C upper bound of |Δt| over all slaves (ns), if read this cycle run.
     ///

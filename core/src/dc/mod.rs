@@ -43,6 +43,7 @@ pub mod error;
 pub mod event;
 pub mod holdover;
 mod line;
+mod lock;
 pub mod machine;
 mod measure;
 mod monitor;

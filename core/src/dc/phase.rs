@@ -243,12 +243,13 @@ mod tests {
         use crate::dc::{Config, Machine};
         use crate::time::SystemTime;
         let mut m = Machine::<4>::new(Config::default()).unwrap();
-        m.phase = Phase::Cyclic(CyclicState {
-            locked: true,
+        let mut c = CyclicState {
             bound_ns: Some(5),
             ref_time: Some(crate::time::SystemTime(7)),
             ..CyclicState::default()
-        });
+        };
+        c.lock.locked = true;
+        m.phase = Phase::Cyclic(c);
         assert!(m.is_locked() && !m.in_holdover());
         assert_eq!(m.diff_bound_ns(), Some(5));
         assert_eq!(m.reference_time(), Some(SystemTime(7)));
