@@ -18,8 +18,8 @@
 //!   (`adjust.rs`), drift (`drift.rs`), SYNC (`activation.rs`); `bridge.rs` feeds the replies to
 //!   the pure maths below;
 //! - cyclic operation (`cyclic.rs`, run through a `CyclicCx`: its data and the shared parts),
-//!   its fast paths (`cyclic_fast.rs`, `monitor.rs`), hold-over (`holdover.rs`) and delay
-//!   re-measurement (`remeasure.rs`).
+//!   its fast paths (`cyclic_fast.rs`, `monitor.rs`), lock hysteresis (`lock.rs`), hold-over
+//!   (`holdover.rs`) and delay re-measurement (`remeasure.rs`).
 
 // --- DC maths: pure functions the machine calls ---
 pub mod delay;
