@@ -13,18 +13,48 @@ fn net3() -> (Network, u64) {
     addressed(&Scenario::line(3).ideal())
 }
 
+/// A network driven one datagram at a time, each sent 1 µs after the previous reply came back.
+struct Bus {
+    net: Network,
+    t: u64,
+}
+
+impl Bus {
+    /// The network of [`net3`] or [`addressed`], from the time they return.
+    fn new((net, t): (Network, u64)) -> Self {
+        Bus { net, t }
+    }
+
+    /// One datagram carrying `d`; its reply.
+    fn one(&mut self, c: Command, a: Address, d: &[u8]) -> Reply {
+        let (r, back) = one(&mut self.net, self.t, c, a, d);
+        self.t = back + 1000;
+        r
+    }
+
+    /// One datagram carrying `len` zero bytes; its reply.
+    fn read(&mut self, c: Command, a: Address, len: usize) -> Reply {
+        self.one(c, a, &vec![0; len])
+    }
+
+    /// `len` bytes of register `ado` of slave `i`, as the emulator holds them.
+    fn peek(&self, i: usize, ado: u16, len: usize) -> Vec<u8> {
+        self.net.peek(i, ado, len).unwrap()
+    }
+}
+
 /// REQ-ESC-002: APRD acts at ADP 0, every slave increments ADP.
 // verifies: REQ-ESC-002
 #[test]
 fn aprd_auto_increment() {
-    let (mut net, t) = net3();
-    let (r, _) = aprd_at(&mut net, t, 1, 0x0010, 2);
+    let mut bus = Bus::new(net3());
+    let r = bus.read(Command::Aprd, Address::position(1, 0x0010), 2);
     assert_eq!(r.wkc, 1);
     assert_eq!(u16_of(&r.data), 0x1001);
     // Sent 0xFFFF, passed 3 slaves.
     assert_eq!(r.adp, 0xFFFFu16.wrapping_add(3));
     // Position beyond the chain: nobody answers.
-    let (r, _) = aprd_at(&mut net, t + 100_000, 5, 0x0010, 2);
+    let r = bus.read(Command::Aprd, Address::position(5, 0x0010), 2);
     assert_eq!(r.wkc, 0);
     assert_eq!(r.data, vec![0, 0]);
 }
@@ -33,42 +63,30 @@ fn aprd_auto_increment() {
 // verifies: REQ-ESC-002
 #[test]
 fn apwr_aprw() {
-    let (mut net, t) = net3();
-    let (r, _) = apwr_at(&mut net, t, 2, 0x1000, &[0xAB]);
+    let mut bus = Bus::new(net3());
+    let r = bus.one(Command::Apwr, Address::position(2, 0x1000), &[0xAB]);
     assert_eq!(r.wkc, 1);
-    assert_eq!(net.peek(2, 0x1000, 1).unwrap(), vec![0xAB]);
-    assert_eq!(net.peek(1, 0x1000, 1).unwrap(), vec![0x00]);
-    let (r, _) = one(
-        &mut net,
-        t + 100_000,
-        Command::Aprw,
-        Address::position(2, 0x1000),
-        &[0xCD],
-    );
+    assert_eq!(bus.peek(2, 0x1000, 1), vec![0xAB]);
+    assert_eq!(bus.peek(1, 0x1000, 1), vec![0x00]);
+    let r = bus.one(Command::Aprw, Address::position(2, 0x1000), &[0xCD]);
     assert_eq!(r.wkc, 3);
     assert_eq!(r.data, vec![0xAB]);
-    assert_eq!(net.peek(2, 0x1000, 1).unwrap(), vec![0xCD]);
+    assert_eq!(bus.peek(2, 0x1000, 1), vec![0xCD]);
 }
 
 /// REQ-ESC-002: FPxx match the configured address, ADP is left untouched.
 // verifies: REQ-ESC-002
 #[test]
 fn configured_address_commands() {
-    let (mut net, t) = net3();
-    let (r, _) = fprd_at(&mut net, t, 0x1002, 0x0010, 2);
+    let mut bus = Bus::new(net3());
+    let r = bus.read(Command::Fprd, Address::configured(0x1002, 0x0010), 2);
     assert_eq!((r.wkc, u16_of(&r.data), r.adp), (1, 0x1002, 0x1002));
-    let (r, _) = fpwr_at(&mut net, t + 100_000, 0x1001, 0x1004, &[7]);
+    let r = bus.one(Command::Fpwr, Address::configured(0x1001, 0x1004), &[7]);
     assert_eq!(r.wkc, 1);
-    assert_eq!(net.peek(1, 0x1004, 1).unwrap(), vec![7]);
-    let (r, _) = one(
-        &mut net,
-        t + 200_000,
-        Command::Fprw,
-        Address::configured(0x1001, 0x1004),
-        &[9],
-    );
+    assert_eq!(bus.peek(1, 0x1004, 1), vec![7]);
+    let r = bus.one(Command::Fprw, Address::configured(0x1001, 0x1004), &[9]);
     assert_eq!((r.wkc, r.data.clone()), (3, vec![7]));
-    let (r, _) = fprd_at(&mut net, t + 300_000, 0x7777, 0x0010, 2);
+    let r = bus.read(Command::Fprd, Address::configured(0x7777, 0x0010), 2);
     assert_eq!(r.wkc, 0);
 }
 
@@ -80,24 +98,12 @@ fn alias_addressing() {
         alias: 0x0ABC,
         ..SlaveSpec::default()
     });
-    let mut net = Network::new(&sc).unwrap();
-    let (r, t) = one(
-        &mut net,
-        0,
-        Command::Fprd,
-        Address::configured(0x0ABC, 0x0000),
-        &[0],
-    );
-    assert_eq!(r.wkc, 0);
-    let (r, t) = fpwr_at(&mut net, t + 1000, 0, 0x0103, &[1]);
+    let mut bus = Bus::new((Network::new(&sc).unwrap(), 0));
+    let by_alias = Address::configured(0x0ABC, 0x0000);
+    assert_eq!(bus.read(Command::Fprd, by_alias, 1).wkc, 0);
+    let r = bus.one(Command::Fpwr, Address::configured(0, 0x0103), &[1]);
     assert_eq!(r.wkc, 1);
-    let (r, _) = one(
-        &mut net,
-        t + 1000,
-        Command::Fprd,
-        Address::configured(0x0ABC, 0x0000),
-        &[0],
-    );
+    let r = bus.read(Command::Fprd, by_alias, 1);
     assert_eq!((r.wkc, r.data[0]), (1, 0x11));
 }
 
@@ -105,42 +111,24 @@ fn alias_addressing() {
 // verifies: REQ-ESC-002
 #[test]
 fn broadcast_commands() {
-    let (mut net, mut t) = net3();
-    for (i, v) in [0x01u8, 0x02, 0x10].iter().enumerate() {
-        let (r, a) = fpwr_at(&mut net, t, 0x1000 + i as u16, 0x1010, &[*v]);
+    let mut bus = Bus::new(net3());
+    for (i, v) in [0x01u8, 0x02, 0x10].into_iter().enumerate() {
+        let station = 0x1000 + i as u16;
+        let r = bus.one(Command::Fpwr, Address::configured(station, 0x1010), &[v]);
         assert_eq!(r.wkc, 1);
-        t = a + 1000;
     }
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Brd,
-        Address::broadcast(0x1010),
-        &[0x80],
-    );
+    let r = bus.one(Command::Brd, Address::broadcast(0x1010), &[0x80]);
     assert_eq!((r.wkc, r.data[0], r.adp), (3, 0x93, 3));
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Bwr,
-        Address::broadcast(0x1011),
-        &[0x44],
-    );
+    let r = bus.one(Command::Bwr, Address::broadcast(0x1011), &[0x44]);
     assert_eq!((r.wkc, r.adp), (3, 3));
     for i in 0..3 {
-        assert_eq!(net.peek(i, 0x1011, 1).unwrap(), vec![0x44]);
+        assert_eq!(bus.peek(i, 0x1011, 1), vec![0x44]);
     }
-    let (r, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Brw,
-        Address::broadcast(0x1010),
-        &[0x20],
-    );
+    let r = bus.one(Command::Brw, Address::broadcast(0x1010), &[0x20]);
     assert_eq!((r.wkc, r.data[0]), (9, 0x33));
     // BRW: each slave writes the data as it arrives (already ORed by the slaves before it).
-    for (i, v) in [0x20u8, 0x21, 0x23].iter().enumerate() {
-        assert_eq!(net.peek(i, 0x1010, 1).unwrap(), vec![*v]);
+    for (i, v) in [0x20u8, 0x21, 0x23].into_iter().enumerate() {
+        assert_eq!(bus.peek(i, 0x1010, 1), vec![v]);
     }
 }
 
@@ -159,54 +147,26 @@ fn fmmu(log: u32, len: u16, phys: u16, typ: u8) -> Vec<u8> {
 // verifies: REQ-ESC-002
 #[test]
 fn logical_commands() {
-    let (mut net, t) = net3();
+    let mut bus = Bus::new(net3());
     // Slave 0: logical 0x10000..0x10004 written to 0x1100. Slave 1: same range read from 0x1200.
-    let (r, a) = fpwr_at(&mut net, t, 0x1000, 0x0600, &fmmu(0x10000, 4, 0x1100, 2));
-    assert_eq!(r.wkc, 1);
-    let (r, a) = fpwr_at(
-        &mut net,
-        a + 1000,
-        0x1001,
-        0x0600,
-        &fmmu(0x10000, 4, 0x1200, 1),
-    );
-    assert_eq!(r.wkc, 1);
-    let (r, a) = fpwr_at(&mut net, a + 1000, 0x1001, 0x1200, &[1, 2, 3, 4]);
-    assert_eq!(r.wkc, 1);
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Lrw,
-        Address::Logical(0x10000),
-        &[9, 9, 9, 9],
-    );
+    for (station, ado, d) in [
+        (0x1000, 0x0600, fmmu(0x10000, 4, 0x1100, 2)),
+        (0x1001, 0x0600, fmmu(0x10000, 4, 0x1200, 1)),
+        (0x1001, 0x1200, vec![1, 2, 3, 4]),
+    ] {
+        let r = bus.one(Command::Fpwr, Address::configured(station, ado), &d);
+        assert_eq!(r.wkc, 1);
+    }
+    let r = bus.one(Command::Lrw, Address::Logical(0x10000), &[9, 9, 9, 9]);
     assert_eq!(r.wkc, 3);
     assert_eq!(r.data, vec![1, 2, 3, 4]);
-    assert_eq!(net.peek(0, 0x1100, 4).unwrap(), vec![9, 9, 9, 9]);
-    let (r, a) = read(
-        &mut net,
-        a + 1000,
-        Command::Lrd,
-        Address::Logical(0x0FFFE),
-        4,
-    );
+    assert_eq!(bus.peek(0, 0x1100, 4), vec![9, 9, 9, 9]);
+    let r = bus.read(Command::Lrd, Address::Logical(0x0FFFE), 4);
     assert_eq!((r.wkc, r.data.clone()), (1, vec![0, 0, 1, 2]));
-    let (r, a) = one(
-        &mut net,
-        a + 1000,
-        Command::Lwr,
-        Address::Logical(0x10002),
-        &[5, 5, 5, 5],
-    );
+    let r = bus.one(Command::Lwr, Address::Logical(0x10002), &[5, 5, 5, 5]);
     assert_eq!(r.wkc, 1);
-    assert_eq!(net.peek(0, 0x1100, 4).unwrap(), vec![9, 9, 5, 5]);
-    let (r, _) = read(
-        &mut net,
-        a + 1000,
-        Command::Lrd,
-        Address::Logical(0x20000),
-        4,
-    );
+    assert_eq!(bus.peek(0, 0x1100, 4), vec![9, 9, 5, 5]);
+    let r = bus.read(Command::Lrd, Address::Logical(0x20000), 4);
     assert_eq!(r.wkc, 0);
 }
 
@@ -215,25 +175,20 @@ fn logical_commands() {
 // verifies: REQ-ESC-006
 #[test]
 fn read_multiple_write() {
-    let (mut net, t) = net3();
-    let (r, a) = read(&mut net, t, Command::Armw, Address::position(1, 0x0910), 8);
+    let mut bus = Bus::new(net3());
+    let r = bus.read(Command::Armw, Address::position(1, 0x0910), 8);
     assert_eq!(r.wkc, 3);
     assert_eq!(r.adp, 0xFFFFu16.wrapping_add(3));
     let sys1 = u64_of(&r.data);
     assert!(sys1 > 0);
-    // Loop samples are applied at the end of the frame at each slave.
-    net.advance_to(a).unwrap();
+    // Loop samples are applied at the end of the frame at each slave, which has passed by
+    // the time of the next command.
+    bus.net.advance_to(bus.t).unwrap();
     // Slaves 0 and 2 took a sample: their 0x092C is no longer the reset value 0.
-    assert_ne!(u32_of(&net.peek(0, 0x092C, 4).unwrap()), 0);
-    assert_ne!(u32_of(&net.peek(2, 0x092C, 4).unwrap()), 0);
-    assert_eq!(u32_of(&net.peek(1, 0x092C, 4).unwrap()), 0);
-    let (r, _) = read(
-        &mut net,
-        a + 1000,
-        Command::Frmw,
-        Address::configured(0x1001, 0x0910),
-        8,
-    );
+    assert_ne!(u32_of(&bus.peek(0, 0x092C, 4)), 0);
+    assert_ne!(u32_of(&bus.peek(2, 0x092C, 4)), 0);
+    assert_eq!(u32_of(&bus.peek(1, 0x092C, 4)), 0);
+    let r = bus.read(Command::Frmw, Address::configured(0x1001, 0x0910), 8);
     assert_eq!((r.wkc, r.adp), (3, 0x1001));
     assert!(u64_of(&r.data) > sys1);
 }
@@ -255,45 +210,27 @@ fn frmw_counts_dc_slaves_only() {
             ..SlaveSpec::default()
         });
     }
-    let (mut net, t) = addressed(&sc);
-    let (r, a) = read(
-        &mut net,
-        t,
-        Command::Frmw,
-        Address::configured(0x1000, 0x0910),
-        8,
-    );
+    let mut bus = Bus::new(addressed(&sc));
+    let r = bus.read(Command::Frmw, Address::configured(0x1000, 0x0910), 8);
     assert_eq!(r.wkc, 2);
     // IgH's "has system time" probe: FPRD 0x0910 answers only with system time.
-    let (r, a) = fprd_at(&mut net, a + 1000, 0x1002, 0x0910, 8);
+    let r = bus.read(Command::Fprd, Address::configured(0x1002, 0x0910), 8);
     assert_eq!(r.wkc, 0);
-    let (r, a) = fprd_at(&mut net, a + 1000, 0x1002, 0x0900, 4);
+    let r = bus.read(Command::Fprd, Address::configured(0x1002, 0x0900), 4);
     assert_eq!(r.wkc, 1);
-    let (r, _) = one(
-        &mut net,
-        a + 1000,
-        Command::Bwr,
-        Address::broadcast(0x0900),
-        &[0; 4],
-    );
+    let r = bus.one(Command::Bwr, Address::broadcast(0x0900), &[0; 4]);
     assert_eq!(r.wkc, 3);
 }
 
 /// NOP and unknown command codes pass untouched.
 #[test]
 fn nop_and_unknown() {
-    let (mut net, t) = net3();
-    let (r, a) = one(
-        &mut net,
-        t,
-        Command::Nop,
-        Address::Raw(0x0010_0000),
-        &[1, 2],
-    );
+    let mut bus = Bus::new(net3());
+    let r = bus.one(Command::Nop, Address::Raw(0x0010_0000), &[1, 2]);
     assert_eq!((r.wkc, r.adp, r.data.clone()), (0, 0, vec![1, 2]));
     let mut f = frame(&[(Command::Aprd, Address::position(0, 0x10), &[0, 0])]);
     f[16] = 15; // unknown command code
-    let back = net.transact(&f, a + 1000).unwrap().returned().unwrap();
+    let back = bus.net.transact(&f, bus.t).unwrap().returned().unwrap();
     assert_eq!(&back.frame[16..30], &f[16..30]);
 }
 
@@ -343,13 +280,7 @@ fn circulating_frame_destroyed() {
         Delivery::Lost(LossReason::Circulated)
     );
     // Afterwards slave 1 loops port 1 back: only slaves 0 and 1 answer.
-    let (r, _) = one(
-        &mut net,
-        1_000_000,
-        Command::Brd,
-        Address::broadcast(0x0000),
-        &[0],
-    );
+    let r = Bus::new((net, 1_000_000)).read(Command::Brd, Address::broadcast(0x0000), 1);
     assert_eq!(r.wkc, 2);
     assert!(!r.circulating);
 }
