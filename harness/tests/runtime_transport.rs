@@ -7,7 +7,7 @@ use std::io;
 use std::sync::atomic::AtomicBool;
 
 use ecdc_harness::runtime::clock;
-use ecdc_harness::runtime::cyclic::{self, CycleConfig, CycleReport, CycleTask};
+use ecdc_harness::runtime::cyclic::{self, CycleConfig, CycleReport, CycleTask, LoopSummary};
 use ecdc_harness::runtime::socket::Link;
 use ecdc_harness::runtime::transport::{classify, Class, Reply, SendError, Transport};
 
@@ -290,15 +290,21 @@ impl CycleTask for Probe {
     }
 }
 
+/// The cyclic loop over a loop link that behaves as `b`, with a task that moves each deadline
+/// by `adjust_ns`, the stop flag set or not from the start: its summary and the task.
+fn run_loop(b: Behaviour, adjust_ns: i64, cfg: &CycleConfig, stop: bool) -> (LoopSummary, Probe) {
+    let mut t = Transport::new(LoopLink::new(b), MAC);
+    let mut task = Probe::adjusting(adjust_ns);
+    let s = cyclic::run(&mut t, &mut task, cfg, &AtomicBool::new(stop), |_| {}).unwrap();
+    (s, task)
+}
+
 #[test]
 fn cyclic_loop_runs_fixed_cycles_and_applies_adjustment() {
-    let mut t = Transport::new(LoopLink::new(Behaviour::Reflect), MAC);
-    let mut task = Probe::adjusting(100_000);
     let mut cfg = CycleConfig::new(1_000_000);
     cfg.max_cycles = Some(40);
-    let stop = AtomicBool::new(false);
     let started = clock::now_ns();
-    let s = cyclic::run(&mut t, &mut task, &cfg, &stop, |_| {}).unwrap();
+    let (s, task) = run_loop(Behaviour::Reflect, 100_000, &cfg, false);
     let elapsed = clock::now_ns() - started;
     assert_eq!(s.cycles, 40);
     assert_eq!(task.completed, 40);
@@ -318,13 +324,10 @@ fn cyclic_loop_runs_fixed_cycles_and_applies_adjustment() {
 
 #[test]
 fn cyclic_loop_counts_lost_replies_as_lost_not_wkc_errors() {
-    let mut t = Transport::new(LoopLink::new(Behaviour::Drop), MAC);
-    let mut task = Probe::adjusting(0);
     let mut cfg = CycleConfig::new(1_000_000);
     cfg.max_cycles = Some(5);
     cfg.reply_timeout_ns = 100_000;
-    let stop = AtomicBool::new(false);
-    let s = cyclic::run(&mut t, &mut task, &cfg, &stop, |_| {}).unwrap();
+    let (s, task) = run_loop(Behaviour::Drop, 0, &cfg, false);
     assert_eq!(task.missing, 5);
     assert_eq!(s.wkc_errors, 0);
     assert_eq!(s.rtt.count, 0);
@@ -334,11 +337,7 @@ fn cyclic_loop_counts_lost_replies_as_lost_not_wkc_errors() {
 
 #[test]
 fn stop_flag_ends_loop_as_interrupted() {
-    let mut t = Transport::new(LoopLink::new(Behaviour::Reflect), MAC);
-    let mut task = Probe::adjusting(0);
-    let cfg = CycleConfig::new(1_000_000);
-    let stop = AtomicBool::new(true);
-    let s = cyclic::run(&mut t, &mut task, &cfg, &stop, |_| {}).unwrap();
+    let (s, _) = run_loop(Behaviour::Reflect, 0, &CycleConfig::new(1_000_000), true);
     assert!(s.interrupted);
     assert_eq!(s.cycles, 0);
 }
