@@ -22,7 +22,9 @@ impl Digest {
         self.word(v as u64);
     }
 
-    pub(crate) fn finish(&self) -> u64 {
-        self.0
+    /// Asserts that the digest is the committed `expected` one; the message names what
+    /// changed and prints the digest to record if the change is intended.
+    pub(crate) fn assert_golden(&self, what: &str, expected: u64) {
+        assert_eq!(self.0, expected, "{what} changed: digest {:#018x}", self.0);
     }
 }

@@ -99,7 +99,7 @@ impl Carry {
     /// assert_eq!(c, Carry::new());
     /// ```
     pub fn reset(&mut self) {
-        self.r = 0;
+        *self = Carry::new();
     }
 }
 

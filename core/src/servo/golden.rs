@@ -203,12 +203,7 @@ mod tests {
             }
         }
         assert!(full_judged > 300_000, "{full_judged}");
-        assert_eq!(
-            d.finish(),
-            super::GATE_DIGEST,
-            "gate outputs changed: digest {:#x}",
-            d.finish()
-        );
+        d.assert_golden("gate outputs", super::GATE_DIGEST);
         assert!(by_mad > 10_000, "{by_mad}");
     }
 
@@ -249,12 +244,7 @@ mod tests {
             }
         }
         assert!(steps >= 200_000);
-        assert_eq!(
-            d.finish(),
-            super::SERVO_DIGEST,
-            "servo outputs changed: digest {:#x}",
-            d.finish()
-        );
+        d.assert_golden("servo outputs", super::SERVO_DIGEST);
         // Every verdict occurred in Tracking (where the gate is armed) at least a few times.
         let tracking = seen[Mode::Tracking as usize];
         for v in [
@@ -357,12 +347,7 @@ mod tests {
             }
         }
         assert!(steps >= 200_000);
-        assert_eq!(
-            d.finish(),
-            super::MASTER_DIGEST,
-            "master servo outputs changed: digest {:#x}",
-            d.finish()
-        );
+        d.assert_golden("master servo outputs", super::MASTER_DIGEST);
         assert!(locked_tracking > 20_000, "{locked_tracking}");
         assert!(wide > 1000, "{wide}");
     }
