@@ -1063,14 +1063,27 @@ fn configured(t_diff: &[Option<i32>], cfg: &TdiffConfig, i: u16, s: &SlaveInfo) 
 mod tests {
     use super::*;
 
-    /// Where a t_Diff came from, in words.
+    /// Where a t_Diff came from, in words, for every source.
     #[test]
     fn source_display() {
-        assert_eq!(
-            std::format!("{}", TdiffSource::SameType { from: 4 }),
-            "same type as 4"
-        );
-        assert_eq!(std::format!("{}", TdiffSource::Measured), "measured");
+        let implausible = TdiffFallback::Implausible { measured_ns: -30 };
+        for (source, words) in [
+            (TdiffSource::Default, "default"),
+            (TdiffSource::Configured, "configured"),
+            (TdiffSource::Measured, "measured"),
+            (TdiffSource::SameType { from: 4 }, "same type as 4"),
+            (TdiffSource::Earlier, "measured in an earlier bring-up"),
+            (
+                TdiffSource::Fallback(TdiffFallback::Running),
+                "fallback: running",
+            ),
+            (
+                TdiffSource::Fallback(implausible),
+                "fallback: measured -30 ns implausible",
+            ),
+        ] {
+            assert_eq!(std::format!("{source}"), words);
+        }
     }
     use super::mean;
 
