@@ -190,18 +190,24 @@ pub fn control(regs: &mut RegisterFile, sms: &[SmEntry]) -> u16 {
     } else {
         // The SyncManager types the firmware checks on this transition, each with the code
         // of its failure, and whether their FMMUs are checked too (process data only).
-        let checked: &[(u8, StatusCode)] = match (cur, req) {
-            (INIT, PREOP) => &[
-                (sm_type::MBX_OUT, StatusCode::InvalidMailboxConfig),
-                (sm_type::MBX_IN, StatusCode::InvalidMailboxConfig),
-            ],
-            (PREOP, SAFEOP) => &[
-                (sm_type::PD_OUT, StatusCode::InvalidOutputConfig),
-                (sm_type::PD_IN, StatusCode::InvalidInputConfig),
-            ],
-            _ => &[],
+        let (checked, fmmus): (&[(u8, StatusCode)], bool) = match (cur, req) {
+            (INIT, PREOP) => (
+                &[
+                    (sm_type::MBX_OUT, StatusCode::InvalidMailboxConfig),
+                    (sm_type::MBX_IN, StatusCode::InvalidMailboxConfig),
+                ],
+                false,
+            ),
+            (PREOP, SAFEOP) => (
+                &[
+                    (sm_type::PD_OUT, StatusCode::InvalidOutputConfig),
+                    (sm_type::PD_IN, StatusCode::InvalidInputConfig),
+                ],
+                true,
+            ),
+            _ => (&[], false),
         };
-        match check(regs, sms, checked, req == SAFEOP) {
+        match check(regs, sms, checked, fmmus) {
             Some(c) => (cur, Some(c)),
             None => (req, None),
         }
